@@ -1,0 +1,91 @@
+//! `farma info LOG`: what a log holds.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use rayon::prelude::*;
+use serde_json::json;
+
+use super::LogArgs;
+use crate::error::{Error, Result};
+use crate::log::{Progress, open_log};
+use crate::stats::{ChannelSummary, summarize};
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// The log: a store, CSV, Parquet or Arrow IPC.
+    pub log: PathBuf,
+    /// Channels to summarise (comma-separated, or all).
+    #[arg(long, default_value = "all")]
+    pub channel: String,
+    #[command(flatten)]
+    pub log_args: LogArgs,
+    /// One JSON object on stdout instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
+    let store = open_log(&a.log, &a.log_args.options()?, &a.log_args.cache(), progress)?;
+    let names = store.select_channels(&a.channel)?;
+    if store.n_samples() < 2 {
+        return Err(Error::TooShort {
+            what: format!("{}: info (standard deviation)", a.log.display()),
+            need: 2,
+            have: store.n_samples() as u64,
+        });
+    }
+    let summaries: Vec<ChannelSummary> = names
+        .par_iter()
+        .map(|n| Ok(summarize(n, store.column(n)?)))
+        .collect::<Result<_>>()?;
+    let meta = store.meta();
+    if a.json {
+        let v = json!({
+            "log": a.log.display().to_string(),
+            "format": meta.source_format,
+            "channels": summaries,
+            "n_samples": store.n_samples(),
+            "sample_rate_hz": store.sample_rate_hz(),
+            "duration_s": store.duration_s(),
+            "time_source": meta.time_source,
+            "time_col": meta.time_col,
+            "segments": meta.segments,
+            "gaps": meta.segments.len().saturating_sub(1),
+            "repairs": meta.repairs,
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!("log       {} ({})", a.log.display(), meta.source_format);
+    println!(
+        "samples   {} in {} segment(s)",
+        store.n_samples(),
+        meta.segments.len()
+    );
+    println!("rate      {} Hz (from {})", store.sample_rate_hz(), meta.time_source);
+    println!("duration  {:.3} s", store.duration_s());
+    if meta.repairs.is_empty() {
+        println!("repairs   none");
+    }
+    for r in &meta.repairs {
+        println!("repair    {} {} x{}: {}", r.kind, r.channel, r.count, r.detail);
+    }
+    if meta.segments.len() > 1 {
+        for s in &meta.segments {
+            println!("segment   rows {}..{} from t = {} s", s.start, s.start + s.len, s.t0_s);
+        }
+    }
+    println!();
+    println!(
+        "{:<16} {:>12} {:>14} {:>14} {:>14} {:>14}",
+        "channel", "n", "mean", "std", "min", "max"
+    );
+    for s in &summaries {
+        println!(
+            "{:<16} {:>12} {:>14.6e} {:>14.6e} {:>14.6e} {:>14.6e}",
+            s.name, s.n, s.mean, s.std, s.min, s.max
+        );
+    }
+    Ok(())
+}

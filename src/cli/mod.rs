@@ -1,0 +1,121 @@
+//! The command line: argument definitions and one runner per command.
+//!
+//! Results go to stdout (text, or JSON with `--json`); progress, warnings and
+//! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
+//! 2 bad input or usage (see [`crate::error`]).
+
+mod info;
+mod ingest;
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::error::{EXIT_OK, Error, Result};
+use crate::log::{CachePolicy, Delimiter, GapPolicy, LogOptions, NanPolicy, Progress};
+
+/// farma: nonparametric ARMA models of gyro drift, and where a simulator differs from the real sensor.
+#[derive(Parser, Debug)]
+#[command(name = "farma", version, about, long_about = None)]
+pub struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    /// No progress bars.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Convert a log (CSV, Parquet, Arrow IPC) into a memory-mapped store.
+    Ingest(ingest::IngestArgs),
+    /// Channels, samples, rate, duration, gaps and per-channel statistics of a log.
+    Info(info::InfoArgs),
+}
+
+/// How to read the input log (shared by every command that reads one).
+#[derive(Args, Debug, Clone)]
+pub struct LogArgs {
+    /// Time column in seconds (default: time, time_s, t or timestamp if present).
+    #[arg(long, value_name = "NAME")]
+    pub time_col: Option<String>,
+    /// Sample rate in Hz, when there is no time column and no sample_rate_hz metadata.
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// CSV separator: , ; tab whitespace (default: detected from the header).
+    #[arg(long, value_name = "SEP")]
+    pub delimiter: Option<String>,
+    /// NaN, Inf or empty cells in a channel.
+    #[arg(long = "nan", value_enum, default_value_t = NanPolicy::Reject)]
+    pub nan: NanPolicy,
+    /// Gaps or irregular sampling in the time column.
+    #[arg(long = "gaps", value_enum, default_value_t = GapPolicy::Reject)]
+    pub gaps: GapPolicy,
+    /// Relative tolerance on the sampling interval before it counts as irregular.
+    #[arg(long, default_value_t = 0.05, value_name = "FRACTION")]
+    pub time_tol: f64,
+    /// Keep only these columns (comma-separated; the time column is always kept).
+    #[arg(long, value_name = "A,B,..", value_delimiter = ',')]
+    pub columns: Option<Vec<String>>,
+    /// Folder for converted stores (default: $FARMA_CACHE_DIR, else ~/.cache/farma).
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Convert into a temporary store instead of the cache.
+    #[arg(long, conflicts_with = "cache_dir")]
+    pub no_cache: bool,
+}
+
+impl LogArgs {
+    pub fn options(&self) -> Result<LogOptions> {
+        Ok(LogOptions {
+            time_col: self.time_col.clone(),
+            rate_hz: self.rate,
+            delimiter: self.delimiter.as_deref().map(Delimiter::parse).transpose()?,
+            nan_policy: self.nan,
+            gap_policy: self.gaps,
+            time_tol: self.time_tol,
+            columns: self.columns.clone(),
+        })
+    }
+
+    pub fn cache(&self) -> CachePolicy {
+        match (&self.cache_dir, self.no_cache) {
+            (_, true) => CachePolicy::Off,
+            (Some(d), false) => CachePolicy::Dir(d.clone()),
+            (None, false) => CachePolicy::Default,
+        }
+    }
+}
+
+/// Runs the command line and returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => EXIT_OK,
+        Err(e) => {
+            eprintln!("farma: error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+/// Runs parsed arguments.
+pub fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        if n == 0 {
+            return Err(Error::Usage("--threads must be at least 1".into()));
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+    }
+    let progress = Progress::auto(cli.quiet);
+    match cli.command {
+        Command::Ingest(a) => ingest::run(a, &progress),
+        Command::Info(a) => info::run(a, &progress),
+    }
+}

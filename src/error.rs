@@ -1,0 +1,148 @@
+//! Errors: what can go wrong, and the exit code each maps to.
+//!
+//! Every error names the file and, where it applies, the line, column or key that is
+//! wrong. Problems with what the user handed us (the log, a flag, a spec) exit with
+//! code 2; problems of our own making or of the machine (a failed write of an output,
+//! an internal invariant) exit with code 1. Nothing is printed here: the binary prints
+//! `farma: error: {error}` on stderr.
+
+use std::path::{Path, PathBuf};
+
+/// Exit code for success.
+pub const EXIT_OK: i32 = 0;
+/// Exit code for failures not caused by the input (output I/O, internal errors).
+pub const EXIT_FAILURE: i32 = 1;
+/// Exit code for bad input: malformed logs, unknown channels, bad flags or specs.
+pub const EXIT_BAD_INPUT: i32 = 2;
+
+/// Result alias used throughout the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in farma.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A row of a text log does not have the expected shape (field count, truncated line).
+    #[error("{}:{line}: {msg}", path.display())]
+    Malformed {
+        path: PathBuf,
+        line: u64,
+        msg: String,
+    },
+
+    /// A cell that should hold a number does not.
+    #[error("{}:{line}: column '{column}': cannot parse '{text}' as a number", path.display())]
+    NonNumeric {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        text: String,
+    },
+
+    /// NaN, infinite or missing values under `--nan reject`.
+    #[error("{}: column '{column}' has {count} non-finite or missing value(s) (NaN/Inf/empty), first at {first}; use --nan interpolate to replace them", path.display())]
+    NonFinite {
+        path: PathBuf,
+        column: String,
+        count: u64,
+        /// Human-readable list of the first positions ("line 12, line 40").
+        first: String,
+    },
+
+    /// The time column is not strictly increasing or not uniformly sampled.
+    #[error("{}: {msg}", path.display())]
+    Timestamps { path: PathBuf, msg: String },
+
+    /// A requested column is missing, unknown, duplicated or of the wrong type.
+    #[error("{}: {msg}", path.display())]
+    Column { path: PathBuf, msg: String },
+
+    /// The file holds no data (empty, header only, or cut short).
+    #[error("{}: {msg}", path.display())]
+    Empty { path: PathBuf, msg: String },
+
+    /// The file is not a log farma can read (unknown or corrupt format).
+    #[error("{}: {msg}", path.display())]
+    Format { path: PathBuf, msg: String },
+
+    /// No time column, no `sample_rate_hz` metadata and no `--rate`.
+    #[error("{}: no time base: no time column (time, time_s, t, timestamp or --time-col), no 'sample_rate_hz' in the file metadata, and no --rate", path.display())]
+    NoTimeBase { path: PathBuf },
+
+    /// The log holds fewer samples than the request needs.
+    #[error("{what}: the log is too short: {have} sample(s), need at least {need}")]
+    TooShort { what: String, need: u64, have: u64 },
+
+    /// Invalid flags or parameters.
+    #[error("{0}")]
+    Usage(String),
+
+    /// The input could not be read (missing file, permission).
+    #[error("cannot read {}: {source}", path.display())]
+    InputIo {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+
+    /// An output could not be written.
+    #[error("cannot write {}: {source}", path.display())]
+    OutputIo {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+
+    /// A bug or an unexpected library failure.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+impl Error {
+    /// The process exit code for this error: 2 for bad input, 1 otherwise.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::OutputIo { .. } | Error::Internal(_) => EXIT_FAILURE,
+            _ => EXIT_BAD_INPUT,
+        }
+    }
+
+    pub(crate) fn input_io(path: &Path, source: std::io::Error) -> Self {
+        Error::InputIo {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub(crate) fn output_io(path: &Path, source: std::io::Error) -> Self {
+        Error::OutputIo {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub(crate) fn format(path: &Path, msg: impl Into<String>) -> Self {
+        Error::Format {
+            path: path.to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+
+    pub(crate) fn column(path: &Path, msg: impl Into<String>) -> Self {
+        Error::Column {
+            path: path.to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+
+    pub(crate) fn empty(path: &Path, msg: impl Into<String>) -> Self {
+        Error::Empty {
+            path: path.to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+
+    pub(crate) fn timestamps(path: &Path, msg: impl Into<String>) -> Self {
+        Error::Timestamps {
+            path: path.to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,18 @@
+//! farma: nonparametric ARMA (FARMA) models of gyroscope random drift from long
+//! test-stand logs, and diagnosis of where a gyro simulator differs from the sensor.
+//!
+//! Where things are:
+//! - [`log`]: reading logs (CSV, Parquet, Arrow IPC) with their time base and the
+//!   policies for bad values and irregular sampling;
+//! - [`store`]: the memory-mapped Arrow IPC store every command reads;
+//! - [`stats`]: channel statistics;
+//! - [`cli`]: the `farma` command line (a thin layer over the above);
+//! - [`error`]: the error enum and exit codes.
+
+pub mod cli;
+pub mod error;
+pub mod log;
+pub mod stats;
+pub mod store;
+
+pub use error::{Error, Result};

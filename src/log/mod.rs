@@ -1,0 +1,462 @@
+//! Logs: reading a uniformly sampled multi-channel series from CSV, Parquet or Arrow IPC
+//! into a [`Store`](crate::store::Store), with its time base, and the policies for bad
+//! values and irregular sampling.
+//!
+//! [`ingest`] converts a file into a store; [`open_log`] gives any command a store for
+//! any input, converting CSV / Parquet / foreign Arrow files through a cache so that a
+//! user never has to ingest by hand. The input contract is section 1 of
+//! `shared/design/contracts.md`.
+
+mod cache;
+mod columnar;
+pub mod csv;
+mod repair;
+mod timebase;
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+pub use csv::Delimiter;
+
+use crate::error::{Error, Result};
+use crate::store::{Repair, STORE_FORMAT_VERSION, Segment, Store, StoreMeta, StoreWriter};
+
+/// Names recognised as the time column (seconds) when `--time-col` is not given.
+pub const TIME_COLUMN_NAMES: [&str; 4] = ["time", "time_s", "t", "timestamp"];
+
+/// What to do with NaN, infinite or missing values in a channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum NanPolicy {
+    /// Fail with exit code 2, naming the column, the count and the first positions.
+    #[default]
+    Reject,
+    /// Replace each by linear interpolation between its finite neighbours (in time).
+    Interpolate,
+}
+
+/// What to do when the time column shows gaps or irregular sampling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum GapPolicy {
+    /// Fail with exit code 2, listing the first irregular intervals.
+    #[default]
+    Reject,
+    /// Keep the samples; record uniformly sampled segments between the irregular intervals.
+    Split,
+    /// Resample every channel onto a uniform grid by linear interpolation.
+    Interpolate,
+}
+
+/// How to read a log: time base, format details, policies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogOptions {
+    /// Name of the time column (seconds); default: one of [`TIME_COLUMN_NAMES`].
+    pub time_col: Option<String>,
+    /// Sample rate in Hz, used when there is no time column and no rate metadata.
+    pub rate_hz: Option<f64>,
+    /// CSV separator; default: detected from the header.
+    pub delimiter: Option<Delimiter>,
+    pub nan_policy: NanPolicy,
+    pub gap_policy: GapPolicy,
+    /// Relative tolerance on the sampling interval: an interval is regular when
+    /// `|dt - dt_nominal| <= time_tol * dt_nominal`.
+    pub time_tol: f64,
+    /// Keep only these columns (plus the time column); default: all.
+    pub columns: Option<Vec<String>>,
+}
+
+impl Default for LogOptions {
+    fn default() -> Self {
+        LogOptions {
+            time_col: None,
+            rate_hz: None,
+            delimiter: None,
+            nan_policy: NanPolicy::Reject,
+            gap_policy: GapPolicy::Reject,
+            time_tol: 0.05,
+            columns: None,
+        }
+    }
+}
+
+impl LogOptions {
+    fn validate(&self) -> Result<()> {
+        if let Some(r) = self.rate_hz
+            && !(r.is_finite() && r > 0.0)
+        {
+            return Err(Error::Usage(format!("--rate: {r} is not a positive number of Hz")));
+        }
+        if !(self.time_tol.is_finite() && self.time_tol > 0.0 && self.time_tol < 0.5) {
+            return Err(Error::Usage(format!(
+                "--time-tol: {} must lie in (0, 0.5)",
+                self.time_tol
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Progress bars on stderr, shown only when stderr is a terminal and not quiet.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    enabled: bool,
+}
+
+impl Progress {
+    /// Bars when stderr is a terminal, unless `quiet`.
+    pub fn auto(quiet: bool) -> Self {
+        Progress {
+            enabled: !quiet && std::io::stderr().is_terminal(),
+        }
+    }
+
+    /// No bars.
+    pub fn hidden() -> Self {
+        Progress { enabled: false }
+    }
+
+    pub(crate) fn bar(&self, msg: &'static str, len: u64) -> ProgressBar {
+        if !self.enabled {
+            return ProgressBar::hidden();
+        }
+        let pb = ProgressBar::new(len);
+        pb.set_style(
+            ProgressStyle::with_template("{msg:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        pb.set_message(msg);
+        pb
+    }
+}
+
+/// Count and first positions (rows) of non-finite values in one column.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct NonFinite {
+    pub count: u64,
+    pub first_rows: Vec<u64>,
+}
+
+impl NonFinite {
+    const KEEP: usize = 5;
+
+    pub fn add(&mut self, row: u64) {
+        self.count += 1;
+        if self.first_rows.len() < Self::KEEP {
+            self.first_rows.push(row);
+        }
+    }
+
+    /// Adds `other`, whose rows all come after ours.
+    pub fn merge(&mut self, other: NonFinite) {
+        self.count += other.count;
+        for r in other.first_rows {
+            if self.first_rows.len() < Self::KEEP {
+                self.first_rows.push(r);
+            }
+        }
+    }
+}
+
+/// A store filled with the input's values, not yet checked or finished.
+pub(crate) struct Parsed {
+    pub writer: StoreWriter,
+    pub format: &'static str,
+    /// Name of the time column, if the input has one.
+    pub time_col: Option<String>,
+    /// `sample_rate_hz` from the file metadata.
+    pub rate_meta_hz: Option<f64>,
+    /// Non-finite values per store column.
+    pub nonfinite: Vec<NonFinite>,
+    /// Describes data row `r` (0-based) for messages: "line 17" or "row 3".
+    pub locate: Box<dyn Fn(u64) -> String + Send + Sync>,
+    pub path: PathBuf,
+}
+
+/// The time column among `names`: `--time-col`, else the first of [`TIME_COLUMN_NAMES`]
+/// (case-insensitive).
+pub(crate) fn find_time_column(path: &Path, names: &[String], opts: &LogOptions) -> Result<Option<String>> {
+    if let Some(t) = &opts.time_col {
+        return if names.contains(t) {
+            Ok(Some(t.clone()))
+        } else {
+            Err(Error::column(
+                path,
+                format!("--time-col: no column '{t}'; columns are: {}", names.join(", ")),
+            ))
+        };
+    }
+    for cand in TIME_COLUMN_NAMES {
+        if let Some(n) = names.iter().find(|n| n.eq_ignore_ascii_case(cand)) {
+            return Ok(Some(n.clone()));
+        }
+    }
+    Ok(None)
+}
+
+/// File formats farma reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Csv,
+    Parquet,
+    Arrow,
+}
+
+/// Tells the format from the file's first bytes (`PAR1`, `ARROW1`), else CSV.
+pub fn detect_format(path: &Path) -> Result<Format> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| Error::input_io(path, e))?;
+    if f.metadata().map(|m| m.is_dir()).unwrap_or(false) {
+        return Err(Error::format(path, "is a directory, not a log file"));
+    }
+    let mut head = [0u8; 6];
+    let mut n = 0;
+    while n < head.len() {
+        match f.read(&mut head[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) => return Err(Error::input_io(path, e)),
+        }
+    }
+    Ok(if head[..n].starts_with(b"PAR1") {
+        Format::Parquet
+    } else if head[..n].starts_with(b"ARROW1") {
+        Format::Arrow
+    } else {
+        Format::Csv
+    })
+}
+
+/// Converts `input` into a store at `output` (written to a temporary file, then
+/// renamed). Returns the store's metadata.
+pub fn ingest(input: &Path, output: &Path, opts: &LogOptions, progress: &Progress) -> Result<StoreMeta> {
+    opts.validate()?;
+    let parsed = match detect_format(input)? {
+        Format::Csv => csv::read_csv(input, output, opts, progress)?,
+        Format::Parquet => columnar::read_parquet(input, output, opts, progress)?,
+        Format::Arrow => columnar::read_arrow(input, output, opts, progress)?,
+    };
+    finalize(parsed, input, output, opts)
+}
+
+/// Time base, NaN policy, gap policy, metadata; then renames the store into place.
+fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> Result<StoreMeta> {
+    let Parsed {
+        mut writer,
+        format,
+        time_col,
+        rate_meta_hz,
+        nonfinite,
+        locate,
+        path,
+    } = parsed;
+    let names = writer.names().to_vec();
+    let n_rows = writer.n_rows();
+    let time_idx = time_col.as_ref().map(|t| names.iter().position(|n| n == t).expect("time column kept"));
+    let mut repairs = Vec::new();
+
+    // Non-finite values: the time column never; channels by policy.
+    if let Some(ti) = time_idx
+        && nonfinite[ti].count > 0
+    {
+        let nf = &nonfinite[ti];
+        return Err(Error::timestamps(
+            &path,
+            format!(
+                "time column '{}' has {} missing or non-finite value(s), first at {}",
+                names[ti],
+                nf.count,
+                nf.first_rows.iter().map(|r| locate(*r)).collect::<Vec<_>>().join(", ")
+            ),
+        ));
+    }
+    for (ci, nf) in nonfinite.iter().enumerate() {
+        if Some(ci) == time_idx || nf.count == 0 {
+            continue;
+        }
+        let first = nf.first_rows.iter().map(|r| locate(*r)).collect::<Vec<_>>().join(", ");
+        match opts.nan_policy {
+            NanPolicy::Reject => {
+                return Err(Error::NonFinite {
+                    path: path.clone(),
+                    column: names[ci].clone(),
+                    count: nf.count,
+                    first,
+                });
+            }
+            NanPolicy::Interpolate => {
+                if nf.count as usize == n_rows {
+                    return Err(Error::column(
+                        &path,
+                        format!("column '{}' has no finite value to interpolate from", names[ci]),
+                    ));
+                }
+                repairs.push(Repair {
+                    kind: "nan_interpolated".into(),
+                    channel: names[ci].clone(),
+                    count: nf.count,
+                    detail: format!("first at {first}"),
+                });
+            }
+        }
+    }
+    if opts.nan_policy == NanPolicy::Interpolate && repairs.iter().any(|r| r.kind == "nan_interpolated") {
+        let mut cols = writer.columns_mut();
+        let times: Option<&[f64]> = time_idx.map(|ti| &*std::mem::take(&mut cols[ti]));
+        for (ci, col) in cols.iter_mut().enumerate() {
+            if Some(ci) != time_idx && nonfinite[ci].count > 0 {
+                repair::interpolate_nonfinite(col, times);
+            }
+        }
+    }
+
+    // Time base.
+    let mut segments = vec![];
+    let (rate_hz, time_source) = if let Some(ti) = time_idx {
+        if n_rows < 2 {
+            return Err(Error::TooShort {
+                what: format!("{}: sample interval from time column '{}'", path.display(), names[ti]),
+                need: 2,
+                have: n_rows as u64,
+            });
+        }
+        let t = writer.column(ti);
+        let t0_s = t[0];
+        let check = timebase::check_times(t, opts.time_tol).map_err(|p| p.into_error(&path, &names[ti], &*locate))?;
+        if let Some(flag) = opts.rate_hz {
+            let from_time = 1.0 / check.dt_s;
+            if (flag - from_time).abs() > 0.01 * from_time {
+                eprintln!(
+                    "farma: warning: --rate {flag} Hz disagrees with the time column '{}' ({from_time:.6} Hz); using the time column",
+                    names[ti]
+                );
+            }
+        }
+        if check.irregular_count == 0 {
+            segments.push(Segment { start: 0, len: n_rows as u64, t0_s });
+            (check.rate_hz_regular(t), format!("column:{}", names[ti]))
+        } else {
+            let summary = check.describe(&*locate);
+            match opts.gap_policy {
+                GapPolicy::Reject => {
+                    return Err(Error::timestamps(
+                        &path,
+                        format!(
+                            "irregular sampling in time column '{}': {summary}; use --gaps split or --gaps interpolate (or widen --time-tol)",
+                            names[ti]
+                        ),
+                    ));
+                }
+                GapPolicy::Split => {
+                    segments = check.segments(t).map_err(|m| Error::timestamps(&path, m))?;
+                    repairs.push(Repair {
+                        kind: "gap_split".into(),
+                        channel: "*".into(),
+                        count: check.irregular_count,
+                        detail: format!("{} segments; {summary}", segments.len()),
+                    });
+                    (1.0 / check.dt_s, format!("column:{}", names[ti]))
+                }
+                GapPolicy::Interpolate => {
+                    let resampled = repair::resample_uniform(&mut writer, output, ti, check.dt_s)?;
+                    repairs.push(Repair {
+                        kind: "gap_interpolated".into(),
+                        channel: "*".into(),
+                        count: check.irregular_count,
+                        detail: format!(
+                            "{n_rows} rows resampled to {} at {} Hz; {summary}",
+                            resampled.n_rows(),
+                            1.0 / check.dt_s
+                        ),
+                    });
+                    segments.push(Segment { start: 0, len: resampled.n_rows() as u64, t0_s });
+                    writer = resampled;
+                    (1.0 / check.dt_s, format!("column:{}", names[ti]))
+                }
+            }
+        }
+    } else if let Some(r) = rate_meta_hz {
+        if let Some(flag) = opts.rate_hz
+            && (flag - r).abs() > 1e-9 * r
+        {
+            eprintln!("farma: warning: --rate {flag} Hz ignored: the file metadata says sample_rate_hz = {r}");
+        }
+        segments.push(Segment { start: 0, len: n_rows as u64, t0_s: 0.0 });
+        (r, "metadata".to_string())
+    } else if let Some(r) = opts.rate_hz {
+        segments.push(Segment { start: 0, len: n_rows as u64, t0_s: 0.0 });
+        (r, "flag".to_string())
+    } else {
+        return Err(Error::NoTimeBase { path });
+    };
+
+    let (source_size, source_mtime_ns) = source_identity(input)?;
+    let meta = StoreMeta {
+        format_version: STORE_FORMAT_VERSION,
+        farma_version: env!("CARGO_PKG_VERSION").to_string(),
+        sample_rate_hz: rate_hz,
+        time_source,
+        time_col,
+        segments,
+        repairs,
+        source: input.display().to_string(),
+        source_format: format.to_string(),
+        source_size,
+        source_mtime_ns,
+    };
+    writer.finish(&meta)?;
+    Ok(meta)
+}
+
+/// Size and modification time (ns) of a file: its identity for caches and metadata.
+pub(crate) fn source_identity(path: &Path) -> Result<(u64, u128)> {
+    let md = std::fs::metadata(path).map_err(|e| Error::input_io(path, e))?;
+    let mtime = md
+        .modified()
+        .ok()
+        .and_then(|m| m.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    Ok((md.len(), mtime))
+}
+
+/// Where [`open_log`] keeps converted stores.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CachePolicy {
+    /// `$FARMA_CACHE_DIR`, else `$XDG_CACHE_HOME/farma`, else `~/.cache/farma`.
+    Default,
+    /// A given folder.
+    Dir(PathBuf),
+    /// Convert into a temporary store, deleted when the store is dropped.
+    Off,
+}
+
+/// Opens any log as a store: a farma store directly; anything else through the cache.
+pub fn open_log(path: &Path, opts: &LogOptions, cache: &CachePolicy, progress: &Progress) -> Result<Store> {
+    opts.validate()?;
+    if detect_format(path)? == Format::Arrow {
+        match Store::open(path) {
+            Ok(s) => return Ok(s),
+            Err(Error::Format { .. }) => {} // a foreign Arrow file: convert it
+            Err(e) => return Err(e),
+        }
+    }
+    match cache::store_path(path, opts, cache)? {
+        Some(cached) => {
+            if cached.exists()
+                && let Ok(s) = Store::open(&cached)
+            {
+                return Ok(s);
+            }
+            ingest(path, &cached, opts, progress)?;
+            Store::open(&cached)
+        }
+        None => {
+            let dir = tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
+            let tmp = dir.path().join("log.arrow");
+            ingest(path, &tmp, opts, progress)?;
+            // The map keeps the data alive after the temporary folder is removed.
+            Store::open(&tmp)
+        }
+    }
+}

@@ -1,0 +1,5 @@
+//! Statistics of channels: summaries now; Allan deviation, PSD and ACF as they arrive.
+
+pub mod summary;
+
+pub use summary::{ChannelSummary, summarize};

@@ -1,0 +1,19 @@
+//! The store: a log as one uncompressed Arrow IPC file that every command memory-maps.
+//!
+//! Layout (written by [`StoreWriter`], read by [`Store`]): the Arrow IPC *file* format
+//! with exactly one record batch, every column `Float64` without nulls, each column's
+//! values one contiguous, 64-byte aligned run of little-endian `f64`. Opening a store
+//! maps the file and decodes the footer and the batch's metadata only, so a channel is
+//! a `&[f64]` that borrows the map: constant-time open, no copy, pages read on touch.
+//!
+//! The file's schema metadata carries `sample_rate_hz` (readable by any Arrow tool) and
+//! `farma.meta`, the JSON of [`StoreMeta`]: time base, segments, what ingest repaired
+//! and where the data came from.
+
+mod meta;
+mod reader;
+mod writer;
+
+pub use meta::{Repair, Segment, StoreMeta, META_KEY, RATE_KEY, STORE_FORMAT_VERSION};
+pub use reader::Store;
+pub use writer::StoreWriter;

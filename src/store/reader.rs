@@ -1,0 +1,190 @@
+//! Opens a store without reading it: maps the file, decodes footer and batch metadata,
+//! and hands out channels as `&[f64]` borrowed from the map.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow_array::{Array, Float64Array, RecordBatch};
+use arrow_buffer::Buffer;
+use arrow_schema::DataType;
+use memmap2::Mmap;
+
+use super::meta::{META_KEY, StoreMeta};
+use crate::error::{Error, Result};
+
+/// A memory-mapped store. Cheap to open; channel slices borrow the map.
+pub struct Store {
+    path: PathBuf,
+    batch: RecordBatch,
+    meta: StoreMeta,
+}
+
+impl std::fmt::Debug for Store {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Store")
+            .field("path", &self.path)
+            .field("rows", &self.batch.num_rows())
+            .field("meta", &self.meta)
+            .finish()
+    }
+}
+
+impl Store {
+    /// Opens a store written by [`super::StoreWriter`]. Fails with [`Error::Format`] for
+    /// anything else (including Arrow IPC files of other layouts: convert those with
+    /// `farma ingest`, or let [`crate::log::open_log`] do it).
+    pub fn open(path: &Path) -> Result<Store> {
+        let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
+        // SAFETY: stores are written once to a temporary file and renamed into place;
+        // nothing writes to a store after that. A user truncating the file while we read
+        // it is outside what any mmap-based reader can guard against.
+        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?;
+        let len = map.len();
+        let bad = |m: &str| Error::format(path, format!("not a farma store: {m}"));
+        if len < 6 + 10 || &map[..6] != b"ARROW1" || &map[len - 6..] != b"ARROW1" {
+            return Err(bad("no Arrow IPC file magic at both ends (truncated?)"));
+        }
+        let mut tail = [0u8; 10];
+        tail.copy_from_slice(&map[len - 10..]);
+        let footer_len =
+            arrow_ipc::reader::read_footer_length(tail).map_err(|e| bad(&e.to_string()))?;
+        if footer_len + 10 > len {
+            return Err(bad("footer length past the start of the file"));
+        }
+        let map = Arc::new(map);
+        let footer_bytes = &map[len - 10 - footer_len..len - 10];
+        let footer = arrow_ipc::root_as_footer(footer_bytes).map_err(|e| bad(&e.to_string()))?;
+        let fb_schema = footer.schema().ok_or_else(|| bad("footer has no schema"))?;
+        let schema = arrow_ipc::convert::try_fb_to_schema(fb_schema).map_err(|e| bad(&e.to_string()))?;
+        let meta_json = schema
+            .metadata()
+            .get(META_KEY)
+            .ok_or_else(|| bad("no farma.meta in the schema metadata"))?;
+        let meta: StoreMeta =
+            serde_json::from_str(meta_json).map_err(|e| bad(&format!("farma.meta: {e}")))?;
+        if schema.fields().iter().any(|f| f.data_type() != &DataType::Float64) {
+            return Err(bad("a column is not Float64"));
+        }
+        let blocks = footer.recordBatches().ok_or_else(|| bad("no record batches"))?;
+        if blocks.len() != 1 {
+            return Err(bad(&format!("{} record batches, expected 1", blocks.len())));
+        }
+        let block = blocks.get(0);
+        let version = footer.version();
+
+        let ptr = std::ptr::NonNull::new(map.as_ptr() as *mut u8).expect("mmap is non-null");
+        // SAFETY: `ptr` points to `len` initialised bytes owned by `map`, which the Buffer
+        // keeps alive through its owner Arc.
+        let buffer = unsafe { Buffer::from_custom_allocation(ptr, len, map.clone()) };
+        let start = block.offset() as usize;
+        let block_len = block.metaDataLength() as usize + block.bodyLength() as usize;
+        if start.checked_add(block_len).is_none_or(|end| end > len) {
+            return Err(bad("record batch block past the end of the file"));
+        }
+        let decoder = arrow_ipc::reader::FileDecoder::new(Arc::new(schema), version)
+            .with_require_alignment(true);
+        let batch = decoder
+            .read_record_batch(block, &buffer.slice_with_length(start, block_len))
+            .map_err(|e| bad(&e.to_string()))?
+            .ok_or_else(|| bad("empty record batch message"))?;
+        for col in batch.columns() {
+            if col.null_count() != 0 {
+                return Err(bad("a column has nulls"));
+            }
+        }
+        Ok(Store {
+            path: path.to_path_buf(),
+            batch,
+            meta,
+        })
+    }
+
+    /// The file this store was opened from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Store metadata: time base, segments, repairs, source.
+    pub fn meta(&self) -> &StoreMeta {
+        &self.meta
+    }
+
+    /// Rows (samples per channel).
+    pub fn n_samples(&self) -> usize {
+        self.batch.num_rows()
+    }
+
+    /// Sample rate, Hz.
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.meta.sample_rate_hz
+    }
+
+    /// Duration covered by the samples, seconds: rows / rate (segments summed).
+    pub fn duration_s(&self) -> f64 {
+        self.n_samples() as f64 / self.meta.sample_rate_hz
+    }
+
+    /// Names of all columns in file order, the time column included.
+    pub fn column_names(&self) -> Vec<&str> {
+        self.batch
+            .schema_ref()
+            .fields()
+            .iter()
+            .map(|f| f.name().as_str())
+            .collect()
+    }
+
+    /// Names of the channels (every column but the time column), in file order.
+    pub fn channel_names(&self) -> Vec<&str> {
+        let time = self.meta.time_col.as_deref();
+        self.column_names()
+            .into_iter()
+            .filter(|n| Some(*n) != time)
+            .collect()
+    }
+
+    /// The values of a column (channel or time column), borrowed from the map.
+    pub fn column(&self, name: &str) -> Result<&[f64]> {
+        let idx = self.batch.schema_ref().index_of(name).map_err(|_| {
+            Error::column(
+                &self.path,
+                format!(
+                    "no channel '{name}'; channels are: {}",
+                    self.channel_names().join(", ")
+                ),
+            )
+        })?;
+        let arr = self
+            .batch
+            .column(idx)
+            .as_any()
+            .downcast_ref::<Float64Array>()
+            .ok_or_else(|| Error::Internal(format!("column {name} is not Float64")))?;
+        Ok(arr.values().as_ref())
+    }
+
+    /// Resolves a channel selection: `all`, or a comma-separated list of names.
+    pub fn select_channels(&self, selection: &str) -> Result<Vec<String>> {
+        let all = self.channel_names();
+        if selection.trim() == "all" {
+            return Ok(all.iter().map(|s| s.to_string()).collect());
+        }
+        let mut out = Vec::new();
+        for name in selection.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if !all.contains(&name) {
+                return Err(Error::column(
+                    &self.path,
+                    format!("no channel '{name}'; channels are: {}", all.join(", ")),
+                ));
+            }
+            if !out.iter().any(|o| o == name) {
+                out.push(name.to_string());
+            }
+        }
+        if out.is_empty() {
+            return Err(Error::Usage("--channel: no channel named".into()));
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,278 @@
+//! Writes a store: lays out the Arrow IPC file for a known row count, lets the caller
+//! fill the columns in place through a writable memory map, then appends the footer
+//! and renames the temporary file into place.
+//!
+//! Because the layout is fixed before any value is written, producers (the parallel
+//! CSV parser, the Parquet reader) write straight into the final file in bounded
+//! memory: the map is file-backed, so dirty pages go to disk instead of the heap.
+//!
+//! File layout (Arrow IPC file format, metadata version 5, alignment 64):
+//! `ARROW1` + padding to 64 | schema message | record-batch message (metadata only)
+//! | body: column 0 values, padded to 64, column 1, ... | end-of-stream marker
+//! | footer (schema with full metadata, one record block) | footer length | `ARROW1`.
+//! The footer is written last, so metadata that is known only after the values
+//! (segments, repairs) goes there; readers of the file format use the footer's schema.
+
+use std::collections::HashMap;
+use std::io::{Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use arrow_ipc::writer::{DictionaryTracker, IpcDataGenerator, IpcWriteOptions};
+use arrow_schema::{DataType, Field, Schema};
+use flatbuffers::FlatBufferBuilder;
+use memmap2::MmapMut;
+
+use super::meta::{META_KEY, RATE_KEY, StoreMeta};
+use crate::error::{Error, Result};
+
+const ALIGN: usize = 64;
+const MAGIC: &[u8; 6] = b"ARROW1";
+const CONTINUATION: [u8; 4] = [0xff; 4];
+
+fn pad_to(len: usize) -> usize {
+    len.div_ceil(ALIGN) * ALIGN
+}
+
+/// A store being written. Fill [`StoreWriter::columns_mut`], then call
+/// [`StoreWriter::finish`]; dropping it without `finish` removes the temporary file.
+pub struct StoreWriter {
+    target: PathBuf,
+    tmp: tempfile::NamedTempFile,
+    map: MmapMut,
+    names: Vec<String>,
+    n_rows: usize,
+    /// Byte offset of the record-batch message and its padded metadata length.
+    batch_offset: usize,
+    batch_meta_len: usize,
+    body_offset: usize,
+    col_stride: usize,
+}
+
+impl StoreWriter {
+    /// Creates a temporary file beside `target` laid out for `names.len()` columns of
+    /// `n_rows` rows each. Values start as zero.
+    pub fn create(target: &Path, names: &[String], n_rows: usize) -> Result<Self> {
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".farma-")
+            .suffix(".tmp")
+            .permissions(output_permissions())
+            .tempfile_in(&dir)
+            .map_err(|e| Error::output_io(target, e))?;
+        let opts = IpcWriteOptions::default();
+        let schema = schema_for(names, None);
+
+        let mut head: Vec<u8> = Vec::new();
+        head.extend_from_slice(MAGIC);
+        head.resize(pad_to(MAGIC.len()), 0);
+        let encoded = IpcDataGenerator::default().schema_to_bytes_with_dictionary_tracker(
+            &schema,
+            &mut DictionaryTracker::new(true),
+            &opts,
+        );
+        write_framed(&mut head, &encoded.ipc_message);
+
+        let col_stride = pad_to(n_rows * 8);
+        let body_len = col_stride * names.len();
+        let batch_offset = head.len();
+        let batch_msg = record_batch_message(names.len(), n_rows, col_stride, body_len);
+        write_framed(&mut head, &batch_msg);
+        let batch_meta_len = head.len() - batch_offset;
+        let body_offset = head.len();
+
+        let file = tmp.as_file();
+        let map_err = |e| Error::output_io(target, e);
+        (&*file).write_all(&head).map_err(map_err)?;
+        file.set_len((body_offset + body_len) as u64)
+            .map_err(map_err)?;
+        // SAFETY: the file is ours (a fresh temporary file), nobody else maps or truncates it.
+        let map = unsafe { MmapMut::map_mut(file) }.map_err(map_err)?;
+        Ok(StoreWriter {
+            target: target.to_path_buf(),
+            tmp,
+            map,
+            names: names.to_vec(),
+            n_rows,
+            batch_offset,
+            batch_meta_len,
+            body_offset,
+            col_stride,
+        })
+    }
+
+    /// Number of rows of every column.
+    pub fn n_rows(&self) -> usize {
+        self.n_rows
+    }
+
+    /// Column names in file order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The columns' values, writable, in file order.
+    pub fn columns_mut(&mut self) -> Vec<&mut [f64]> {
+        let body = &mut self.map[self.body_offset..];
+        let mut out = Vec::with_capacity(self.names.len());
+        let mut rest: &mut [u8] = body;
+        for _ in 0..self.names.len() {
+            let (col, tail) = rest.split_at_mut(self.col_stride);
+            rest = tail;
+            let bytes = &mut col[..self.n_rows * 8];
+            assert_eq!(bytes.as_ptr() as usize % std::mem::align_of::<f64>(), 0);
+            // SAFETY: the map is page aligned and every column starts at a multiple of 64
+            // bytes from it, so the pointer is aligned for f64 (asserted); every bit pattern
+            // is a valid f64; the length is a whole number of f64s; the slice borrows the map.
+            let values = unsafe { std::slice::from_raw_parts_mut(bytes.as_mut_ptr() as *mut f64, self.n_rows) };
+            out.push(values);
+        }
+        out
+    }
+
+    /// Column `i`'s values, as written so far.
+    pub fn column(&self, i: usize) -> &[f64] {
+        let start = self.body_offset + i * self.col_stride;
+        let bytes = &self.map[start..start + self.n_rows * 8];
+        assert_eq!(bytes.as_ptr() as usize % std::mem::align_of::<f64>(), 0);
+        // SAFETY: as in `columns_mut`: aligned (asserted), any bits are an f64, borrows the map.
+        unsafe { std::slice::from_raw_parts(bytes.as_ptr() as *const f64, self.n_rows) }
+    }
+
+    /// Writes the footer with `meta`, and renames the file onto the target.
+    ///
+    /// The data is not fsync'ed: a killed process loses nothing (the page cache holds
+    /// it and the rename is atomic), only a machine crash could.
+    pub fn finish(self, meta: &StoreMeta) -> Result<()> {
+        let StoreWriter {
+            target,
+            tmp,
+            map,
+            names,
+            batch_offset,
+            batch_meta_len,
+            col_stride,
+            ..
+        } = self;
+        let map_err = |e| Error::output_io(&target, e);
+        map.flush_async().map_err(map_err)?;
+        drop(map);
+
+        let schema = schema_for(&names, Some(meta));
+        let mut fbb = FlatBufferBuilder::new();
+        let body_len = (col_stride * names.len()) as i64;
+        let blocks = [arrow_ipc::Block::new(
+            batch_offset as i64,
+            batch_meta_len as i32,
+            body_len,
+        )];
+        let record_batches = fbb.create_vector(&blocks);
+        let dictionaries = fbb.create_vector::<arrow_ipc::Block>(&[]);
+        let fb_schema = arrow_ipc::convert::IpcSchemaEncoder::new().schema_to_fb_offset(&mut fbb, &schema);
+        let root = {
+            let mut fb = arrow_ipc::FooterBuilder::new(&mut fbb);
+            fb.add_version(arrow_ipc::MetadataVersion::V5);
+            fb.add_schema(fb_schema);
+            fb.add_dictionaries(dictionaries);
+            fb.add_recordBatches(record_batches);
+            fb.finish()
+        };
+        fbb.finish(root, None);
+        let footer = fbb.finished_data();
+
+        let mut file = tmp.as_file();
+        file.seek(SeekFrom::End(0)).map_err(map_err)?;
+        let mut tail = Vec::with_capacity(footer.len() + 32);
+        tail.extend_from_slice(&CONTINUATION);
+        tail.extend_from_slice(&0i32.to_le_bytes());
+        tail.extend_from_slice(footer);
+        tail.extend_from_slice(&(footer.len() as i32).to_le_bytes());
+        tail.extend_from_slice(MAGIC);
+        file.write_all(&tail).map_err(map_err)?;
+        file.flush().map_err(map_err)?;
+        tmp.persist(&target)
+            .map_err(|e| Error::output_io(&target, e.error))?;
+        Ok(())
+    }
+}
+
+/// Permissions of a finished output: readable by all (tempfile's default is 0600).
+pub(crate) fn output_permissions() -> std::fs::Permissions {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::Permissions::from_mode(0o644)
+    }
+    #[cfg(not(unix))]
+    {
+        std::fs::metadata(".").map(|m| m.permissions()).expect("cwd metadata")
+    }
+}
+
+/// The store's schema: one non-nullable Float64 field per column, and, when given,
+/// the metadata keys [`RATE_KEY`] and [`META_KEY`].
+fn schema_for(names: &[String], meta: Option<&StoreMeta>) -> Schema {
+    let fields: Vec<Field> = names
+        .iter()
+        .map(|n| Field::new(n, DataType::Float64, false))
+        .collect();
+    let mut md = HashMap::new();
+    if let Some(meta) = meta {
+        md.insert(RATE_KEY.to_string(), format!("{}", meta.sample_rate_hz));
+        md.insert(
+            META_KEY.to_string(),
+            serde_json::to_string(meta).expect("StoreMeta serializes"),
+        );
+    }
+    Schema::new_with_metadata(fields, md)
+}
+
+/// Appends an encapsulated IPC message: continuation marker, padded metadata length,
+/// the flatbuffer, zero padding so the whole frame is a multiple of 64 bytes.
+fn write_framed(out: &mut Vec<u8>, message: &[u8]) {
+    let framed = pad_to(message.len() + 8);
+    let padded_meta = (framed - 8) as i32;
+    out.extend_from_slice(&CONTINUATION);
+    out.extend_from_slice(&padded_meta.to_le_bytes());
+    out.extend_from_slice(message);
+    out.resize(out.len() + framed - 8 - message.len(), 0);
+}
+
+/// The flatbuffer `Message` of a record batch of `n_cols` non-null Float64 columns,
+/// each `n_rows` long, stored `col_stride` bytes apart in the body.
+fn record_batch_message(n_cols: usize, n_rows: usize, col_stride: usize, body_len: usize) -> Vec<u8> {
+    let mut fbb = FlatBufferBuilder::new();
+    let nodes: Vec<arrow_ipc::FieldNode> = (0..n_cols)
+        .map(|_| arrow_ipc::FieldNode::new(n_rows as i64, 0))
+        .collect();
+    let buffers: Vec<arrow_ipc::Buffer> = (0..n_cols)
+        .flat_map(|i| {
+            let off = (i * col_stride) as i64;
+            [
+                arrow_ipc::Buffer::new(off, 0),
+                arrow_ipc::Buffer::new(off, (n_rows * 8) as i64),
+            ]
+        })
+        .collect();
+    let nodes = fbb.create_vector(&nodes);
+    let buffers = fbb.create_vector(&buffers);
+    let batch = {
+        let mut b = arrow_ipc::RecordBatchBuilder::new(&mut fbb);
+        b.add_length(n_rows as i64);
+        b.add_nodes(nodes);
+        b.add_buffers(buffers);
+        b.finish()
+    };
+    let root = {
+        let mut m = arrow_ipc::MessageBuilder::new(&mut fbb);
+        m.add_version(arrow_ipc::MetadataVersion::V5);
+        m.add_header_type(arrow_ipc::MessageHeader::RecordBatch);
+        m.add_header(batch.as_union_value());
+        m.add_bodyLength(body_len as i64);
+        m.finish()
+    };
+    fbb.finish(root, None);
+    fbb.finished_data().to_vec()
+}
