@@ -26,7 +26,12 @@ pub struct InfoArgs {
 }
 
 pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
-    let store = open_log(&a.log, &a.log_args.options()?, &a.log_args.cache(), progress)?;
+    let store = open_log(
+        &a.log,
+        &a.log_args.options()?,
+        &a.log_args.cache(),
+        progress,
+    )?;
     let names = store.select_channels(&a.channel)?;
     if store.n_samples() < 2 {
         return Err(Error::TooShort {
@@ -63,17 +68,29 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
         store.n_samples(),
         meta.segments.len()
     );
-    println!("rate      {} Hz (from {})", store.sample_rate_hz(), meta.time_source);
+    println!(
+        "rate      {} Hz (from {})",
+        store.sample_rate_hz(),
+        meta.time_source
+    );
     println!("duration  {:.3} s", store.duration_s());
     if meta.repairs.is_empty() {
         println!("repairs   none");
     }
     for r in &meta.repairs {
-        println!("repair    {} {} x{}: {}", r.kind, r.channel, r.count, r.detail);
+        println!(
+            "repair    {} {} x{}: {}",
+            r.kind, r.channel, r.count, r.detail
+        );
     }
     if meta.segments.len() > 1 {
         for s in &meta.segments {
-            println!("segment   rows {}..{} from t = {} s", s.start, s.start + s.len, s.t0_s);
+            println!(
+                "segment   rows {}..{} from t = {} s",
+                s.start,
+                s.start + s.len,
+                s.t0_s
+            );
         }
     }
     println!();

@@ -37,7 +37,10 @@ pub fn run(a: IngestArgs, progress: &Progress) -> Result<()> {
         t.elapsed().as_secs_f64()
     );
     for r in &meta.repairs {
-        eprintln!("farma: repaired: {} {} x{}: {}", r.kind, r.channel, r.count, r.detail);
+        eprintln!(
+            "farma: repaired: {} {} x{}: {}",
+            r.kind, r.channel, r.count, r.detail
+        );
     }
     if a.json {
         println!("{}", serde_json::to_string(&meta).expect("serializable"));

@@ -73,7 +73,11 @@ impl LogArgs {
         Ok(LogOptions {
             time_col: self.time_col.clone(),
             rate_hz: self.rate,
-            delimiter: self.delimiter.as_deref().map(Delimiter::parse).transpose()?,
+            delimiter: self
+                .delimiter
+                .as_deref()
+                .map(Delimiter::parse)
+                .transpose()?,
             nan_policy: self.nan,
             gap_policy: self.gaps,
             time_tol: self.time_tol,

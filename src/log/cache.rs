@@ -35,22 +35,33 @@ fn default_dir() -> PathBuf {
 }
 
 /// The cached store for `input` under `opts`, or `None` when caching is off.
-pub(crate) fn store_path(input: &Path, opts: &LogOptions, policy: &CachePolicy) -> Result<Option<PathBuf>> {
+pub(crate) fn store_path(
+    input: &Path,
+    opts: &LogOptions,
+    policy: &CachePolicy,
+) -> Result<Option<PathBuf>> {
     let dir = match policy {
         CachePolicy::Off => return Ok(None),
         CachePolicy::Dir(d) => d.clone(),
         CachePolicy::Default => default_dir(),
     };
     std::fs::create_dir_all(&dir).map_err(|e| Error::output_io(&dir, e))?;
-    let canon = input.canonicalize().map_err(|e| Error::input_io(input, e))?;
+    let canon = input
+        .canonicalize()
+        .map_err(|e| Error::input_io(input, e))?;
     let (size, mtime) = source_identity(input)?;
     let key = format!(
         "{}\0{size}\0{mtime}\0{opts:?}\0{STORE_FORMAT_VERSION}\0{}",
         canon.display(),
         env!("CARGO_PKG_VERSION")
     );
-    let stem = input.file_stem().map_or("log".into(), |s| s.to_string_lossy().into_owned());
-    Ok(Some(dir.join(format!("{stem}-{:016x}.arrow", fnv1a64(key.as_bytes())))))
+    let stem = input
+        .file_stem()
+        .map_or("log".into(), |s| s.to_string_lossy().into_owned());
+    Ok(Some(dir.join(format!(
+        "{stem}-{:016x}.arrow",
+        fnv1a64(key.as_bytes())
+    ))))
 }
 
 #[cfg(test)]

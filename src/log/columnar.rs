@@ -60,11 +60,16 @@ fn plan(path: &Path, schema: &Schema, opts: &LogOptions) -> Result<(Vec<String>,
         }
     };
     for n in &keep {
-        let dt = schema.field_with_name(n).expect("name from schema").data_type();
+        let dt = schema
+            .field_with_name(n)
+            .expect("name from schema")
+            .data_type();
         if !is_supported(dt) {
             return Err(Error::column(
                 path,
-                format!("column '{n}' has type {dt}, not a number; choose the channels with --columns"),
+                format!(
+                    "column '{n}' has type {dt}, not a number; choose the channels with --columns"
+                ),
             ));
         }
     }
@@ -126,7 +131,12 @@ fn copy_column(arr: &dyn Array, out: &mut [f64], row0: u64, nf: &mut NonFinite) 
             };
             // Timestamps of every unit share the i64 representation.
             let data = arr.to_data();
-            let a = arrow_array::Int64Array::from(data.into_builder().data_type(DataType::Int64).build().expect("same layout"));
+            let a = arrow_array::Int64Array::from(
+                data.into_builder()
+                    .data_type(DataType::Int64)
+                    .build()
+                    .expect("same layout"),
+            );
             copy_primitive::<Int64Type>(&a, out, row0, nf, |v| v as f64 * scale)
         }
         other => unreachable!("type {other} rejected by plan()"),
@@ -161,7 +171,12 @@ fn fill(
                 let arr = batch
                     .column_by_name(name)
                     .ok_or_else(|| Error::Internal(format!("batch lacks column {name}")))?;
-                copy_column(arr.as_ref(), &mut cols[ci][row..row + k], row as u64, &mut nonfinite[ci]);
+                copy_column(
+                    arr.as_ref(),
+                    &mut cols[ci][row..row + k],
+                    row as u64,
+                    &mut nonfinite[ci],
+                );
             }
             row += k;
             pb.inc(k as u64);
@@ -178,7 +193,12 @@ fn fill(
 }
 
 /// Reads a Parquet log into a new store at `target` (not yet finished).
-pub(crate) fn read_parquet(path: &Path, target: &Path, opts: &LogOptions, progress: &Progress) -> Result<Parsed> {
+pub(crate) fn read_parquet(
+    path: &Path,
+    target: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+) -> Result<Parsed> {
     let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
         .map_err(|e| Error::format(path, format!("not a readable Parquet file: {e}")))?;
@@ -209,7 +229,8 @@ pub(crate) fn read_parquet(path: &Path, target: &Path, opts: &LogOptions, progre
         .with_batch_size(64 * 1024)
         .build()
         .map_err(|e| Error::format(path, format!("cannot read Parquet: {e}")))?;
-    let batches = reader.map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Parquet data: {e}"))));
+    let batches = reader
+        .map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Parquet data: {e}"))));
     let (writer, nonfinite) = fill(path, target, &names, n_rows, batches, progress)?;
     Ok(Parsed {
         writer,
@@ -223,7 +244,12 @@ pub(crate) fn read_parquet(path: &Path, target: &Path, opts: &LogOptions, progre
 }
 
 /// Reads an Arrow IPC file (of any layout) into a new store at `target`.
-pub(crate) fn read_arrow(path: &Path, target: &Path, opts: &LogOptions, progress: &Progress) -> Result<Parsed> {
+pub(crate) fn read_arrow(
+    path: &Path,
+    target: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+) -> Result<Parsed> {
     let open = || -> Result<arrow_ipc::reader::FileReader<File>> {
         let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
         arrow_ipc::reader::FileReader::try_new(file, None)
@@ -247,9 +273,12 @@ pub(crate) fn read_arrow(path: &Path, target: &Path, opts: &LogOptions, progress
         .map_err(|e| Error::format(path, format!("not a readable Arrow IPC file: {e}")))?;
     let mut n_rows = 0usize;
     for b in &mut counter {
-        n_rows += b.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))?.num_rows();
+        n_rows += b
+            .map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))?
+            .num_rows();
     }
-    let batches = reader.map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}"))));
+    let batches = reader
+        .map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}"))));
     let (writer, nonfinite) = fill(path, target, &names, n_rows, batches, progress)?;
     Ok(Parsed {
         writer,

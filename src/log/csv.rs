@@ -215,7 +215,10 @@ fn read_header(path: &Path, text: &[u8], opts: &LogOptions) -> Result<Header> {
     if text.trim_ascii().is_empty() {
         Err(Error::empty(path, "the file is empty"))
     } else {
-        Err(Error::empty(path, "no header row: the file holds only comments"))
+        Err(Error::empty(
+            path,
+            "no header row: the file holds only comments",
+        ))
     }
 }
 
@@ -284,7 +287,12 @@ struct ColumnPlan {
 }
 
 /// Reads a CSV log into a new store at `target` (not yet finished).
-pub(crate) fn read_csv(path: &Path, target: &Path, opts: &LogOptions, progress: &Progress) -> Result<Parsed> {
+pub(crate) fn read_csv(
+    path: &Path,
+    target: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+) -> Result<Parsed> {
     let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
     let len = file.metadata().map_err(|e| Error::input_io(path, e))?.len();
     if len == 0 {
@@ -294,7 +302,11 @@ pub(crate) fn read_csv(path: &Path, target: &Path, opts: &LogOptions, progress: 
     // as with any reader, but cannot make us read out of bounds of the map.
     let map = Arc::new(unsafe { Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?);
     let mut text: &[u8] = &map[..];
-    let bom = if text.starts_with(b"\xEF\xBB\xBF") { 3 } else { 0 };
+    let bom = if text.starts_with(b"\xEF\xBB\xBF") {
+        3
+    } else {
+        0
+    };
     text = &text[bom..];
 
     let header = read_header(path, text, opts)?;
@@ -338,7 +350,8 @@ pub(crate) fn read_csv(path: &Path, target: &Path, opts: &LogOptions, progress: 
     let n_cols = plan.names.len();
     let n_fields = header.names.len();
     // Hand each chunk its own slice of every column.
-    let mut per_chunk: Vec<Vec<&mut [f64]>> = chunks.iter().map(|_| Vec::with_capacity(n_cols)).collect();
+    let mut per_chunk: Vec<Vec<&mut [f64]>> =
+        chunks.iter().map(|_| Vec::with_capacity(n_cols)).collect();
     for mut col in writer.columns_mut() {
         for (ci, c) in chunks.iter().enumerate() {
             let (head, tail) = col.split_at_mut(c.rows);
@@ -382,7 +395,12 @@ pub(crate) fn read_csv(path: &Path, target: &Path, opts: &LogOptions, progress: 
     })
 }
 
-fn plan_columns(path: &Path, names: &[String], time_col: Option<&str>, opts: &LogOptions) -> Result<ColumnPlan> {
+fn plan_columns(
+    path: &Path,
+    names: &[String],
+    time_col: Option<&str>,
+    opts: &LogOptions,
+) -> Result<ColumnPlan> {
     let keep: Vec<String> = match &opts.columns {
         None => names.to_vec(),
         Some(sel) => {
@@ -455,7 +473,9 @@ fn parse_chunk(
             }
         });
         if count != n_fields {
-            let last = ends_file && !body.ends_with(b"\n") && std::ptr::eq(raw.as_ptr_range().end, body.as_ptr_range().end);
+            let last = ends_file
+                && !body.ends_with(b"\n")
+                && std::ptr::eq(raw.as_ptr_range().end, body.as_ptr_range().end);
             let hint = if last && count < n_fields {
                 ": the file ends mid-row (truncated?)"
             } else {

@@ -85,7 +85,9 @@ impl LogOptions {
         if let Some(r) = self.rate_hz
             && !(r.is_finite() && r > 0.0)
         {
-            return Err(Error::Usage(format!("--rate: {r} is not a positive number of Hz")));
+            return Err(Error::Usage(format!(
+                "--rate: {r} is not a positive number of Hz"
+            )));
         }
         if !(self.time_tol.is_finite() && self.time_tol > 0.0 && self.time_tol < 0.5) {
             return Err(Error::Usage(format!(
@@ -122,9 +124,11 @@ impl Progress {
         }
         let pb = ProgressBar::new(len);
         pb.set_style(
-            ProgressStyle::with_template("{msg:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}")
-                .expect("valid template")
-                .progress_chars("=> "),
+            ProgressStyle::with_template(
+                "{msg:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
         );
         pb.set_message(msg);
         pb
@@ -176,14 +180,21 @@ pub(crate) struct Parsed {
 
 /// The time column among `names`: `--time-col`, else the first of [`TIME_COLUMN_NAMES`]
 /// (case-insensitive).
-pub(crate) fn find_time_column(path: &Path, names: &[String], opts: &LogOptions) -> Result<Option<String>> {
+pub(crate) fn find_time_column(
+    path: &Path,
+    names: &[String],
+    opts: &LogOptions,
+) -> Result<Option<String>> {
     if let Some(t) = &opts.time_col {
         return if names.contains(t) {
             Ok(Some(t.clone()))
         } else {
             Err(Error::column(
                 path,
-                format!("--time-col: no column '{t}'; columns are: {}", names.join(", ")),
+                format!(
+                    "--time-col: no column '{t}'; columns are: {}",
+                    names.join(", ")
+                ),
             ))
         };
     }
@@ -230,7 +241,12 @@ pub fn detect_format(path: &Path) -> Result<Format> {
 
 /// Converts `input` into a store at `output` (written to a temporary file, then
 /// renamed). Returns the store's metadata.
-pub fn ingest(input: &Path, output: &Path, opts: &LogOptions, progress: &Progress) -> Result<StoreMeta> {
+pub fn ingest(
+    input: &Path,
+    output: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+) -> Result<StoreMeta> {
     opts.validate()?;
     let parsed = match detect_format(input)? {
         Format::Csv => csv::read_csv(input, output, opts, progress)?,
@@ -253,7 +269,9 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
     } = parsed;
     let names = writer.names().to_vec();
     let n_rows = writer.n_rows();
-    let time_idx = time_col.as_ref().map(|t| names.iter().position(|n| n == t).expect("time column kept"));
+    let time_idx = time_col
+        .as_ref()
+        .map(|t| names.iter().position(|n| n == t).expect("time column kept"));
     let mut repairs = Vec::new();
 
     // Non-finite values: the time column never; channels by policy.
@@ -267,7 +285,11 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
                 "time column '{}' has {} missing or non-finite value(s), first at {}",
                 names[ti],
                 nf.count,
-                nf.first_rows.iter().map(|r| locate(*r)).collect::<Vec<_>>().join(", ")
+                nf.first_rows
+                    .iter()
+                    .map(|r| locate(*r))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         ));
     }
@@ -275,7 +297,12 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
         if Some(ci) == time_idx || nf.count == 0 {
             continue;
         }
-        let first = nf.first_rows.iter().map(|r| locate(*r)).collect::<Vec<_>>().join(", ");
+        let first = nf
+            .first_rows
+            .iter()
+            .map(|r| locate(*r))
+            .collect::<Vec<_>>()
+            .join(", ");
         match opts.nan_policy {
             NanPolicy::Reject => {
                 return Err(Error::NonFinite {
@@ -289,7 +316,10 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
                 if nf.count as usize == n_rows {
                     return Err(Error::column(
                         &path,
-                        format!("column '{}' has no finite value to interpolate from", names[ci]),
+                        format!(
+                            "column '{}' has no finite value to interpolate from",
+                            names[ci]
+                        ),
                     ));
                 }
                 repairs.push(Repair {
@@ -301,7 +331,9 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
             }
         }
     }
-    if opts.nan_policy == NanPolicy::Interpolate && repairs.iter().any(|r| r.kind == "nan_interpolated") {
+    if opts.nan_policy == NanPolicy::Interpolate
+        && repairs.iter().any(|r| r.kind == "nan_interpolated")
+    {
         let mut cols = writer.columns_mut();
         let times: Option<&[f64]> = time_idx.map(|ti| &*std::mem::take(&mut cols[ti]));
         for (ci, col) in cols.iter_mut().enumerate() {
@@ -316,14 +348,19 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
     let (rate_hz, time_source) = if let Some(ti) = time_idx {
         if n_rows < 2 {
             return Err(Error::TooShort {
-                what: format!("{}: sample interval from time column '{}'", path.display(), names[ti]),
+                what: format!(
+                    "{}: sample interval from time column '{}'",
+                    path.display(),
+                    names[ti]
+                ),
                 need: 2,
                 have: n_rows as u64,
             });
         }
         let t = writer.column(ti);
         let t0_s = t[0];
-        let check = timebase::check_times(t, opts.time_tol).map_err(|p| p.into_error(&path, &names[ti], &*locate))?;
+        let check = timebase::check_times(t, opts.time_tol)
+            .map_err(|p| p.into_error(&path, &names[ti], &*locate))?;
         if let Some(flag) = opts.rate_hz {
             let from_time = 1.0 / check.dt_s;
             if (flag - from_time).abs() > 0.01 * from_time {
@@ -334,7 +371,11 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
             }
         }
         if check.irregular_count == 0 {
-            segments.push(Segment { start: 0, len: n_rows as u64, t0_s });
+            segments.push(Segment {
+                start: 0,
+                len: n_rows as u64,
+                t0_s,
+            });
             (check.rate_hz_regular(t), format!("column:{}", names[ti]))
         } else {
             let summary = check.describe(&*locate);
@@ -370,7 +411,11 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
                             1.0 / check.dt_s
                         ),
                     });
-                    segments.push(Segment { start: 0, len: resampled.n_rows() as u64, t0_s });
+                    segments.push(Segment {
+                        start: 0,
+                        len: resampled.n_rows() as u64,
+                        t0_s,
+                    });
                     writer = resampled;
                     (1.0 / check.dt_s, format!("column:{}", names[ti]))
                 }
@@ -380,12 +425,22 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
         if let Some(flag) = opts.rate_hz
             && (flag - r).abs() > 1e-9 * r
         {
-            eprintln!("farma: warning: --rate {flag} Hz ignored: the file metadata says sample_rate_hz = {r}");
+            eprintln!(
+                "farma: warning: --rate {flag} Hz ignored: the file metadata says sample_rate_hz = {r}"
+            );
         }
-        segments.push(Segment { start: 0, len: n_rows as u64, t0_s: 0.0 });
+        segments.push(Segment {
+            start: 0,
+            len: n_rows as u64,
+            t0_s: 0.0,
+        });
         (r, "metadata".to_string())
     } else if let Some(r) = opts.rate_hz {
-        segments.push(Segment { start: 0, len: n_rows as u64, t0_s: 0.0 });
+        segments.push(Segment {
+            start: 0,
+            len: n_rows as u64,
+            t0_s: 0.0,
+        });
         (r, "flag".to_string())
     } else {
         return Err(Error::NoTimeBase { path });
@@ -432,7 +487,12 @@ pub enum CachePolicy {
 }
 
 /// Opens any log as a store: a farma store directly; anything else through the cache.
-pub fn open_log(path: &Path, opts: &LogOptions, cache: &CachePolicy, progress: &Progress) -> Result<Store> {
+pub fn open_log(
+    path: &Path,
+    opts: &LogOptions,
+    cache: &CachePolicy,
+    progress: &Progress,
+) -> Result<Store> {
     opts.validate()?;
     if detect_format(path)? == Format::Arrow {
         match Store::open(path) {
@@ -446,17 +506,18 @@ pub fn open_log(path: &Path, opts: &LogOptions, cache: &CachePolicy, progress: &
             if cached.exists()
                 && let Ok(s) = Store::open(&cached)
             {
-                return Ok(s);
+                return Ok(s.with_label(path));
             }
             ingest(path, &cached, opts, progress)?;
-            Store::open(&cached)
+            Ok(Store::open(&cached)?.with_label(path))
         }
         None => {
-            let dir = tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
+            let dir =
+                tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
             let tmp = dir.path().join("log.arrow");
             ingest(path, &tmp, opts, progress)?;
             // The map keeps the data alive after the temporary folder is removed.
-            Store::open(&tmp)
+            Ok(Store::open(&tmp)?.with_label(path))
         }
     }
 }

@@ -53,7 +53,12 @@ pub(crate) fn interpolate_nonfinite(x: &mut [f64], t: Option<&[f64]>) {
 /// Resamples every column of `src` onto `t_k = t_0 + k dt` (k = 0 .. up to the last
 /// time) by linear interpolation in the time column `time_idx`; returns a new writer
 /// at `target` whose time column holds the grid.
-pub(crate) fn resample_uniform(src: &mut StoreWriter, target: &Path, time_idx: usize, dt: f64) -> Result<StoreWriter> {
+pub(crate) fn resample_uniform(
+    src: &mut StoreWriter,
+    target: &Path,
+    time_idx: usize,
+    dt: f64,
+) -> Result<StoreWriter> {
     let t = src.column(time_idx);
     let t0 = t[0];
     let span = t[t.len() - 1] - t0;

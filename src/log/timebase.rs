@@ -36,7 +36,12 @@ pub(crate) enum TimeProblem {
 }
 
 impl TimeProblem {
-    pub fn into_error(self, path: &std::path::Path, col: &str, locate: &dyn Fn(u64) -> String) -> Error {
+    pub fn into_error(
+        self,
+        path: &std::path::Path,
+        col: &str,
+        locate: &dyn Fn(u64) -> String,
+    ) -> Error {
         let msg = match self {
             TimeProblem::Backwards(r, prev, t) => format!(
                 "time column '{col}' is not increasing: {} has {t} after {prev}",
@@ -139,7 +144,11 @@ impl TimeCheck {
         let mut start = 0usize;
         for i in 1..t.len() {
             if !self.is_regular(t[i] - t[i - 1]) {
-                segs.push(Segment { start: start as u64, len: (i - start) as u64, t0_s: t[start] });
+                segs.push(Segment {
+                    start: start as u64,
+                    len: (i - start) as u64,
+                    t0_s: t[start],
+                });
                 start = i;
                 if segs.len() >= MAX_SEGMENTS {
                     return Err(format!(
@@ -148,7 +157,11 @@ impl TimeCheck {
                 }
             }
         }
-        segs.push(Segment { start: start as u64, len: (t.len() - start) as u64, t0_s: t[start] });
+        segs.push(Segment {
+            start: start as u64,
+            len: (t.len() - start) as u64,
+            t0_s: t[start],
+        });
         Ok(segs)
     }
 }
@@ -176,9 +189,15 @@ mod tests {
 
         let mut d = t.clone();
         d[10] = d[9];
-        assert!(matches!(check_times(&d, 0.05), Err(TimeProblem::Duplicate(10, _))));
+        assert!(matches!(
+            check_times(&d, 0.05),
+            Err(TimeProblem::Duplicate(10, _))
+        ));
         let mut b = t.clone();
         b[10] = 0.5;
-        assert!(matches!(check_times(&b, 0.05), Err(TimeProblem::Backwards(10, _, _))));
+        assert!(matches!(
+            check_times(&b, 0.05),
+            Err(TimeProblem::Backwards(10, _, _))
+        ));
     }
 }

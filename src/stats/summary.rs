@@ -39,8 +39,16 @@ impl Moments {
         let m2 = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>();
         let (min, max) = x
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
-        Moments { n, mean, m2, min, max }
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        Moments {
+            n,
+            mean,
+            m2,
+            min,
+            max,
+        }
     }
 
     fn merge(self, o: Moments) -> Moments {
@@ -60,12 +68,19 @@ impl Moments {
 pub fn summarize(name: &str, x: &[f64]) -> ChannelSummary {
     assert!(!x.is_empty(), "summarize needs at least one value");
     let blocks: Vec<Moments> = x.par_chunks(BLOCK).map(Moments::of_block).collect();
-    let m = blocks.into_iter().reduce(Moments::merge).expect("non-empty");
+    let m = blocks
+        .into_iter()
+        .reduce(Moments::merge)
+        .expect("non-empty");
     ChannelSummary {
         name: name.to_string(),
         n: x.len() as u64,
         mean: m.mean,
-        std: if x.len() > 1 { (m.m2 / (m.n - 1.0)).sqrt() } else { f64::NAN },
+        std: if x.len() > 1 {
+            (m.m2 / (m.n - 1.0)).sqrt()
+        } else {
+            f64::NAN
+        },
         min: m.min,
         max: m.max,
     }

@@ -14,6 +14,6 @@ mod meta;
 mod reader;
 mod writer;
 
-pub use meta::{Repair, Segment, StoreMeta, META_KEY, RATE_KEY, STORE_FORMAT_VERSION};
+pub use meta::{META_KEY, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment, StoreMeta};
 pub use reader::Store;
 pub use writer::StoreWriter;

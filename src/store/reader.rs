@@ -16,6 +16,8 @@ use crate::error::{Error, Result};
 /// A memory-mapped store. Cheap to open; channel slices borrow the map.
 pub struct Store {
     path: PathBuf,
+    /// The file the user named (the log a cached store came from); used in messages.
+    label: PathBuf,
     batch: RecordBatch,
     meta: StoreMeta,
 }
@@ -56,17 +58,24 @@ impl Store {
         let footer_bytes = &map[len - 10 - footer_len..len - 10];
         let footer = arrow_ipc::root_as_footer(footer_bytes).map_err(|e| bad(&e.to_string()))?;
         let fb_schema = footer.schema().ok_or_else(|| bad("footer has no schema"))?;
-        let schema = arrow_ipc::convert::try_fb_to_schema(fb_schema).map_err(|e| bad(&e.to_string()))?;
+        let schema =
+            arrow_ipc::convert::try_fb_to_schema(fb_schema).map_err(|e| bad(&e.to_string()))?;
         let meta_json = schema
             .metadata()
             .get(META_KEY)
             .ok_or_else(|| bad("no farma.meta in the schema metadata"))?;
         let meta: StoreMeta =
             serde_json::from_str(meta_json).map_err(|e| bad(&format!("farma.meta: {e}")))?;
-        if schema.fields().iter().any(|f| f.data_type() != &DataType::Float64) {
+        if schema
+            .fields()
+            .iter()
+            .any(|f| f.data_type() != &DataType::Float64)
+        {
             return Err(bad("a column is not Float64"));
         }
-        let blocks = footer.recordBatches().ok_or_else(|| bad("no record batches"))?;
+        let blocks = footer
+            .recordBatches()
+            .ok_or_else(|| bad("no record batches"))?;
         if blocks.len() != 1 {
             return Err(bad(&format!("{} record batches, expected 1", blocks.len())));
         }
@@ -95,6 +104,7 @@ impl Store {
         }
         Ok(Store {
             path: path.to_path_buf(),
+            label: path.to_path_buf(),
             batch,
             meta,
         })
@@ -103,6 +113,17 @@ impl Store {
     /// The file this store was opened from.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The log the user named (for a converted log, the original file).
+    pub fn label(&self) -> &Path {
+        &self.label
+    }
+
+    /// Names `label` as the log in messages (used when opened through the cache).
+    pub fn with_label(mut self, label: &Path) -> Store {
+        self.label = label.to_path_buf();
+        self
     }
 
     /// Store metadata: time base, segments, repairs, source.
@@ -148,7 +169,7 @@ impl Store {
     pub fn column(&self, name: &str) -> Result<&[f64]> {
         let idx = self.batch.schema_ref().index_of(name).map_err(|_| {
             Error::column(
-                &self.path,
+                &self.label,
                 format!(
                     "no channel '{name}'; channels are: {}",
                     self.channel_names().join(", ")
@@ -171,10 +192,14 @@ impl Store {
             return Ok(all.iter().map(|s| s.to_string()).collect());
         }
         let mut out = Vec::new();
-        for name in selection.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        for name in selection
+            .split(',')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+        {
             if !all.contains(&name) {
                 return Err(Error::column(
-                    &self.path,
+                    &self.label,
                     format!("no channel '{name}'; channels are: {}", all.join(", ")),
                 ));
             }

@@ -126,7 +126,9 @@ impl StoreWriter {
             // SAFETY: the map is page aligned and every column starts at a multiple of 64
             // bytes from it, so the pointer is aligned for f64 (asserted); every bit pattern
             // is a valid f64; the length is a whole number of f64s; the slice borrows the map.
-            let values = unsafe { std::slice::from_raw_parts_mut(bytes.as_mut_ptr() as *mut f64, self.n_rows) };
+            let values = unsafe {
+                std::slice::from_raw_parts_mut(bytes.as_mut_ptr() as *mut f64, self.n_rows)
+            };
             out.push(values);
         }
         out
@@ -170,7 +172,8 @@ impl StoreWriter {
         )];
         let record_batches = fbb.create_vector(&blocks);
         let dictionaries = fbb.create_vector::<arrow_ipc::Block>(&[]);
-        let fb_schema = arrow_ipc::convert::IpcSchemaEncoder::new().schema_to_fb_offset(&mut fbb, &schema);
+        let fb_schema =
+            arrow_ipc::convert::IpcSchemaEncoder::new().schema_to_fb_offset(&mut fbb, &schema);
         let root = {
             let mut fb = arrow_ipc::FooterBuilder::new(&mut fbb);
             fb.add_version(arrow_ipc::MetadataVersion::V5);
@@ -207,7 +210,9 @@ pub(crate) fn output_permissions() -> std::fs::Permissions {
     }
     #[cfg(not(unix))]
     {
-        std::fs::metadata(".").map(|m| m.permissions()).expect("cwd metadata")
+        std::fs::metadata(".")
+            .map(|m| m.permissions())
+            .expect("cwd metadata")
     }
 }
 
@@ -242,7 +247,12 @@ fn write_framed(out: &mut Vec<u8>, message: &[u8]) {
 
 /// The flatbuffer `Message` of a record batch of `n_cols` non-null Float64 columns,
 /// each `n_rows` long, stored `col_stride` bytes apart in the body.
-fn record_batch_message(n_cols: usize, n_rows: usize, col_stride: usize, body_len: usize) -> Vec<u8> {
+fn record_batch_message(
+    n_cols: usize,
+    n_rows: usize,
+    col_stride: usize,
+    body_len: usize,
+) -> Vec<u8> {
     let mut fbb = FlatBufferBuilder::new();
     let nodes: Vec<arrow_ipc::FieldNode> = (0..n_cols)
         .map(|_| arrow_ipc::FieldNode::new(n_rows as i64, 0))

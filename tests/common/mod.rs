@@ -1,0 +1,62 @@
+//! Shared test helpers: the fixture generator and a runner for the binary.
+#![allow(dead_code)]
+
+pub mod fixtures_gen;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The project root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A path under `fixtures/`.
+pub fn fixture(rel: &str) -> PathBuf {
+    root().join("fixtures").join(rel)
+}
+
+/// The real-data folder beside the project, if present.
+pub fn realdata(rel: &str) -> Option<PathBuf> {
+    let p = root().join("..").join("shared").join("realdata").join(rel);
+    p.exists().then_some(p)
+}
+
+/// Runs the `farma` binary with `args`, a private cache folder and no terminal.
+pub fn farma(args: &[&str], cache: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_farma"))
+        .args(args)
+        .env("FARMA_CACHE_DIR", cache)
+        .output()
+        .expect("run farma")
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Parses a simple comma-separated numeric CSV the slow, obvious way: the reference
+/// the parallel parser is checked against. Skips `#` lines; returns (names, columns).
+pub fn reference_parse_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let names: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
+    let mut cols = vec![Vec::new(); names.len()];
+    for l in lines {
+        for (c, f) in cols.iter_mut().zip(l.split(',')) {
+            c.push(f.trim().parse::<f64>().unwrap());
+        }
+    }
+    (names, cols)
+}
