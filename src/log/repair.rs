@@ -31,9 +31,9 @@ pub(crate) fn interpolate_nonfinite(x: &mut [f64], t: Option<&[f64]>) {
             (Some(a), Some(b)) => {
                 let (ta, tb) = (pos(a), pos(b));
                 let (xa, xb) = (x[a], x[b]);
-                for k in i..j {
+                for (k, v) in x.iter_mut().enumerate().take(j).skip(i) {
                     let w = (pos(k) - ta) / (tb - ta);
-                    x[k] = xa + w * (xb - xa);
+                    *v = xa + w * (xb - xa);
                 }
             }
             (Some(a), None) => {

@@ -78,7 +78,7 @@ pub(crate) fn check_times(t: &[f64], tol: f64) -> Result<TimeCheck, TimeProblem>
     let stride = ((n - 1) / 100_000).max(1);
     let sample: Vec<f64> = (1..n).step_by(stride).map(|i| t[i] - t[i - 1]).collect();
     let dt = median(sample);
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         return Err(TimeProblem::ZeroSpan);
     }
     let mut c = TimeCheck {
