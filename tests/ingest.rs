@@ -336,3 +336,24 @@ fn info_json_has_the_contract_keys_and_correct_statistics() {
         );
     }
 }
+
+#[test]
+fn quoted_names_and_cells_follow_rfc4180() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("quoted.csv");
+    std::fs::write(
+        &p,
+        "\"time\",\"gyro, x (deg/s)\",\"say \"\"hi\"\"\"\n0,\"1.5\",2\n0.5,\"-2.5e-3\",3\n",
+    )
+    .unwrap();
+    let out = dir.path().join("s.arrow");
+    ingest(&p, &out, &LogOptions::default(), &Progress::hidden()).unwrap();
+    let s = Store::open(&out).unwrap();
+    assert_eq!(s.channel_names(), vec!["gyro, x (deg/s)", "say \"hi\""]);
+    assert_eq!(s.column("gyro, x (deg/s)").unwrap(), &[1.5, -2.5e-3]);
+    assert_eq!(s.sample_rate_hz(), 2.0);
+    // A quoted cell holding the delimiter is one field, and not a number.
+    std::fs::write(&p, "time,x\n0,\"1,5\"\n").unwrap();
+    let e = ingest(&p, &out, &LogOptions::default(), &Progress::hidden()).unwrap_err();
+    assert!(e.to_string().contains("cannot parse '1,5'"), "{e}");
+}
