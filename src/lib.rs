@@ -6,12 +6,14 @@
 //!   policies for bad values and irregular sampling;
 //! - [`store`]: the memory-mapped Arrow IPC store every command reads;
 //! - [`stats`]: channel statistics;
+//! - [`output`]: Parquet tables written atomically, JSON helpers;
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
 //! - [`error`]: the error enum and exit codes.
 
 pub mod cli;
 pub mod error;
 pub mod log;
+pub mod output;
 pub mod stats;
 pub mod store;
 

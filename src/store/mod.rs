@@ -16,4 +16,4 @@ mod writer;
 
 pub use meta::{META_KEY, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment, StoreMeta};
 pub use reader::Store;
-pub use writer::StoreWriter;
+pub use writer::{StoreWriter, output_permissions};

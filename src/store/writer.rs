@@ -202,7 +202,7 @@ impl StoreWriter {
 }
 
 /// Permissions of a finished output: readable by all (tempfile's default is 0600).
-pub(crate) fn output_permissions() -> std::fs::Permissions {
+pub fn output_permissions() -> std::fs::Permissions {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
