@@ -2,6 +2,7 @@
 //! test-stand logs, and diagnosis of where a gyro simulator differs from the sensor.
 //!
 //! Where things are:
+//! - [`estimator`]: the FARMA estimator (local-linear fits, fast exact moment tables);
 //! - [`log`]: reading logs (CSV, Parquet, Arrow IPC) with their time base and the
 //!   policies for bad values and irregular sampling;
 //! - [`store`]: the memory-mapped Arrow IPC store every command reads;
@@ -12,6 +13,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod estimator;
 pub mod log;
 pub mod output;
 pub mod stats;

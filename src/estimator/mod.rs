@@ -1,0 +1,17 @@
+//! The FARMA(p,q,d) estimator: x_t = sum_m f_m(x_{t-d}) x_{t-m} + e_t + sum_m b_m e_{t-m}.
+//!
+//! The coefficient functions f_m are local-linear Biweight fits at grid points of the
+//! index variable U_t = x_{t-d}; they are computed two ways that must agree:
+//! [`direct`] (KD-tree gather + dense weighted least squares per grid point, any
+//! evaluation point) and [`moments`] (one pass builds exact polynomial moment tables,
+//! from which every grid point and every bandwidth of the GCV ladder is solved; see
+//! `shared/design/fast-exact-fits.md`). [`problem`] defines the regression both solve,
+//! [`kernel`] the Biweight, [`linalg`] the small dense solves (faer).
+
+pub mod direct;
+pub mod kernel;
+pub mod linalg;
+pub mod moments;
+pub mod problem;
+
+pub use problem::{GridFit, PointStatus, VcProblem};

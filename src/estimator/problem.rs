@@ -1,0 +1,183 @@
+//! The varying-coefficient regression every local fit solves, and what a fit returns.
+//!
+//! For rows t = start .. N-1 of a series x: index U_t = x_{t-d}; regressors
+//! X_t = (x_{t-1}, ..., x_{t-p}); response y_t = x_t - sum_{m=1..q} b_m e_{t-m}, with
+//! e the current residuals (zero before the first sample). At a grid point u_g with
+//! bandwidth h the local-linear fit minimises
+//! sum_t K((U_t - u_g)/h) (y_t - X_t' (a + c (U_t - u_g)/h))^2,
+//! so f(u_g) = a and f'(u_g) = c / h (Fan and Gijbels 1996, ch. 3; Cai, Fan and Yao 2000).
+
+/// The regression data (borrowed; nothing is copied).
+#[derive(Clone, Copy, Debug)]
+pub struct VcProblem<'a> {
+    pub x: &'a [f64],
+    /// Residuals for the MA part (empty when q = 0).
+    pub e: &'a [f64],
+    /// MA coefficients b_1..b_q.
+    pub b: &'a [f64],
+    pub p: usize,
+    pub d: usize,
+    /// First row used: max(p, q, d).
+    pub start: usize,
+}
+
+impl<'a> VcProblem<'a> {
+    /// Rows used.
+    pub fn n_rows(&self) -> usize {
+        self.x.len().saturating_sub(self.start)
+    }
+
+    /// Index U_t.
+    #[inline]
+    pub fn u(&self, t: usize) -> f64 {
+        self.x[t - self.d]
+    }
+
+    /// Response y_t.
+    #[inline]
+    pub fn y(&self, t: usize) -> f64 {
+        let mut y = self.x[t];
+        for (m, bm) in self.b.iter().enumerate() {
+            y -= bm * self.e[t - m - 1];
+        }
+        y
+    }
+
+    /// Regressor m (0-based: x_{t-1-m}).
+    #[inline]
+    pub fn xr(&self, t: usize, m: usize) -> f64 {
+        self.x[t - 1 - m]
+    }
+
+    /// Fills `v` with (X_t, y_t): p + 1 values.
+    #[inline]
+    pub fn row(&self, t: usize, v: &mut [f64]) {
+        for m in 0..self.p {
+            v[m] = self.xr(t, m);
+        }
+        v[self.p] = self.y(t);
+    }
+}
+
+/// Why a grid point has no fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PointStatus {
+    Ok,
+    /// No sample inside the kernel's support.
+    EmptySupport,
+    /// Fewer samples inside the support than the 2p unknowns.
+    TooFewSamples,
+    /// The local normal equations are singular or their condition number exceeds
+    /// `linalg::MAX_COND` (collinear regressors in the support).
+    Singular,
+}
+
+impl PointStatus {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            PointStatus::Ok => "ok",
+            PointStatus::EmptySupport => "empty_support",
+            PointStatus::TooFewSamples => "too_few_samples",
+            PointStatus::Singular => "singular",
+        }
+    }
+}
+
+/// Local-linear fits at every grid point for one bandwidth.
+#[derive(Clone, Debug)]
+pub struct GridFit {
+    pub bandwidth: f64,
+    pub p: usize,
+    /// f_m(u_g), row-major G x p; NaN where the status is not Ok.
+    pub f: Vec<f64>,
+    /// f_m'(u_g), G x p.
+    pub slope: Vec<f64>,
+    /// Inverse of the local normal matrix S_g (G x 2p x 2p), for traces and errors.
+    pub s_inv: Vec<f64>,
+    /// Samples inside each support.
+    pub n_support: Vec<u64>,
+    /// Kernel mass sum_t K((U_t - u_g)/h).
+    pub kernel_mass: Vec<f64>,
+    /// Condition number of the equilibrated local system (see `linalg`).
+    pub cond: Vec<f64>,
+    pub status: Vec<PointStatus>,
+}
+
+impl GridFit {
+    pub fn new(g: usize, p: usize, bandwidth: f64) -> GridFit {
+        GridFit {
+            bandwidth,
+            p,
+            f: vec![f64::NAN; g * p],
+            slope: vec![f64::NAN; g * p],
+            s_inv: vec![f64::NAN; g * 4 * p * p],
+            n_support: vec![0; g],
+            kernel_mass: vec![0.0; g],
+            cond: vec![f64::NAN; g],
+            status: vec![PointStatus::EmptySupport; g],
+        }
+    }
+
+    pub fn n_grid(&self) -> usize {
+        self.status.len()
+    }
+
+    pub fn all_ok(&self) -> bool {
+        self.status.iter().all(|s| *s == PointStatus::Ok)
+    }
+
+    /// Stores the solution of grid point `g` from its normal equations (row-major
+    /// `s`, 2p x 2p, and `rhs`, 2p), setting the status.
+    pub fn set_point(
+        &mut self,
+        g: usize,
+        s: &[f64],
+        rhs: &[f64],
+        n_support: u64,
+        kernel_mass: f64,
+    ) {
+        let p = self.p;
+        self.n_support[g] = n_support;
+        self.kernel_mass[g] = kernel_mass;
+        if n_support == 0 {
+            self.status[g] = PointStatus::EmptySupport;
+            return;
+        }
+        if (n_support as usize) < 2 * p {
+            self.status[g] = PointStatus::TooFewSamples;
+            return;
+        }
+        match super::linalg::spd_solve_inverse(s, rhs, 2 * p) {
+            None => self.status[g] = PointStatus::Singular,
+            Some((sol, inv, cond)) => {
+                self.status[g] = PointStatus::Ok;
+                self.cond[g] = cond;
+                for m in 0..p {
+                    self.f[g * p + m] = sol[m];
+                    self.slope[g * p + m] = sol[p + m] / self.bandwidth;
+                }
+                self.s_inv[g * 4 * p * p..(g + 1) * 4 * p * p].copy_from_slice(&inv);
+            }
+        }
+    }
+
+    /// f at `u` by linear interpolation between grid values, constant beyond the ends.
+    /// `grid` ascending; all points must be Ok.
+    #[inline]
+    pub fn eval(&self, grid: &[f64], u: f64, out: &mut [f64]) {
+        let p = self.p;
+        let g = grid.len();
+        if u <= grid[0] {
+            out.copy_from_slice(&self.f[..p]);
+        } else if u >= grid[g - 1] {
+            out.copy_from_slice(&self.f[(g - 1) * p..g * p]);
+        } else {
+            let k = grid.partition_point(|v| *v <= u) - 1;
+            let lam = (u - grid[k]) / (grid[k + 1] - grid[k]);
+            for m in 0..p {
+                let a = self.f[k * p + m];
+                out[m] = a + lam * (self.f[(k + 1) * p + m] - a);
+            }
+        }
+    }
+}
