@@ -4,6 +4,7 @@
 //! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
 //! 2 bad input or usage (see [`crate::error`]).
 
+mod adev;
 mod info;
 mod ingest;
 
@@ -34,6 +35,8 @@ pub enum Command {
     Ingest(ingest::IngestArgs),
     /// Channels, samples, rate, duration, gaps and per-channel statistics of a log.
     Info(info::InfoArgs),
+    /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
+    Adev(adev::AdevArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -121,5 +124,6 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Ingest(a) => ingest::run(a, &progress),
         Command::Info(a) => info::run(a, &progress),
+        Command::Adev(a) => adev::run(a, &progress),
     }
 }

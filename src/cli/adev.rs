@@ -1,0 +1,280 @@
+//! `farma adev LOG`: overlapping Allan deviation (and modified Allan, overlapping
+//! Hadamard) of channels, with confidence intervals; text, JSON Lines or Parquet.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray};
+use clap::{Args, ValueEnum};
+use serde_json::{Map, Value, json};
+
+use super::LogArgs;
+use crate::error::{Error, Result};
+use crate::log::{Progress, open_log};
+use crate::output::{batch, write_parquet};
+use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid, curves};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum KindArg {
+    /// Overlapping Allan deviation.
+    Adev,
+    /// Modified Allan deviation.
+    Mdev,
+    /// Overlapping Hadamard deviation.
+    Hdev,
+    /// All three.
+    All,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TausArg {
+    /// m = 1, 2, 4, 8, ... samples.
+    Octave,
+    /// About --per-decade distinct m per decade.
+    Dense,
+}
+
+#[derive(Args, Debug)]
+pub struct AdevArgs {
+    /// The log: a store, CSV, Parquet or Arrow IPC. Channels are rates (deg/s, g, ...).
+    pub log: PathBuf,
+    /// Channels (comma-separated, or all).
+    #[arg(long, default_value = "all")]
+    pub channel: String,
+    /// Which deviation.
+    #[arg(long, value_enum, default_value_t = KindArg::Adev)]
+    pub kind: KindArg,
+    /// Averaging times.
+    #[arg(long, value_enum, default_value_t = TausArg::Octave)]
+    pub taus: TausArg,
+    /// Averaging factors per decade with --taus dense.
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    pub per_decade: usize,
+    /// Confidence level of the intervals (default: one sigma, 0.683).
+    #[arg(long, default_value_t = ONE_SIGMA, value_name = "P")]
+    pub confidence: f64,
+    /// Noise type assumed for the degrees of freedom: exponent alpha of the frequency
+    /// PSD f^alpha (2 white PM, 1 flicker PM, 0 white FM = angle random walk, -1
+    /// flicker FM = bias instability, -2 random-walk FM = rate random walk).
+    #[arg(
+        long,
+        default_value_t = 0,
+        value_name = "ALPHA",
+        allow_hyphen_values = true
+    )]
+    pub alpha: i32,
+    #[command(flatten)]
+    pub log_args: LogArgs,
+    /// One JSON object per channel on stdout (JSON Lines) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the curves as a Parquet table (one row per channel, kind and tau).
+    #[arg(long, short, value_name = "OUT.parquet")]
+    pub output: Option<PathBuf>,
+}
+
+impl AdevArgs {
+    fn kinds(&self) -> Vec<Kind> {
+        match self.kind {
+            KindArg::Adev => vec![Kind::Adev],
+            KindArg::Mdev => vec![Kind::Mdev],
+            KindArg::Hdev => vec![Kind::Hdev],
+            KindArg::All => Kind::ALL.to_vec(),
+        }
+    }
+
+    fn grid(&self) -> Result<TauGrid> {
+        Ok(match self.taus {
+            TausArg::Octave => TauGrid::Octave,
+            TausArg::Dense => {
+                if self.per_decade == 0 {
+                    return Err(Error::Usage("--per-decade must be at least 1".into()));
+                }
+                TauGrid::Dense {
+                    per_decade: self.per_decade,
+                }
+            }
+        })
+    }
+}
+
+pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
+    if !(a.confidence > 0.0 && a.confidence < 1.0) {
+        return Err(Error::Usage(format!(
+            "--confidence must be between 0 and 1, got {}",
+            a.confidence
+        )));
+    }
+    if !(-4..=2).contains(&a.alpha) {
+        return Err(Error::Usage(format!(
+            "--alpha must be an integer from -4 to 2, got {}",
+            a.alpha
+        )));
+    }
+    let grid = a.grid()?;
+    let kinds = a.kinds();
+    let ci = CiOptions {
+        confidence: a.confidence,
+        alpha: a.alpha,
+    };
+    let store = open_log(
+        &a.log,
+        &a.log_args.options()?,
+        &a.log_args.cache(),
+        progress,
+    )?;
+    let names = store.select_channels(&a.channel)?;
+    let rate_hz = store.sample_rate_hz();
+    // Averages must not straddle a gap: use the longest uniform segment.
+    let segments = &store.meta().segments;
+    let (start, len) = match segments.iter().max_by_key(|s| s.len) {
+        Some(s) if segments.len() > 1 => {
+            eprintln!(
+                "farma: warning: {}: {} segments (gaps); using the longest, rows {}..{}",
+                a.log.display(),
+                segments.len(),
+                s.start,
+                s.start + s.len
+            );
+            (s.start as usize, s.len as usize)
+        }
+        _ => (0, store.n_samples()),
+    };
+    let mut results: Vec<(String, Vec<Curve>)> = Vec::new();
+    for name in &names {
+        let y = &store.column(name)?[start..start + len];
+        let what = format!("{}: channel '{name}'", a.log.display());
+        let c = curves(&what, y, rate_hz, &kinds, grid, ci)?;
+        results.push((name.clone(), c));
+    }
+
+    if let Some(out) = &a.output {
+        write_table(out, &results, &a, rate_hz)?;
+    }
+    let n = len;
+    if a.json {
+        for (name, cs) in &results {
+            let mut o = Map::new();
+            o.insert("channel".into(), json!(name));
+            o.insert("log".into(), json!(a.log.display().to_string()));
+            o.insert("sample_rate_hz".into(), json!(rate_hz));
+            o.insert("n_samples".into(), json!(n));
+            o.insert("taus".into(), json!(grid_name(grid)));
+            o.insert("confidence".into(), json!(a.confidence));
+            o.insert("alpha".into(), json!(a.alpha));
+            for c in cs {
+                let k = c.kind.name();
+                let col = |f: &dyn Fn(&crate::stats::adev::Point) -> Value| -> Value {
+                    Value::Array(c.points.iter().map(f).collect())
+                };
+                if c.kind == Kind::Adev {
+                    o.insert("tau_s".into(), col(&|p| json!(p.tau_s)));
+                }
+                o.insert(format!("{k}_tau_s"), col(&|p| json!(p.tau_s)));
+                o.insert(format!("{k}_m"), col(&|p| json!(p.m)));
+                o.insert(k.into(), col(&|p| json!(p.dev)));
+                o.insert(format!("{k}_lo"), col(&|p| json!(p.lo)));
+                o.insert(format!("{k}_hi"), col(&|p| json!(p.hi)));
+                o.insert(format!("{k}_edf"), col(&|p| json!(p.edf)));
+            }
+            if let Some(out) = &a.output {
+                o.insert("output".into(), json!(out.display().to_string()));
+            }
+            println!("{}", Value::Object(o));
+        }
+        return Ok(());
+    }
+    println!(
+        "log       {} ({} samples at {} Hz, {} taus)",
+        a.log.display(),
+        n,
+        rate_hz,
+        grid_name(grid)
+    );
+    println!(
+        "interval  {:.1} % from Greenhall's EDF, noise alpha = {}",
+        100.0 * a.confidence,
+        a.alpha
+    );
+    for (name, cs) in &results {
+        for c in cs {
+            println!();
+            println!(
+                "{:<16} {:<5} {:>14} {:>10} {:>14} {:>14} {:>14} {:>12}",
+                "channel", "kind", "tau_s", "m", "dev", "lo", "hi", "edf"
+            );
+            for p in &c.points {
+                println!(
+                    "{:<16} {:<5} {:>14.6e} {:>10} {:>14.6e} {:>14.6e} {:>14.6e} {:>12.4e}",
+                    name,
+                    c.kind.name(),
+                    p.tau_s,
+                    p.m,
+                    p.dev,
+                    p.lo,
+                    p.hi,
+                    p.edf
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn grid_name(g: TauGrid) -> String {
+    match g {
+        TauGrid::Octave => "octave".into(),
+        TauGrid::Dense { per_decade } => format!("dense ({per_decade} per decade)"),
+    }
+}
+
+fn write_table(
+    out: &std::path::Path,
+    results: &[(String, Vec<Curve>)],
+    a: &AdevArgs,
+    rate_hz: f64,
+) -> Result<()> {
+    let mut channel = Vec::new();
+    let mut kind = Vec::new();
+    let (mut m, mut n_terms) = (Vec::new(), Vec::new());
+    let (mut tau, mut dev, mut lo, mut hi, mut edf) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (name, cs) in results {
+        for c in cs {
+            for p in &c.points {
+                channel.push(name.as_str());
+                kind.push(c.kind.name());
+                m.push(p.m as i64);
+                n_terms.push(p.n_terms as i64);
+                tau.push(p.tau_s);
+                dev.push(p.dev);
+                lo.push(p.lo);
+                hi.push(p.hi);
+                edf.push(p.edf);
+            }
+        }
+    }
+    let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
+    let b = batch(vec![
+        ("channel", Arc::new(StringArray::from(channel)) as ArrayRef),
+        ("kind", Arc::new(StringArray::from(kind)) as ArrayRef),
+        ("tau_s", f(tau)),
+        ("m", Arc::new(Int64Array::from(m)) as ArrayRef),
+        ("dev", f(dev)),
+        ("dev_lo", f(lo)),
+        ("dev_hi", f(hi)),
+        ("edf", f(edf)),
+        ("n_terms", Arc::new(Int64Array::from(n_terms)) as ArrayRef),
+    ])?;
+    write_parquet(
+        out,
+        &b,
+        &[
+            ("log", a.log.display().to_string()),
+            ("sample_rate_hz", rate_hz.to_string()),
+            ("confidence", a.confidence.to_string()),
+            ("alpha", a.alpha.to_string()),
+            ("farma.command", "adev".to_string()),
+        ],
+    )
+}
