@@ -8,10 +8,13 @@
 //! `shared/design/fast-exact-fits.md`). [`problem`] defines the regression both solve,
 //! [`kernel`] the Biweight, [`linalg`] the small dense solves (faer).
 
+pub mod arma;
 pub mod direct;
+pub mod fit;
 pub mod kernel;
 pub mod linalg;
 pub mod moments;
 pub mod problem;
 
+pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};
 pub use problem::{GridFit, PointStatus, VcProblem};

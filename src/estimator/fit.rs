@@ -1,0 +1,703 @@
+//! Fitting a FARMA(p,q,d) model: validated parameters in, a fitted model out.
+//!
+//! The scheme of the paper, made to converge to the right answer:
+//! 1. start: a linear ARMA(p,q) by conditional least squares ([`super::arma`]) gives
+//!    constant f_m = a_m and b (`Init::Arma`, default); `Init::Literal` is the paper's
+//!    literal start (least-squares AR(p), b = 0), kept for comparison: it stalls with
+//!    b near 0 when the MA part is strong;
+//! 2. f-step: with e and b fixed, y_t = x_t - sum b_m e_{t-m}; local-linear Biweight
+//!    fits at the grid points; the bandwidth by GCV over the ladder
+//!    h_j = 1.1^-j range/2 on the first f-step and again after convergence, extended
+//!    when the minimum sits at an end of the ladder;
+//! 3. b-step: with f fixed, w_t = x_t - sum f_m(U_t) x_{t-m} and b minimises
+//!    sum e_t^2, e_t = w_t - sum b_m e_{t-m}: Gauss-Newton to convergence (`Arma`), or
+//!    one least-squares regression of w on the previous residuals (`Literal`);
+//! 4. residuals recomputed recursively (zeros before the first sample), f between grid
+//!    points by linear interpolation; repeat until the RSS changes by less than `tol`
+//!    relative (default 1e-6). sigma^2 = RSS / (N - max(p,q,d)).
+//!
+//! The alternation is not a descent method (the f-step holds the residuals fixed): on
+//! the FARMA(2,1,1) of the tests its RSS falls by 1.6 % in the first step, then moves
+//! by about 1e-6 relative, in a slowly damped two-cycle, while b changes in the fifth
+//! digit. `rss_history` records every step.
+
+use super::arma::{fit_arma, ma_invertible};
+use super::direct::{self, DirectIndex};
+use super::linalg::normal_equations;
+use super::moments::{MomentTable, breakpoints};
+use super::problem::{GridFit, PointStatus, VcProblem};
+use crate::error::{Error, Result};
+
+/// How the alternation starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Init {
+    /// Linear ARMA(p,q) by conditional least squares; b by Gauss-Newton in each b-step.
+    Arma,
+    /// The paper's literal scheme: AR(p) least squares, b = 0, b by one LS step.
+    Literal,
+}
+
+/// Which computation gives the local fits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FitPath {
+    /// One-pass exact moment tables (every bandwidth of the ladder at once).
+    Fast,
+    /// KD-tree gather and dense least squares per grid point and bandwidth.
+    Direct,
+}
+
+/// Parameters of a fit; check them with [`FarmaParams::validate`].
+#[derive(Clone, Debug)]
+pub struct FarmaParams {
+    pub p: usize,
+    pub q: usize,
+    pub d: usize,
+    /// Grid points over the central quantiles of the index values.
+    pub grid_size: usize,
+    /// Quantiles of U_t the grid spans.
+    pub grid_quantiles: (f64, f64),
+    /// A fixed bandwidth instead of GCV.
+    pub bandwidth: Option<f64>,
+    pub init: Init,
+    pub path: FitPath,
+    pub max_iter: usize,
+    /// Relative RSS change that ends the alternation.
+    pub tol: f64,
+    /// Subtract the mean before fitting (recorded in the model).
+    pub demean: bool,
+}
+
+impl Default for FarmaParams {
+    fn default() -> Self {
+        FarmaParams {
+            p: 2,
+            q: 1,
+            d: 1,
+            grid_size: 201,
+            grid_quantiles: (0.01, 0.99),
+            bandwidth: None,
+            init: Init::Arma,
+            path: FitPath::Fast,
+            max_iter: 50,
+            tol: 1e-6,
+            demean: true,
+        }
+    }
+}
+
+/// Parameters that passed validation for a series of `n` samples.
+#[derive(Clone, Debug)]
+pub struct ValidParams(FarmaParams);
+
+impl FarmaParams {
+    /// Checks the parameters against a series of `n` samples.
+    pub fn validate(self, n: usize) -> Result<ValidParams> {
+        let bad = |m: String| Err(Error::Usage(m));
+        if self.p == 0 || self.d == 0 {
+            return bad(format!(
+                "--order: p and d must be at least 1 (got p = {}, d = {})",
+                self.p, self.d
+            ));
+        }
+        if self.p > 6 || self.q > 6 || self.d > 1000 {
+            return bad(format!(
+                "--order: p, q at most 6 and d at most 1000 (got {},{},{})",
+                self.p, self.q, self.d
+            ));
+        }
+        if self.grid_size < 3 {
+            return bad(format!(
+                "--grid: at least 3 points (got {})",
+                self.grid_size
+            ));
+        }
+        let (lo, hi) = self.grid_quantiles;
+        if !(0.0..0.5).contains(&lo) || !(0.5..=1.0).contains(&hi) {
+            return bad(format!(
+                "grid quantiles ({lo}, {hi}) must satisfy 0 <= lo < 0.5 <= hi <= 1"
+            ));
+        }
+        if let Some(h) = self.bandwidth
+            && !(h.is_finite() && h > 0.0)
+        {
+            return bad(format!("--bandwidth: {h} is not a positive number"));
+        }
+        if !(self.tol > 0.0) || self.max_iter == 0 {
+            return bad("--tol must be positive and --max-iter at least 1".into());
+        }
+        let pp = self.p.max(self.q).max(self.d);
+        let need = (20 * (2 * self.p + self.q) + pp + 1).max(100);
+        if n < need {
+            return Err(Error::TooShort {
+                what: format!("FARMA({},{},{}) fit", self.p, self.q, self.d),
+                need: need as u64,
+                have: n as u64,
+            });
+        }
+        Ok(ValidParams(self))
+    }
+}
+
+impl ValidParams {
+    pub fn params(&self) -> &FarmaParams {
+        &self.0
+    }
+}
+
+/// One row of the GCV table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GcvRow {
+    pub bandwidth: f64,
+    pub rss: f64,
+    pub trace: f64,
+    /// (RSS/m) / (1 - tr/m)^2; infinite when some grid point has no fit.
+    pub gcv: f64,
+    /// Grid points without a fit at this bandwidth.
+    pub n_failed: usize,
+}
+
+/// A fitted FARMA model.
+#[derive(Clone, Debug)]
+pub struct FittedFarma {
+    pub p: usize,
+    pub q: usize,
+    pub d: usize,
+    /// Mean subtracted before fitting (0 without demeaning).
+    pub mean: f64,
+    pub grid: Vec<f64>,
+    /// Local fits at the chosen bandwidth; failed points filled by interpolation.
+    pub coef: GridFit,
+    /// Grid points whose f was filled from their neighbours (status not Ok).
+    pub filled: Vec<bool>,
+    pub b: Vec<f64>,
+    pub bandwidth: f64,
+    pub rss: f64,
+    pub sigma2: f64,
+    /// Trace of the smoother at the chosen bandwidth (effective degrees of freedom).
+    pub trace: f64,
+    pub gcv: f64,
+    pub gcv_table: Vec<GcvRow>,
+    /// Whether the ladder was extended beyond the paper's 21 bandwidths.
+    pub ladder_extended: bool,
+    pub iterations: usize,
+    pub converged: bool,
+    /// RSS after the start and after each alternation.
+    pub rss_history: Vec<f64>,
+    pub init: Init,
+    pub path: FitPath,
+    /// Samples in the series and rows in the regression.
+    pub n: usize,
+    pub n_rows: usize,
+    /// Residuals e_t for every t.
+    pub residuals: Vec<f64>,
+    /// Messages for the user (ladder extensions, filled points).
+    pub notes: Vec<String>,
+}
+
+/// Quantile of a strided sample of at most 1e6 values (exact for shorter series).
+fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64]) -> Vec<f64> {
+    let n = rows.len();
+    let stride = n.div_ceil(1_000_000).max(1);
+    let mut v: Vec<f64> = rows.step_by(stride).map(u).collect();
+    v.sort_by(f64::total_cmp);
+    qs.iter()
+        .map(|q| {
+            let pos = q * (v.len() - 1) as f64;
+            let (i, frac) = (pos.floor() as usize, pos - pos.floor());
+            if i + 1 < v.len() {
+                v[i] + frac * (v[i + 1] - v[i])
+            } else {
+                v[i]
+            }
+        })
+        .collect()
+}
+
+/// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
+/// U_t = x_{t-d} (0 before the first sample).
+pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
+    let p = coef.p;
+    let mut f = vec![0.0; p];
+    for t in 0..x.len() {
+        let u = if t >= d { x[t - d] } else { 0.0 };
+        coef.eval(grid, u, &mut f);
+        let mut s = x[t];
+        for m in 0..p.min(t) {
+            s -= f[m] * x[t - m - 1];
+        }
+        for (m, bm) in b.iter().enumerate() {
+            if t > m {
+                s -= bm * e[t - m - 1];
+            }
+        }
+        e[t] = s;
+    }
+}
+
+fn rss_from(e: &[f64], start: usize) -> f64 {
+    e[start..].iter().map(|v| v * v).sum()
+}
+
+/// Fills failed grid points by linear interpolation between the nearest Ok points
+/// (constant beyond the outermost). Returns which were filled; None if none is Ok.
+fn fill_failed(fit: &mut GridFit, grid: &[f64]) -> Option<Vec<bool>> {
+    let p = fit.p;
+    let ok: Vec<usize> = (0..grid.len())
+        .filter(|g| fit.status[*g] == PointStatus::Ok)
+        .collect();
+    if ok.is_empty() {
+        return None;
+    }
+    let mut filled = vec![false; grid.len()];
+    for g in 0..grid.len() {
+        if fit.status[g] == PointStatus::Ok {
+            continue;
+        }
+        filled[g] = true;
+        let right = ok.partition_point(|k| *k < g);
+        for m in 0..p {
+            fit.f[g * p + m] = match (right.checked_sub(1).map(|i| ok[i]), ok.get(right)) {
+                (Some(a), Some(&c)) => {
+                    let lam = (grid[g] - grid[a]) / (grid[c] - grid[a]);
+                    fit.f[a * p + m] + lam * (fit.f[c * p + m] - fit.f[a * p + m])
+                }
+                (Some(a), None) => fit.f[a * p + m],
+                (None, Some(&c)) => fit.f[c * p + m],
+                (None, None) => unreachable!(),
+            };
+        }
+    }
+    Some(filled)
+}
+
+/// The f-step machinery for one alternation: fits for a set of bandwidths and their
+/// RSS / trace, by either path.
+struct Smoother<'a> {
+    prob: VcProblem<'a>,
+    grid: &'a [f64],
+    path: FitPath,
+    umin: f64,
+    umax: f64,
+}
+
+impl Smoother<'_> {
+    /// Fits (and RSS, trace where every point is Ok) for each bandwidth.
+    fn ladder(&self, hs: &[f64]) -> Vec<(GridFit, Option<(f64, f64)>)> {
+        match self.path {
+            FitPath::Fast => {
+                let table = MomentTable::build(
+                    &self.prob,
+                    breakpoints(self.grid, hs),
+                    self.umin,
+                    self.umax,
+                    6,
+                );
+                table
+                    .fit_ladder(self.grid, hs)
+                    .into_iter()
+                    .map(|f| {
+                        let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
+                        (f, rt)
+                    })
+                    .collect()
+            }
+            FitPath::Direct => {
+                let index = DirectIndex::build(&self.prob);
+                hs.iter()
+                    .map(|&h| {
+                        let f = direct::fit_grid(&self.prob, &index, self.grid, h);
+                        let rt = f
+                            .all_ok()
+                            .then(|| direct::rss_trace(&self.prob, self.grid, &f));
+                        (f, rt)
+                    })
+                    .collect()
+            }
+        }
+    }
+}
+
+/// GCV over the ladder, extended at either end while the minimum sits there.
+/// Returns (table sorted by decreasing h, index of the minimum, extended?, notes).
+fn gcv_select(sm: &Smoother, range: f64) -> (Vec<GcvRow>, Vec<GridFit>, usize, bool, Vec<String>) {
+    let m = sm.prob.n_rows() as f64;
+    let mut js: Vec<i32> = (0..=20).collect();
+    let mut notes = Vec::new();
+    let mut extended = false;
+    loop {
+        let hs: Vec<f64> = js.iter().map(|j| 1.1f64.powi(-*j) * range / 2.0).collect();
+        let fits = sm.ladder(&hs);
+        let rows: Vec<GcvRow> = hs
+            .iter()
+            .zip(&fits)
+            .map(|(&h, (f, rt))| {
+                let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
+                match rt {
+                    Some((rss, tr)) if *tr < m => GcvRow {
+                        bandwidth: h,
+                        rss: *rss,
+                        trace: *tr,
+                        gcv: (rss / m) / (1.0 - tr / m).powi(2),
+                        n_failed,
+                    },
+                    _ => GcvRow {
+                        bandwidth: h,
+                        rss: f64::NAN,
+                        trace: f64::NAN,
+                        gcv: f64::INFINITY,
+                        n_failed,
+                    },
+                }
+            })
+            .collect();
+        let best = rows
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.gcv.is_finite())
+            .min_by(|a, b| a.1.gcv.total_cmp(&b.1.gcv))
+            .map(|(i, _)| i);
+        let last = rows.len() - 1;
+        match best {
+            Some(i) if i == last && js[last] < 80 && rows.len() < 120 => {
+                let next = js[last] + 1;
+                notes.push(format!(
+                    "GCV minimum at the smallest bandwidth h_{} = {:.6e}: ladder extended to j = {}",
+                    js[last],
+                    rows[last].bandwidth,
+                    next + 9
+                ));
+                js.extend(next..next + 10);
+                extended = true;
+            }
+            Some(0) if js[0] > -20 => {
+                let first = js[0];
+                notes.push(format!(
+                    "GCV minimum at the largest bandwidth h_{first} = {:.6e}: ladder extended upwards",
+                    rows[0].bandwidth
+                ));
+                let mut more: Vec<i32> = (first - 5..first).collect();
+                more.extend(js);
+                js = more;
+                extended = true;
+            }
+            Some(i) => {
+                let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
+                return (rows, fits, i, extended, notes);
+            }
+            None => {
+                notes
+                    .push("GCV: no bandwidth of the ladder gives a fit at every grid point".into());
+                let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
+                // take the one with the fewest failed points, widest first
+                let i = rows
+                    .iter()
+                    .enumerate()
+                    .min_by_key(|(_, r)| r.n_failed)
+                    .map(|(i, _)| i)
+                    .unwrap_or(0);
+                return (rows, fits, i, extended, notes);
+            }
+        }
+    }
+}
+
+/// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}.
+fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
+    let q = b0.len();
+    let n = w.len();
+    let mut b = b0.to_vec();
+    let mut e = vec![0.0; n];
+    let resid = |b: &[f64], e: &mut [f64]| {
+        for t in 0..n {
+            let mut s = w[t];
+            for (m, bm) in b.iter().enumerate() {
+                if t > m {
+                    s -= bm * e[t - m - 1];
+                }
+            }
+            e[t] = s;
+        }
+        e[start..].iter().map(|v| v * v).sum::<f64>()
+    };
+    let mut rss = resid(&b, &mut e);
+    let mut de = vec![0.0; n * q];
+    for _ in 0..30 {
+        for t in 0..n {
+            for j in 0..q {
+                let mut v = if t > j { -e[t - j - 1] } else { 0.0 };
+                for (k, bk) in b.iter().enumerate() {
+                    if t > k {
+                        v -= bk * de[(t - k - 1) * q + j];
+                    }
+                }
+                de[t * q + j] = v;
+            }
+        }
+        let mut jtj = vec![0.0; q * q];
+        let mut jte = vec![0.0; q];
+        for t in start..n {
+            for i in 0..q {
+                for j in 0..q {
+                    jtj[i * q + j] += de[t * q + i] * de[t * q + j];
+                }
+                jte[i] -= de[t * q + i] * e[t];
+            }
+        }
+        let Some(step) = normal_equations(&jtj, &jte, q) else {
+            break;
+        };
+        // Stop on the size of the step, not on the RSS: near the optimum the RSS is
+        // flat to rounding while b is still determined to ~1e-12.
+        if step.iter().all(|s| s.abs() < 1e-12) {
+            break;
+        }
+        let mut scale = 1.0;
+        let mut moved = false;
+        let mut e_try = vec![0.0; n];
+        for _ in 0..30 {
+            let bt: Vec<f64> = (0..q).map(|i| b[i] + scale * step[i]).collect();
+            if ma_invertible(&bt) {
+                let r = resid(&bt, &mut e_try);
+                if r <= rss * (1.0 + 1e-14) {
+                    moved = true;
+                    b = bt;
+                    rss = r;
+                    std::mem::swap(&mut e, &mut e_try);
+                    break;
+                }
+            }
+            scale *= 0.5;
+        }
+        if !moved {
+            break;
+        }
+    }
+    b
+}
+
+/// Fits a FARMA model to `series`.
+pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
+    let prm = params.params();
+    let (p, q, d) = (prm.p, prm.q, prm.d);
+    let n = series.len();
+    let pp = p.max(q).max(d);
+    let mean = if prm.demean {
+        series.iter().sum::<f64>() / n as f64
+    } else {
+        0.0
+    };
+    let x: Vec<f64> = series.iter().map(|v| v - mean).collect();
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Usage(
+            "the channel holds NaN or infinite values".into(),
+        ));
+    }
+    let (xmin, xmax) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let range = xmax - xmin;
+    if !(range > 0.0) {
+        return Err(Error::Usage(
+            "the channel is constant: nothing to fit".into(),
+        ));
+    }
+    let qs = quantiles(
+        |t| x[t - d],
+        pp..n,
+        &[prm.grid_quantiles.0, prm.grid_quantiles.1],
+    );
+    let (glo, ghi) = (qs[0], qs[1]);
+    if !(ghi > glo) {
+        return Err(Error::Usage(format!(
+            "the index values x_(t-{d}) take one value over the central quantiles: no grid to fit on"
+        )));
+    }
+    let g = prm.grid_size;
+    let grid: Vec<f64> = (0..g)
+        .map(|k| glo + (ghi - glo) * k as f64 / (g - 1) as f64)
+        .collect();
+
+    // 1. start
+    let (a0, mut b) = match prm.init {
+        Init::Arma => match fit_arma(&x, p, q) {
+            Some(m) => (m.ar, m.ma),
+            None => {
+                return Err(Error::Usage(
+                    "the linear ARMA start failed (singular design)".into(),
+                ));
+            }
+        },
+        Init::Literal => match fit_arma(&x, p, 0) {
+            Some(m) => (m.ar, vec![0.0; q]),
+            None => return Err(Error::Usage("the AR start failed (singular design)".into())),
+        },
+    };
+    let mut coef = GridFit::new(g, p, f64::NAN);
+    for k in 0..g {
+        coef.status[k] = PointStatus::Ok;
+        coef.f[k * p..(k + 1) * p].copy_from_slice(&a0);
+    }
+    let mut e = vec![0.0; n];
+    residuals(&x, d, &grid, &coef, &b, &mut e);
+    let mut rss = rss_from(&e, pp);
+    let mut rss_history = vec![rss];
+
+    let mut h = prm.bandwidth.unwrap_or(f64::NAN);
+    let mut gcv_table = Vec::new();
+    let mut ladder_extended = false;
+    let mut notes = Vec::new();
+    let mut filled = vec![false; g];
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut reselections = 0;
+    let mut need_gcv = prm.bandwidth.is_none();
+    while iterations < prm.max_iter {
+        iterations += 1;
+        // 2. f-step
+        let sm = Smoother {
+            prob: VcProblem {
+                x: &x,
+                e: &e,
+                b: &b,
+                p,
+                d,
+                start: pp,
+            },
+            grid: &grid,
+            path: prm.path,
+            umin: xmin,
+            umax: xmax,
+        };
+        let mut fit_h = if need_gcv {
+            need_gcv = false;
+            let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range);
+            ladder_extended |= ext;
+            notes.extend(nt);
+            h = rows[best].bandwidth;
+            gcv_table = rows;
+            fits.swap_remove(best)
+        } else {
+            sm.ladder(&[h]).remove(0).0
+        };
+        filled = fill_failed(&mut fit_h, &grid).ok_or_else(|| {
+            Error::Usage(format!(
+                "no grid point has a local fit at bandwidth {h:.6e}: the data are too sparse"
+            ))
+        })?;
+        coef = fit_h;
+        // 3. b-step
+        if q > 0 {
+            let mut w = vec![0.0; n];
+            residuals(&x, d, &grid, &coef, &[], &mut w);
+            b = match prm.init {
+                Init::Arma => ma_cls(&w, pp, &b),
+                Init::Literal => {
+                    let mut ata = vec![0.0; q * q];
+                    let mut aty = vec![0.0; q];
+                    for t in pp..n {
+                        for i in 0..q {
+                            for j in 0..q {
+                                ata[i * q + j] += e[t - i - 1] * e[t - j - 1];
+                            }
+                            aty[i] += e[t - i - 1] * w[t];
+                        }
+                    }
+                    normal_equations(&ata, &aty, q).unwrap_or(b)
+                }
+            };
+        }
+        // 4. residuals
+        residuals(&x, d, &grid, &coef, &b, &mut e);
+        let new_rss = rss_from(&e, pp);
+        let change = (rss - new_rss).abs();
+        rss = new_rss;
+        rss_history.push(rss);
+        if change <= prm.tol * rss.max(f64::MIN_POSITIVE) {
+            if prm.bandwidth.is_none() && reselections < 2 {
+                // re-check the bandwidth at the converged residuals
+                let sm = Smoother {
+                    prob: VcProblem {
+                        x: &x,
+                        e: &e,
+                        b: &b,
+                        p,
+                        d,
+                        start: pp,
+                    },
+                    grid: &grid,
+                    path: prm.path,
+                    umin: xmin,
+                    umax: xmax,
+                };
+                let (rows, _, best, ext, nt) = gcv_select(&sm, range);
+                reselections += 1;
+                if rows[best].bandwidth != h {
+                    notes.push(format!(
+                        "bandwidth re-selected after convergence: {h:.6e} -> {:.6e}",
+                        rows[best].bandwidth
+                    ));
+                    ladder_extended |= ext;
+                    notes.extend(nt);
+                    h = rows[best].bandwidth;
+                    gcv_table = rows;
+                    continue;
+                }
+                gcv_table = rows;
+            }
+            converged = true;
+            break;
+        }
+    }
+    // GCV and trace at the final bandwidth
+    let sm = Smoother {
+        prob: VcProblem {
+            x: &x,
+            e: &e,
+            b: &b,
+            p,
+            d,
+            start: pp,
+        },
+        grid: &grid,
+        path: prm.path,
+        umin: xmin,
+        umax: xmax,
+    };
+    let (final_fit, rt) = sm.ladder(&[h]).remove(0);
+    let m = (n - pp) as f64;
+    let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
+    let gcv = (frss / m) / (1.0 - trace / m).powi(2);
+    let _ = final_fit;
+    let n_filled = filled.iter().filter(|f| **f).count();
+    if n_filled > 0 {
+        notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));
+    }
+    Ok(FittedFarma {
+        p,
+        q,
+        d,
+        mean,
+        grid,
+        coef,
+        filled,
+        b,
+        bandwidth: h,
+        rss,
+        sigma2: rss / (n - pp) as f64,
+        trace,
+        gcv,
+        gcv_table,
+        ladder_extended,
+        iterations,
+        converged,
+        rss_history,
+        init: prm.init,
+        path: prm.path,
+        n,
+        n_rows: n - pp,
+        residuals: e,
+        notes,
+    })
+}
