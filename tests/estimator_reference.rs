@@ -9,7 +9,11 @@ use farma::estimator::{PointStatus, VcProblem};
 
 #[test]
 fn grid_fits_match_ref_farma_local_linear_to_1e10() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/golden/farma_local_linear.csv")).unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/fixtures/golden/farma_local_linear.csv"
+    ))
+    .unwrap();
     let (mut x, mut e) = (Vec::new(), Vec::new());
     let mut fits: Vec<(f64, f64, f64, f64)> = Vec::new();
     for line in text.lines().filter(|l| !l.starts_with('#')) {
@@ -25,12 +29,23 @@ fn grid_fits_match_ref_farma_local_linear_to_1e10() {
         }
     }
     let b = [-0.5];
-    let prob = VcProblem { x: &x, e: &e, b: &b, p: 2, d: 1, start: 2 };
+    let prob = VcProblem {
+        x: &x,
+        e: &e,
+        b: &b,
+        p: 2,
+        d: 1,
+        start: 2,
+    };
     let mut hs: Vec<f64> = fits.iter().map(|f| f.0).collect();
     hs.dedup();
     let grid: Vec<f64> = fits.iter().filter(|f| f.0 == hs[0]).map(|f| f.1).collect();
     assert_eq!((hs.len(), grid.len()), (3, 15));
-    let (umin, umax) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+    let (umin, umax) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
     let table = MomentTable::build(&prob, breakpoints(&grid, &hs), umin, umax, 6);
     let fast = table.fit_ladder(&grid, &hs);
     let index = DirectIndex::build(&prob);
@@ -44,7 +59,12 @@ fn grid_fits_match_ref_farma_local_linear_to_1e10() {
                     let got = fit.f[g * 2 + m];
                     let r = (got - w).abs() / w.abs().max(1e-300);
                     worst = worst.max(r);
-                    assert!(r <= 1e-10, "h {h} grid {} f{}: {got} vs reference {w}", want.1, m + 1);
+                    assert!(
+                        r <= 1e-10,
+                        "h {h} grid {} f{}: {got} vs reference {w}",
+                        want.1,
+                        m + 1
+                    );
                 }
             }
         }
