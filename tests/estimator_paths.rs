@@ -125,6 +125,7 @@ fn compare(fast: &GridFit, direct: &GridFit, what: &str) -> f64 {
     worst
 }
 
+#[allow(clippy::too_many_arguments)]
 fn check_paths(
     x: &[f64],
     e: &[f64],
@@ -175,6 +176,22 @@ fn check_paths(
                     assert!(
                         rel(one.f[m], direct.f[g * p + m]) <= 1e-10,
                         "{label}: brute vs direct"
+                    );
+                }
+            }
+        }
+        // standard-error factors, both paths (on the fast path's fit, so only the S2 sums differ)
+        let se_table = MomentTable::build(&prob, breakpoints(grid, &[h]), umin, umax, 10);
+        let se_fast = se_table.se_factors(grid, &fast[j]);
+        let se_direct = farma::estimator::direct::se_factors(&prob, &index, grid, &fast[j]);
+        for g in 0..grid.len() {
+            if fast[j].status[g] == PointStatus::Ok {
+                for m in 0..p {
+                    let (a, b) = (se_fast[g * p + m], se_direct[g * p + m]);
+                    let allow = (fast[j].cond[g].powi(2) * 1e-15).max(1e-9);
+                    assert!(
+                        rel(a, b) <= allow,
+                        "{label} h_{j} g {g}: se factor {a} vs {b}"
                     );
                 }
             }

@@ -5,6 +5,7 @@
 //! 2 bad input or usage (see [`crate::error`]).
 
 mod adev;
+mod fit;
 mod info;
 mod ingest;
 
@@ -35,6 +36,8 @@ pub enum Command {
     Ingest(ingest::IngestArgs),
     /// Channels, samples, rate, duration, gaps and per-channel statistics of a log.
     Info(info::InfoArgs),
+    /// Fit a FARMA(p,q,d) model to channels of a log.
+    Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
 }
@@ -124,6 +127,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Ingest(a) => ingest::run(a, &progress),
         Command::Info(a) => info::run(a, &progress),
+        Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
     }
 }

@@ -99,6 +99,44 @@ pub fn fit_grid(prob: &VcProblem, index: &DirectIndex, grid: &[f64], h: f64) -> 
     fit
 }
 
+/// Standard-error factors by direct sums (the twin of `MomentTable::se_factors`).
+pub fn se_factors(prob: &VcProblem, index: &DirectIndex, grid: &[f64], fit: &GridFit) -> Vec<f64> {
+    let p = prob.p;
+    let n = 2 * p;
+    let h = fit.bandwidth;
+    let per_g: Vec<Vec<f64>> = grid
+        .par_iter()
+        .enumerate()
+        .map(|(g, &ug)| {
+            if fit.status[g] != super::problem::PointStatus::Ok {
+                return vec![f64::NAN; p];
+            }
+            let (lo, hi) = (ug - h, ug + h);
+            let mut s2 = vec![0.0; n * n];
+            let mut z = vec![0.0; n];
+            for t in index.gather(ug, h * (1.0 + 1e-12)) {
+                let u = prob.u(t);
+                if !(lo <= u && u < hi) {
+                    continue;
+                }
+                let w = (u - ug) / h;
+                let k = biweight(w);
+                for m in 0..p {
+                    z[m] = prob.xr(t, m);
+                    z[p + m] = w * z[m];
+                }
+                for i in 0..n {
+                    for j in 0..n {
+                        s2[i * n + j] += k * k * z[i] * z[j];
+                    }
+                }
+            }
+            super::moments::sandwich_diag(&fit.s_inv[g * n * n..(g + 1) * n * n], &s2, n, p)
+        })
+        .collect();
+    per_g.concat()
+}
+
 /// RSS and trace of the smoother by a pass over the data (all grid points Ok).
 pub fn rss_trace(prob: &VcProblem, grid: &[f64], fit: &GridFit) -> (f64, f64) {
     const BLOCK: usize = 1 << 14;

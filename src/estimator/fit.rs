@@ -122,7 +122,7 @@ impl FarmaParams {
         {
             return bad(format!("--bandwidth: {h} is not a positive number"));
         }
-        if !(self.tol > 0.0) || self.max_iter == 0 {
+        if self.tol.is_nan() || self.tol <= 0.0 || self.max_iter == 0 {
             return bad("--tol must be positive and --max-iter at least 1".into());
         }
         let pp = self.p.max(self.q).max(self.d);
@@ -167,6 +167,9 @@ pub struct FittedFarma {
     pub grid: Vec<f64>,
     /// Local fits at the chosen bandwidth; failed points filled by interpolation.
     pub coef: GridFit,
+    /// Pointwise standard error of f_m at the grid points (G x p), sigma times the
+    /// sandwich factor; NaN at filled points.
+    pub se: Vec<f64>,
     /// Grid points whose f was filled from their neighbours (status not Ok).
     pub filled: Vec<bool>,
     pub b: Vec<f64>,
@@ -498,7 +501,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             (a.min(*v), b.max(*v))
         });
     let range = xmax - xmin;
-    if !(range > 0.0) {
+    if range.is_nan() || range <= 0.0 {
         return Err(Error::Usage(
             "the channel is constant: nothing to fit".into(),
         ));
@@ -509,7 +512,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         &[prm.grid_quantiles.0, prm.grid_quantiles.1],
     );
     let (glo, ghi) = (qs[0], qs[1]);
-    if !(ghi > glo) {
+    if ghi.is_nan() || ghi <= glo {
         return Err(Error::Usage(format!(
             "the index values x_(t-{d}) take one value over the central quantiles: no grid to fit on"
         )));
@@ -650,16 +653,17 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             break;
         }
     }
-    // GCV and trace at the final bandwidth
+    // GCV, trace and standard errors at the final bandwidth
+    let prob = VcProblem {
+        x: &x,
+        e: &e,
+        b: &b,
+        p,
+        d,
+        start: pp,
+    };
     let sm = Smoother {
-        prob: VcProblem {
-            x: &x,
-            e: &e,
-            b: &b,
-            p,
-            d,
-            start: pp,
-        },
+        prob,
         grid: &grid,
         path: prm.path,
         umin: xmin,
@@ -669,7 +673,13 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let m = (n - pp) as f64;
     let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
     let gcv = (frss / m) / (1.0 - trace / m).powi(2);
-    let _ = final_fit;
+    let sigma2 = rss / (n - pp) as f64;
+    let factors = match prm.path {
+        FitPath::Fast => MomentTable::build(&prob, breakpoints(&grid, &[h]), xmin, xmax, 10)
+            .se_factors(&grid, &final_fit),
+        FitPath::Direct => direct::se_factors(&prob, &DirectIndex::build(&prob), &grid, &final_fit),
+    };
+    let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
         notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));
@@ -685,8 +695,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         b,
         bandwidth: h,
         rss,
-        sigma2: rss / (n - pp) as f64,
+        sigma2,
         trace,
+        se,
         gcv,
         gcv_table,
         ladder_extended,

@@ -25,7 +25,7 @@ pub fn spd_solve_inverse(s: &[f64], rhs: &[f64], n: usize) -> Option<(Vec<f64>, 
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
     let cond = if lo > 0.0 { hi / lo } else { f64::INFINITY };
-    if !(cond <= MAX_COND) {
+    if cond.is_nan() || cond > MAX_COND {
         return None;
     }
     let llt = a.llt(faer::Side::Lower).ok()?;

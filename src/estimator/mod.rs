@@ -8,6 +8,8 @@
 //! `shared/design/fast-exact-fits.md`). [`problem`] defines the regression both solve,
 //! [`kernel`] the Biweight, [`linalg`] the small dense solves (faer).
 
+#![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
+
 pub mod arma;
 pub mod direct;
 pub mod fit;
@@ -15,6 +17,7 @@ pub mod kernel;
 pub mod linalg;
 pub mod moments;
 pub mod problem;
+pub mod tables;
 
 pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};
 pub use problem::{GridFit, PointStatus, VcProblem};

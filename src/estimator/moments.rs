@@ -312,9 +312,7 @@ impl MomentTable {
     ) -> Vec<f64> {
         let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
         for e in lo..=hi.min(self.n_intervals() - 1) {
-            if e >= lo {
-                self.add_recentred(e, u, smax, binom, &mut acc);
-            }
+            self.add_recentred(e, u, smax, binom, &mut acc);
         }
         acc
     }
@@ -419,6 +417,76 @@ impl MomentTable {
             .into_iter()
             .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
     }
+}
+
+impl MomentTable {
+    /// Pointwise standard-error factors of f at bandwidth `fit.bandwidth`: for each
+    /// grid point and m, sqrt([S^-1 S2 S^-1]_mm) with S2 = sum K(w)^2 Z Z', so that
+    /// se = sigma * factor (the sandwich variance of a local least-squares fit with
+    /// homoskedastic errors; Fan and Gijbels 1996, eq. 3.6). Needs `deg >= 10`
+    /// (K^2 is of degree 8). NaN where the point is not Ok.
+    pub fn se_factors(&self, grid: &[f64], fit: &GridFit) -> Vec<f64> {
+        assert!(
+            self.deg >= 10,
+            "standard errors need moments up to degree 10"
+        );
+        let p = self.p;
+        let n = 2 * p;
+        let d1 = self.deg + 1;
+        let h = fit.bandwidth;
+        let binom = binomial_table();
+        let k2 = poly_mul(&BIWEIGHT, &BIWEIGHT);
+        let per_g: Vec<Vec<f64>> = grid
+            .par_iter()
+            .enumerate()
+            .map(|(g, &ug)| {
+                if fit.status[g] != super::problem::PointStatus::Ok {
+                    return vec![f64::NAN; p];
+                }
+                let lo = self.break_index(ug - h) + 1;
+                let hi = self.break_index(ug + h);
+                let acc = self.range_moments(lo, hi, ug, 10, &binom);
+                let mut hp = [1.0f64; 11];
+                for k in 1..11 {
+                    hp[k] = hp[k - 1] / h;
+                }
+                let a2 = |f: usize, r: usize| -> f64 {
+                    k2.iter()
+                        .enumerate()
+                        .map(|(k, c)| c * acc[f * d1 + k + r] * hp[k + r])
+                        .sum()
+                };
+                let mut s2 = vec![0.0; n * n];
+                for a in 0..p {
+                    for b in 0..p {
+                        let f = self.fam(a, b);
+                        let (m0, m1, m2) = (a2(f, 0), a2(f, 1), a2(f, 2));
+                        s2[a * n + b] = m0;
+                        s2[a * n + p + b] = m1;
+                        s2[(p + a) * n + b] = m1;
+                        s2[(p + a) * n + p + b] = m2;
+                    }
+                }
+                sandwich_diag(&fit.s_inv[g * n * n..(g + 1) * n * n], &s2, n, p)
+            })
+            .collect();
+        per_g.concat()
+    }
+}
+
+/// sqrt of the first p diagonal entries of Q S2 Q (Q symmetric, row-major n x n).
+pub fn sandwich_diag(q: &[f64], s2: &[f64], n: usize, p: usize) -> Vec<f64> {
+    (0..p)
+        .map(|m| {
+            let mut v = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    v += q[m * n + i] * s2[i * n + j] * q[j * n + m];
+                }
+            }
+            v.max(0.0).sqrt()
+        })
+        .collect()
 }
 
 /// The breakpoints for grid `grid` and bandwidths `hs`: every u_g, u_g - h, u_g + h.

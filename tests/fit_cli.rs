@@ -1,0 +1,117 @@
+//! `farma fit`: outputs, JSON keys, bad input, and identical bytes with 1 and 2 threads.
+
+mod common;
+
+use common::{farma, fixture, stderr, stdout};
+
+#[test]
+fn fit_writes_tables_and_json_and_is_thread_count_independent() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let run = |threads: &str, out: &str| {
+        let o = farma(
+            &[
+                "--threads",
+                threads,
+                "fit",
+                log.to_str().unwrap(),
+                "--channel",
+                "gyro_x,gyro_y",
+                "--order",
+                "2,1,1",
+                "--grid",
+                "41",
+                "--residuals",
+                "--json",
+                "-o",
+                dir.path().join(out).to_str().unwrap(),
+            ],
+            dir.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        o
+    };
+    let one = run("1", "t1");
+    let two = run("2", "t2");
+    for f in [
+        "coef.parquet",
+        "params.parquet",
+        "gcv.parquet",
+        "residuals.parquet",
+    ] {
+        let a = std::fs::read(dir.path().join("t1").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("t2").join(f)).unwrap();
+        assert!(a == b, "{f} differs between 1 and 2 threads");
+    }
+    let lines: Vec<serde_json::Value> = stdout(&one)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    for v in &lines {
+        for k in [
+            "channel",
+            "order",
+            "b",
+            "sigma2",
+            "bandwidth",
+            "rss",
+            "trace",
+            "iterations",
+            "converged",
+            "coef",
+        ] {
+            assert!(v.get(k).is_some(), "missing key {k}");
+        }
+        assert_eq!(v["order"], serde_json::json!([2, 1, 1]));
+        let sigma2 = v["sigma2"].as_f64().unwrap();
+        let rss = v["rss"].as_f64().unwrap();
+        assert!((sigma2 - rss / 3998.0).abs() <= 1e-15 * sigma2.max(1e-300) * 10.0);
+    }
+    assert_eq!(stdout(&one), stdout(&two).replace("/t2/", "/t1/"));
+}
+
+#[test]
+fn fit_rejects_bad_requests_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let l = log.to_str().unwrap();
+    let out = dir.path().join("o");
+    let o = out.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec!["fit", l, "--channel", "nope", "-o", o],
+            "no channel 'nope'",
+        ),
+        (
+            vec!["fit", l, "--channel", "gyro_x", "--order", "2,1", "-o", o],
+            "--order",
+        ),
+        (
+            vec!["fit", l, "--channel", "gyro_x", "--order", "0,1,1", "-o", o],
+            "p and d must be at least 1",
+        ),
+        (
+            vec!["fit", l, "--channel", "gyro_x", "--bandwidth=-1", "-o", o],
+            "--bandwidth",
+        ),
+        (
+            vec![
+                "fit",
+                fixture("bad/gap.csv").to_str().unwrap(),
+                "--channel",
+                "gyro_x",
+                "--gaps",
+                "split",
+                "-o",
+                o,
+            ],
+            "too short",
+        ),
+    ] {
+        let r = farma(&args, dir.path());
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {}", stderr(&r));
+        assert!(stderr(&r).contains(needle), "{args:?}: {}", stderr(&r));
+    }
+    assert!(!out.join("coef.parquet").exists());
+}
