@@ -14,66 +14,54 @@ const SUM_BLOCK: usize = 1 << 14;
 
 /// The m-lag difference of order `order` (2: p[j+2m] - 2p[j+m] + p[j]; 3:
 /// p[j+3m] - 3p[j+2m] + 3p[j+m] - p[j]), squared and summed over j in `lo..hi`.
+/// Accumulator lanes of the kernels (independent chains; two SSE2 or AVX registers).
+const ACC: usize = 8;
+
+/// The m-lag difference of order `order` (2: p[j+2m] - 2p[j+m] + p[j]; 3:
+/// p[j+3m] - 3p[j+2m] + 3p[j+m] - p[j]), squared and summed over j in `lo..hi`.
 #[inline]
 fn block_sum_sq(p: &[f64], m: usize, order: usize, lo: usize, hi: usize) -> f64 {
     if hi <= lo {
         return 0.0;
     }
     let len = hi - lo;
-    let mut acc = [0.0f64; 4];
+    let mut acc = [0.0f64; ACC];
+    let mut tail = 0.0f64;
     match order {
         2 => {
-            let a = &p[lo..lo + len];
-            let b = &p[lo + m..lo + m + len];
-            let c = &p[lo + 2 * m..lo + 2 * m + len];
-            let mut ia = a.chunks_exact(4);
-            let mut ib = b.chunks_exact(4);
-            let mut ic = c.chunks_exact(4);
-            for ((x0, x1), x2) in (&mut ia).zip(&mut ib).zip(&mut ic) {
-                for l in 0..4 {
+            let (a, ar) = p[lo..lo + len].as_chunks::<ACC>();
+            let (b, br) = p[lo + m..lo + m + len].as_chunks::<ACC>();
+            let (c, cr) = p[lo + 2 * m..lo + 2 * m + len].as_chunks::<ACC>();
+            for ((x0, x1), x2) in a.iter().zip(b).zip(c) {
+                for l in 0..ACC {
                     let d = (x2[l] - 2.0 * x1[l]) + x0[l];
                     acc[l] += d * d;
                 }
             }
-            for ((x0, x1), x2) in ia
-                .remainder()
-                .iter()
-                .zip(ib.remainder())
-                .zip(ic.remainder())
-            {
+            for ((x0, x1), x2) in ar.iter().zip(br).zip(cr) {
                 let d = (x2 - 2.0 * x1) + x0;
-                acc[0] += d * d;
+                tail += d * d;
             }
         }
         3 => {
-            let a = &p[lo..lo + len];
-            let b = &p[lo + m..lo + m + len];
-            let c = &p[lo + 2 * m..lo + 2 * m + len];
-            let e = &p[lo + 3 * m..lo + 3 * m + len];
-            let mut ia = a.chunks_exact(4);
-            let mut ib = b.chunks_exact(4);
-            let mut ic = c.chunks_exact(4);
-            let mut ie = e.chunks_exact(4);
-            for (((x0, x1), x2), x3) in (&mut ia).zip(&mut ib).zip(&mut ic).zip(&mut ie) {
-                for l in 0..4 {
+            let (a, ar) = p[lo..lo + len].as_chunks::<ACC>();
+            let (b, br) = p[lo + m..lo + m + len].as_chunks::<ACC>();
+            let (c, cr) = p[lo + 2 * m..lo + 2 * m + len].as_chunks::<ACC>();
+            let (e, er) = p[lo + 3 * m..lo + 3 * m + len].as_chunks::<ACC>();
+            for (((x0, x1), x2), x3) in a.iter().zip(b).zip(c).zip(e) {
+                for l in 0..ACC {
                     let d = (x3[l] - x0[l]) + 3.0 * (x1[l] - x2[l]);
                     acc[l] += d * d;
                 }
             }
-            for (((x0, x1), x2), x3) in ia
-                .remainder()
-                .iter()
-                .zip(ib.remainder())
-                .zip(ic.remainder())
-                .zip(ie.remainder())
-            {
+            for (((x0, x1), x2), x3) in ar.iter().zip(br).zip(cr).zip(er) {
                 let d = (x3 - x0) + 3.0 * (x1 - x2);
-                acc[0] += d * d;
+                tail += d * d;
             }
         }
         _ => unreachable!("difference order {order}"),
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3])
+    acc.iter().sum::<f64>() + tail
 }
 
 /// For each (m, count) in `lags`, sum_{j < count} (order-th m-lag difference of p at

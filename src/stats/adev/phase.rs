@@ -6,10 +6,11 @@
 //! units of one sample; allantools' `frequency2phase` is X times tau0 = 1 / rate_hz).
 //! Two precautions keep X as exact as an f64 can hold it:
 //! - the mean is removed first (as allantools does), so X does not grow like N * mean;
-//! - the running sum is compensated: blocks of [`BLOCK`] samples are summed with
-//!   Neumaier's compensated sum, the block offsets are accumulated in double-double
-//!   (an unevaluated sum hi + lo of two f64, Knuth's TwoSum), and each block is then
-//!   scanned from its double-double offset carrying a compensation term. Each X_k is the
+//! - the running sum is compensated: sub-blocks of samples are summed with the rounding
+//!   error of every addition recovered exactly (Knuth's TwoSum) and summed apart, the
+//!   sub-block offsets are accumulated in double-double (an unevaluated sum hi + lo of
+//!   two f64), and each sub-block is then scanned from its double-double offset
+//!   carrying the same compensation term. Each X_k is the
 //!   correctly rounded running sum up to a few units in the last place, where a plain
 //!   `cumsum` (allantools) drifts by about sqrt(k) units of |X| rounding.
 //!
@@ -60,22 +61,33 @@ impl DoubleDouble {
     }
 }
 
-/// Neumaier's compensated sum of `f(i)` for i in `range`, as a double-double.
+/// Compensated sum of `f(i)` for i in `range` as a double-double: four interleaved
+/// lanes, each a running f64 sum whose rounding errors (TwoSum, exact) are summed
+/// separately; branch-free, so the lanes run in parallel in the pipeline.
 fn block_sum(range: std::ops::Range<usize>, f: &(impl Fn(usize) -> f64 + Sync)) -> DoubleDouble {
-    let mut s = 0.0f64;
-    let mut c = 0.0f64;
-    for i in range {
-        let v = f(i);
-        let t = s + v;
-        if s.abs() >= v.abs() {
-            c += (s - t) + v;
-        } else {
-            c += (v - t) + s;
+    let mut s = [0.0f64; 4];
+    let mut c = [0.0f64; 4];
+    let start = range.start;
+    let len = range.len();
+    let quads = len / 4;
+    for q in 0..quads {
+        let i = start + 4 * q;
+        for l in 0..4 {
+            let (t, e) = two_sum(s[l], f(i + l));
+            s[l] = t;
+            c[l] += e;
         }
-        s = t;
     }
-    let (hi, lo) = two_sum(s, c);
-    DoubleDouble { hi, lo }
+    for i in start + 4 * quads..range.end {
+        let (t, e) = two_sum(s[0], f(i));
+        s[0] = t;
+        c[0] += e;
+    }
+    let mut acc = DoubleDouble::default();
+    for l in 0..4 {
+        acc = acc.plus(DoubleDouble { hi: s[l], lo: c[l] });
+    }
+    acc
 }
 
 /// Compensated sum of `f(i)` for i in 0..len, in parallel over fixed blocks.
@@ -89,20 +101,26 @@ pub fn compensated_sum(len: usize, f: impl Fn(usize) -> f64 + Sync) -> DoubleDou
         .fold(DoubleDouble::default(), DoubleDouble::plus)
 }
 
+/// Sub-blocks scanned side by side in one task (independent dependency chains).
+const LANES: usize = 4;
+const SUB: usize = BLOCK / LANES;
+
 /// Writes the running sum out[0] = 0, out[k + 1] = out[k] + f(k) for k in
-/// 0..out.len() - 1, compensated as described in the module documentation.
+/// 0..out.len() - 1, compensated as described in the module documentation: each value
+/// is the double-double offset of its sub-block plus a TwoSum-compensated running sum,
+/// rounded once. Sub-blocks of [`SUB`] terms are scanned [`LANES`] at a time.
 pub fn compensated_prefix(out: &mut [f64], f: impl Fn(usize) -> f64 + Sync) {
     if out.is_empty() {
         return;
     }
     let len = out.len() - 1; // terms
     out[0] = 0.0;
-    let n_blocks = len.div_ceil(BLOCK);
-    let sums: Vec<DoubleDouble> = (0..n_blocks)
+    let n_sub = len.div_ceil(SUB);
+    let sums: Vec<DoubleDouble> = (0..n_sub)
         .into_par_iter()
-        .map(|b| block_sum(b * BLOCK..((b + 1) * BLOCK).min(len), &f))
+        .map(|b| block_sum(b * SUB..((b + 1) * SUB).min(len), &f))
         .collect();
-    let mut offsets = Vec::with_capacity(n_blocks);
+    let mut offsets = Vec::with_capacity(n_sub);
     let mut acc = DoubleDouble::default();
     for s in &sums {
         offsets.push(acc);
@@ -110,33 +128,73 @@ pub fn compensated_prefix(out: &mut [f64], f: impl Fn(usize) -> f64 + Sync) {
     }
     out[1..]
         .par_chunks_mut(BLOCK)
-        .zip(offsets.par_iter())
         .enumerate()
-        .for_each(|(b, (chunk, off))| {
-            // Running value hi + (lo + c): hi the f64 sum, the rest compensation.
-            let mut s = off.hi;
-            let mut c = off.lo;
+        .for_each(|(b, chunk)| {
             let start = b * BLOCK;
-            for (k, o) in chunk.iter_mut().enumerate() {
-                let v = f(start + k);
-                let t = s + v;
-                if s.abs() >= v.abs() {
-                    c += (s - t) + v;
-                } else {
-                    c += (v - t) + s;
+            let full = chunk.len() == BLOCK;
+            if full {
+                // LANES sub-blocks at once: lane l covers chunk[l*SUB..(l+1)*SUB].
+                let mut s = [0.0f64; LANES];
+                let mut c = [0.0f64; LANES];
+                for l in 0..LANES {
+                    let off = offsets[b * LANES + l];
+                    s[l] = off.hi;
+                    c[l] = off.lo;
                 }
-                s = t;
-                *o = s + c;
+                let (lanes, _) = chunk.as_chunks_mut::<SUB>();
+                let [o0, o1, o2, o3] = lanes else {
+                    unreachable!()
+                };
+                for k in 0..SUB {
+                    let outs = [&mut o0[k], &mut o1[k], &mut o2[k], &mut o3[k]];
+                    for (l, o) in outs.into_iter().enumerate() {
+                        let (t, e) = two_sum(s[l], f(start + l * SUB + k));
+                        s[l] = t;
+                        c[l] += e;
+                        *o = t + c[l];
+                    }
+                }
+            } else {
+                for (sb, sub) in chunk.chunks_mut(SUB).enumerate() {
+                    let off = offsets[b * LANES + sb];
+                    let (mut s, mut c) = (off.hi, off.lo);
+                    let base = start + sb * SUB;
+                    for (k, o) in sub.iter_mut().enumerate() {
+                        let (t, e) = two_sum(s, f(base + k));
+                        s = t;
+                        c += e;
+                        *o = s + c;
+                    }
+                }
             }
         });
 }
 
-/// Mean of `y`, from a compensated sum.
+/// Mean of `y`: a plain sum in eight lanes per block, blocks combined in
+/// double-double. The mean only has to be near the true one (removing any constant
+/// leaves every deviation unchanged; it only keeps the phase small), so this pass is
+/// built for speed, not for the last bit.
 pub fn mean(y: &[f64]) -> f64 {
     if y.is_empty() {
         return 0.0;
     }
-    compensated_sum(y.len(), |i| y[i]).value() / y.len() as f64
+    let sums: Vec<f64> = y
+        .par_chunks(BLOCK)
+        .map(|c| {
+            let (q, r) = c.as_chunks::<8>();
+            let mut acc = [0.0f64; 8];
+            for v in q {
+                for l in 0..8 {
+                    acc[l] += v[l];
+                }
+            }
+            acc.iter().sum::<f64>() + r.iter().sum::<f64>()
+        })
+        .collect();
+    sums.into_iter()
+        .fold(DoubleDouble::default(), DoubleDouble::plus_f64)
+        .value()
+        / y.len() as f64
 }
 
 /// The phase X_k = sum_{i<k} (y_i - mean(y)), k = 0..=N (N + 1 values, X_0 = 0), in
