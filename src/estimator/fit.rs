@@ -283,7 +283,17 @@ struct Smoother<'a> {
     umax: f64,
 }
 
-impl Smoother<'_> {
+impl<'a> Smoother<'a> {
+    fn new(prob: VcProblem<'a>, grid: &'a [f64], path: FitPath, (umin, umax): (f64, f64)) -> Self {
+        Smoother {
+            prob,
+            grid,
+            path,
+            umin,
+            umax,
+        }
+    }
+
     /// Fits (and RSS, trace where every point is Ok) for each bandwidth.
     fn ladder(&self, hs: &[f64]) -> Vec<(GridFit, Option<(f64, f64)>)> {
         match self.path {
@@ -559,8 +569,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     while iterations < prm.max_iter {
         iterations += 1;
         // 2. f-step
-        let sm = Smoother {
-            prob: VcProblem {
+        let sm = Smoother::new(
+            VcProblem {
                 x: &x,
                 e: &e,
                 b: &b,
@@ -568,11 +578,10 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 d,
                 start: pp,
             },
-            grid: &grid,
-            path: prm.path,
-            umin: xmin,
-            umax: xmax,
-        };
+            &grid,
+            prm.path,
+            (xmin, xmax),
+        );
         let mut fit_h = if need_gcv {
             need_gcv = false;
             let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range);
@@ -620,8 +629,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         if change <= prm.tol * rss.max(f64::MIN_POSITIVE) {
             if prm.bandwidth.is_none() && reselections < 2 {
                 // re-check the bandwidth at the converged residuals
-                let sm = Smoother {
-                    prob: VcProblem {
+                let sm = Smoother::new(
+                    VcProblem {
                         x: &x,
                         e: &e,
                         b: &b,
@@ -629,11 +638,10 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                         d,
                         start: pp,
                     },
-                    grid: &grid,
-                    path: prm.path,
-                    umin: xmin,
-                    umax: xmax,
-                };
+                    &grid,
+                    prm.path,
+                    (xmin, xmax),
+                );
                 let (rows, _, best, ext, nt) = gcv_select(&sm, range);
                 reselections += 1;
                 if rows[best].bandwidth != h {
@@ -662,13 +670,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         d,
         start: pp,
     };
-    let sm = Smoother {
-        prob,
-        grid: &grid,
-        path: prm.path,
-        umin: xmin,
-        umax: xmax,
-    };
+    let sm = Smoother::new(prob, &grid, prm.path, (xmin, xmax));
     let (final_fit, rt) = sm.ladder(&[h]).remove(0);
     let m = (n - pp) as f64;
     let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
