@@ -7,6 +7,7 @@
 //!   policies for bad values and irregular sampling;
 //! - [`store`]: the memory-mapped Arrow IPC store every command reads;
 //! - [`stats`]: channel statistics;
+//! - [`simulator`]: the gyro drift simulator (the simulation spec; the generator next);
 //! - [`output`]: Parquet tables written atomically, JSON helpers;
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
 //! - [`error`]: the error enum and exit codes.
@@ -16,6 +17,7 @@ pub mod error;
 pub mod estimator;
 pub mod log;
 pub mod output;
+pub mod simulator;
 pub mod stats;
 pub mod store;
 
