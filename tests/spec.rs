@@ -596,3 +596,51 @@ fn bad_fixture_files_are_rejected_with_their_path() {
     }
     assert!(n >= 3, "only {n} bad spec fixtures");
 }
+
+#[test]
+fn round_trip_is_bit_exact_for_random_finite_values() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(952);
+    let mut values = Vec::new();
+    while values.len() < 2000 {
+        // Random bit patterns cover subnormals, huge and tiny exponents, both signs.
+        let x = f64::from_bits(rng.random::<u64>());
+        if x.is_finite() {
+            values.push(x);
+        }
+    }
+    let spec = Spec {
+        sample_rate_hz: 100.0,
+        temperature_channel: Some("t".into()),
+        seed: Some(rng.random_range(0..=i64::MAX as u64)),
+        channels: vec![ChannelSpec {
+            name: "rate".into(),
+            components: vec![
+                Component::TemperatureBias {
+                    coeffs: values.clone(),
+                    reference_c: Some(values[0]),
+                },
+                Component::ConstantBias { value: values[1] },
+            ],
+        }],
+    };
+    let back = parse_spec(&spec.to_toml().unwrap(), Path::new("written.toml")).unwrap();
+    assert_eq!(back.seed, spec.seed);
+    match &back.channels[0].components[0] {
+        Component::TemperatureBias { coeffs, .. } => {
+            assert_eq!(coeffs.len(), values.len());
+            for (a, b) in coeffs.iter().zip(&values) {
+                assert_eq!(a.to_bits(), b.to_bits(), "{a:e} vs {b:e}");
+            }
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn to_toml_refuses_a_seed_toml_cannot_hold() {
+    let mut spec = every_component();
+    spec.seed = Some(u64::MAX);
+    let msg = spec.to_toml().unwrap_err().to_string();
+    assert!(msg.contains("'seed' must be at most"), "{msg}");
+}

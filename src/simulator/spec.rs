@@ -754,23 +754,25 @@ impl Spec {
     pub fn validate(&self) -> Result<(), String> {
         let rate = self.sample_rate_hz;
         if !(rate.is_finite() && rate > 0.0) {
-            return Err(format!("'sample_rate_hz' must be > 0, found {rate}"));
+            return Err(format!(
+                "the top level: 'sample_rate_hz' must be > 0, found {rate}"
+            ));
         }
         if let Some(seed) = self.seed
             && seed > i64::MAX as u64
         {
             return Err(format!(
-                "'seed' must be at most {} (TOML integers are signed 64-bit), found {seed}",
+                "the top level: 'seed' must be at most {} (TOML integers are signed 64-bit), found {seed}",
                 i64::MAX
             ));
         }
         if let Some(t) = &self.temperature_channel {
             if t.is_empty() {
-                return Err("'temperature_channel' must not be empty".into());
+                return Err("the top level: 'temperature_channel' must not be empty".into());
             }
             if self.channels.iter().any(|c| &c.name == t) {
                 return Err(format!(
-                    "'temperature_channel' = '{t}' is also a simulated channel; the temperature channel is read from the real log"
+                    "the top level: 'temperature_channel' = '{t}' is also a simulated channel; the temperature channel is read from the real log"
                 ));
             }
         }
