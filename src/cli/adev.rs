@@ -10,7 +10,7 @@ use serde_json::{Map, Value, json};
 
 use super::LogArgs;
 use crate::error::{Error, Result};
-use crate::log::{Progress, open_log};
+use crate::log::Progress;
 use crate::output::{batch, write_parquet};
 use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid, curves};
 
@@ -117,12 +117,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
         confidence: a.confidence,
         alpha: a.alpha,
     };
-    let store = open_log(
-        &a.log,
-        &a.log_args.options()?,
-        &a.log_args.cache(),
-        progress,
-    )?;
+    let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate_hz = store.sample_rate_hz();
     // Averages must not straddle a gap: use the longest uniform segment.

@@ -10,7 +10,7 @@ use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table, residual_table};
 use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit};
-use crate::log::{Progress, open_log};
+use crate::log::Progress;
 use crate::output::{ensure_dir, write_parquet};
 
 #[derive(Args, Debug)]
@@ -75,12 +75,7 @@ fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
 
 pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     let (p, q, d) = parse_order(&a.order)?;
-    let store = open_log(
-        &a.log,
-        &a.log_args.options()?,
-        &a.log_args.cache(),
-        progress,
-    )?;
+    let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let params = FarmaParams {
         p,

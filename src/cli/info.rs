@@ -8,7 +8,7 @@ use serde_json::json;
 
 use super::LogArgs;
 use crate::error::{Error, Result};
-use crate::log::{Progress, open_log};
+use crate::log::Progress;
 use crate::stats::{ChannelSummary, summarize};
 
 #[derive(Args, Debug)]
@@ -26,12 +26,7 @@ pub struct InfoArgs {
 }
 
 pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
-    let store = open_log(
-        &a.log,
-        &a.log_args.options()?,
-        &a.log_args.cache(),
-        progress,
-    )?;
+    let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     if store.n_samples() < 2 {
         return Err(Error::TooShort {

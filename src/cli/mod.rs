@@ -91,6 +91,11 @@ impl LogArgs {
         })
     }
 
+    /// Opens `path` as a store with these options (converting through the cache).
+    pub fn open(&self, path: &std::path::Path, progress: &Progress) -> Result<crate::store::Store> {
+        crate::log::open_log(path, &self.options()?, &self.cache(), progress)
+    }
+
     pub fn cache(&self) -> CachePolicy {
         match (&self.cache_dir, self.no_cache) {
             (_, true) => CachePolicy::Off,

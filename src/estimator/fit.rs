@@ -284,7 +284,25 @@ struct Smoother<'a> {
 }
 
 impl<'a> Smoother<'a> {
-    fn new(prob: VcProblem<'a>, grid: &'a [f64], path: FitPath, (umin, umax): (f64, f64)) -> Self {
+    /// The smoother for series `x`, residuals `e`, MA coefficients `b`, shape
+    /// (p, d, first row), on `grid`, with index values in `span`.
+    fn new(
+        x: &'a [f64],
+        e: &'a [f64],
+        b: &'a [f64],
+        (p, d, start): (usize, usize, usize),
+        grid: &'a [f64],
+        path: FitPath,
+        (umin, umax): (f64, f64),
+    ) -> Self {
+        let prob = VcProblem {
+            x,
+            e,
+            b,
+            p,
+            d,
+            start,
+        };
         Smoother {
             prob,
             grid,
@@ -569,19 +587,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     while iterations < prm.max_iter {
         iterations += 1;
         // 2. f-step
-        let sm = Smoother::new(
-            VcProblem {
-                x: &x,
-                e: &e,
-                b: &b,
-                p,
-                d,
-                start: pp,
-            },
-            &grid,
-            prm.path,
-            (xmin, xmax),
-        );
+        let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
         let mut fit_h = if need_gcv {
             need_gcv = false;
             let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range);
@@ -629,19 +635,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         if change <= prm.tol * rss.max(f64::MIN_POSITIVE) {
             if prm.bandwidth.is_none() && reselections < 2 {
                 // re-check the bandwidth at the converged residuals
-                let sm = Smoother::new(
-                    VcProblem {
-                        x: &x,
-                        e: &e,
-                        b: &b,
-                        p,
-                        d,
-                        start: pp,
-                    },
-                    &grid,
-                    prm.path,
-                    (xmin, xmax),
-                );
+                let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
                 let (rows, _, best, ext, nt) = gcv_select(&sm, range);
                 reselections += 1;
                 if rows[best].bandwidth != h {
@@ -662,15 +656,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         }
     }
     // GCV, trace and standard errors at the final bandwidth
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &b,
-        p,
-        d,
-        start: pp,
-    };
-    let sm = Smoother::new(prob, &grid, prm.path, (xmin, xmax));
+    let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
+    let prob = sm.prob;
     let (final_fit, rt) = sm.ladder(&[h]).remove(0);
     let m = (n - pp) as f64;
     let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
