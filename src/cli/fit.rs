@@ -49,6 +49,9 @@ pub struct FitArgs {
     /// Also write residuals.parquet.
     #[arg(long)]
     pub residuals: bool,
+    /// Also write state.parquet, what `farma update` needs to continue the fit.
+    #[arg(long)]
+    pub save_state: bool,
     #[command(flatten)]
     pub log_args: LogArgs,
     /// One JSON object per channel on stdout (JSON Lines).
@@ -134,6 +137,20 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             &residual_table(&refs)?,
             &md,
         )?;
+    }
+    if a.save_state {
+        let states: Vec<_> = fits
+            .par_iter()
+            .map(|(n, m)| {
+                Ok(crate::estimator::update::state_from_fit(
+                    n,
+                    store.column(n)?,
+                    m,
+                ))
+            })
+            .collect::<Result<_>>()?;
+        let refs: Vec<_> = states.iter().collect();
+        crate::estimator::update::write_state(&a.output.join("state.parquet"), &refs, &md)?;
     }
     for (n, m) in &fits {
         eprintln!(

@@ -243,7 +243,7 @@ fn rss_from(e: &[f64], start: usize) -> f64 {
 
 /// Fills failed grid points by linear interpolation between the nearest Ok points
 /// (constant beyond the outermost). Returns which were filled; None if none is Ok.
-fn fill_failed(fit: &mut GridFit, grid: &[f64]) -> Option<Vec<bool>> {
+pub fn fill_failed(fit: &mut GridFit, grid: &[f64]) -> Option<Vec<bool>> {
     let p = fit.p;
     let ok: Vec<usize> = (0..grid.len())
         .filter(|g| fit.status[*g] == PointStatus::Ok)

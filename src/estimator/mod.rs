@@ -18,6 +18,7 @@ pub mod linalg;
 pub mod moments;
 pub mod problem;
 pub mod tables;
+pub mod update;
 
 pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};
 pub use problem::{GridFit, PointStatus, VcProblem};

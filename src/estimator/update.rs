@@ -1,0 +1,891 @@
+//! Online updates of a fitted FARMA model: recursive least squares (RLS) over new
+//! samples, for every grid point's local coefficients and for the MA coefficients b,
+//! with an optional forgetting factor lambda (0 < lambda <= 1).
+//!
+//! The state of a channel ([`ChannelState`], the file `state.parquet`) holds the
+//! normal equations of the batch fit, so that any later combination is exact:
+//! - per grid point u_g: the local Gram matrix S_g = sum_t K_t z_t z_t' (2p x 2p,
+//!   z_t = (X_t, w_t X_t), w_t = (U_t - u_g)/h, K_t = K(w_t), the rows of
+//!   [`super::direct::fit_grid`]), the cross moments C_g = sum_t K_t z_t r_t'
+//!   (2p x (1+q)) with r_t = (x_t, e_{t-1}, ..., e_{t-q}), so that the right-hand side
+//!   for any b is C_g (1, -b_1, ..., -b_q)', and S2_g = sum_t K_t^2 z_t z_t' for the
+//!   sandwich standard errors;
+//! - for b: S_b = sum_t phi_t phi_t' (phi_t = (e_{t-1}, ..., e_{t-q})) and
+//!   r_b = S_b b_0, so that the RLS below starts from the fitted b_0 with the
+//!   information of the fitted rows (the batch b comes from Gauss-Newton, not from a
+//!   linear regression, so b_0 is carried as the prior mean);
+//! - the mean removed at fit time (kept: new samples are centred with it), the grid,
+//!   the bandwidth (held fixed), the last max(p,q,d) samples and residuals, n, and the
+//!   (weighted) RSS and row count.
+//!
+//! The state stores the Gram form (not P = S^-1): a grid point whose system was
+//! singular or empty at fit time keeps accumulating and gets a fit once its system is
+//! solvable, and P never drifts across many updates. When an update starts,
+//! P_g = S_g^-1 and Theta_g = P_g C_g are computed for every solvable grid point, and
+//! the paper's online scheme runs over the new samples t, in order:
+//! 1. f_m(U_t) from the current Theta (f at u_g is the first p entries of
+//!    Theta_g (1, -b)'), linear between the solvable grid points, constant beyond;
+//! 2. w_t = x_t - sum_m f_m(U_t) x_{t-m}; e_t = w_t - sum_m b_m e_{t-m} (the a priori
+//!    residual of the current model, continuing the fit's residual recursion);
+//! 3. b by RLS on (phi_t, w_t); every grid point whose Biweight support holds U_t by
+//!    weighted rank-one RLS (Ljung and Soderstrom 1983, ch. 2; Haykin, Adaptive Filter
+//!    Theory, 4th ed., 9.3): with weight k = K_t,
+//!    P <- P / lambda, g = k P z / (1 + k z'P z), Theta <- Theta + g (r' - z'Theta),
+//!    P <- P - g z'P; and S, C, S2 are discounted by lambda (S2 by lambda^2) and the new
+//!    row added. Rows outside a support cost nothing: the discount lambda^a of the a
+//!    samples a grid point did not see is applied when it next sees one.
+//!
+//! With lambda = 1 the result is the batch local fit on the concatenated data with the
+//! residual sequence the update produced, at the same bandwidth; with lambda < 1 it
+//! is the exponentially weighted least-squares fit
+//! argmin lambda^n (theta-theta_0)' S_0 (theta-theta_0) + sum_t lambda^(n-1-t) K_t (y_t - z_t' theta)^2
+//! over the n new rows (tests/estimator_update.rs checks both, against a direct
+//! KD-tree fit and a brute-force sum). sigma^2 = RSS / rows, both discounted the same
+//! way (with lambda = 1: RSS / (N - max(p,q,d)) over all samples).
+
+use std::path::Path;
+use std::sync::Arc;
+
+use arrow_array::builder::{Float64Builder, ListBuilder, UInt64Builder};
+use arrow_array::{
+    Array, ArrayRef, Float64Array, Int64Array, ListArray, RecordBatch, StringArray, UInt64Array,
+};
+use rayon::prelude::*;
+
+use super::direct::DirectIndex;
+use super::fit::{FitPath, FittedFarma, Init};
+use super::kernel::biweight;
+use super::linalg::spd_solve_inverse;
+use super::moments::sandwich_diag;
+use super::problem::{GridFit, PointStatus, VcProblem};
+use crate::error::{Error, Result};
+use crate::output::batch;
+
+/// Version of the state file layout (file metadata `farma_state_version`).
+pub const STATE_VERSION: &str = "1";
+
+/// What recursive least squares needs to continue a fitted channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelState {
+    pub channel: String,
+    pub p: usize,
+    pub q: usize,
+    pub d: usize,
+    /// Mean removed at fit time (new samples are centred with it).
+    pub mean: f64,
+    pub bandwidth: f64,
+    /// Grid points, centred units (add `mean` for channel units).
+    pub grid: Vec<f64>,
+    /// G x (2p)^2, row-major per point: S_g.
+    pub gram: Vec<f64>,
+    /// G x 2p x (1+q), row-major per point: C_g.
+    pub cross: Vec<f64>,
+    /// G x (2p)^2: S2_g = sum K^2 z z'.
+    pub gram2: Vec<f64>,
+    /// sum of kernel weights per point (discounted with the forgetting factor).
+    pub kernel_mass: Vec<f64>,
+    /// Samples inside each support (not discounted).
+    pub n_support: Vec<u64>,
+    pub b: Vec<f64>,
+    /// q x q.
+    pub b_gram: Vec<f64>,
+    pub b_rhs: Vec<f64>,
+    /// The last max(p,q,d) centred samples, oldest first.
+    pub x_tail: Vec<f64>,
+    /// The last max(p,q,d) residuals, oldest first.
+    pub e_tail: Vec<f64>,
+    /// Samples seen (fit plus updates).
+    pub n: u64,
+    /// Residual sum of squares (discounted).
+    pub rss: f64,
+    /// Rows behind the RSS (discounted); sigma^2 = rss / rows.
+    pub rows: f64,
+    /// The forgetting factor of the last update (1 after a fit).
+    pub forgetting: f64,
+}
+
+impl ChannelState {
+    pub fn n_grid(&self) -> usize {
+        self.grid.len()
+    }
+
+    fn lag(&self) -> usize {
+        self.p.max(self.q).max(self.d)
+    }
+
+    fn right_hand_side(&self, g: usize, b: &[f64]) -> Vec<f64> {
+        let n = 2 * self.p;
+        let nc = 1 + self.q;
+        let c = &self.cross[g * n * nc..(g + 1) * n * nc];
+        (0..n)
+            .map(|i| {
+                let mut v = c[i * nc];
+                for (m, bm) in b.iter().enumerate() {
+                    v -= bm * c[i * nc + 1 + m];
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// Checks the shapes (a state read from a file may be corrupt).
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let (p, q, g) = (self.p, self.q, self.grid.len());
+        let n = 2 * p;
+        let lag = self.lag();
+        let bad = |what: &str| {
+            Err(format!(
+                "{what} has the wrong length for p = {p}, q = {q}, G = {g}"
+            ))
+        };
+        if p == 0 || self.d == 0 || g < 2 {
+            return Err(format!(
+                "p = {p}, d = {}, G = {g}: not a fitted model",
+                self.d
+            ));
+        }
+        if self.gram.len() != g * n * n || self.gram2.len() != g * n * n {
+            return bad("gram");
+        }
+        if self.cross.len() != g * n * (1 + q) {
+            return bad("cross");
+        }
+        if self.kernel_mass.len() != g || self.n_support.len() != g {
+            return bad("kernel_mass / n_support");
+        }
+        if self.b.len() != q || self.b_gram.len() != q * q || self.b_rhs.len() != q {
+            return bad("b / b_gram / b_rhs");
+        }
+        if self.x_tail.len() != lag || self.e_tail.len() != lag {
+            return bad("x_tail / e_tail");
+        }
+        if !(self.bandwidth.is_finite() && self.bandwidth > 0.0) {
+            return Err(format!("bandwidth {} is not positive", self.bandwidth));
+        }
+        if !self.grid.windows(2).all(|w| w[0] < w[1]) {
+            return Err("grid is not strictly increasing".into());
+        }
+        Ok(())
+    }
+}
+
+/// Fills `z` = (X_t, w X_t) and `r` = (x_t, e_{t-1}, ..., e_{t-q}) for row t of the
+/// centred series `x` with residuals `e`, at grid point `ug`; returns the kernel weight.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn local_row(
+    x: &[f64],
+    e: &[f64],
+    (p, q, d): (usize, usize, usize),
+    t: usize,
+    ug: f64,
+    h: f64,
+    z: &mut [f64],
+    r: &mut [f64],
+) -> f64 {
+    let w = (x[t - d] - ug) / h;
+    for m in 0..p {
+        z[m] = x[t - 1 - m];
+        z[p + m] = w * z[m];
+    }
+    r[0] = x[t];
+    for j in 0..q {
+        r[1 + j] = e[t - 1 - j];
+    }
+    biweight(w)
+}
+
+/// S <- lam S + k z z', C <- lam C + k z r', S2 <- lam2 S2 + k^2 z z'.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn accumulate(
+    gram: &mut [f64],
+    cross: &mut [f64],
+    gram2: &mut [f64],
+    z: &[f64],
+    r: &[f64],
+    k: f64,
+    lam: f64,
+    lam2: f64,
+) {
+    let n = z.len();
+    let nc = r.len();
+    for i in 0..n {
+        let kz = k * z[i];
+        for j in 0..n {
+            gram[i * n + j] = lam * gram[i * n + j] + kz * z[j];
+            gram2[i * n + j] = lam2 * gram2[i * n + j] + kz * k * z[j];
+        }
+        for c in 0..nc {
+            cross[i * nc + c] = lam * cross[i * nc + c] + kz * r[c];
+        }
+    }
+}
+
+/// The state of a fitted channel: its normal equations at the fit's final residuals
+/// and b (one direct pass: KD-tree gather per grid point, rows summed in order, grid
+/// points in parallel; the result does not depend on the number of threads).
+pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+    let (p, q, d) = (m.p, m.q, m.d);
+    let lag = p.max(q).max(d);
+    let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
+    let e = &m.residuals;
+    let h = m.bandwidth;
+    let prob = VcProblem {
+        x: &x,
+        e,
+        b: &[],
+        p,
+        d,
+        start: lag,
+    };
+    let index = DirectIndex::build(&prob);
+    let n = 2 * p;
+    let nc = 1 + q;
+    type Sums = (Vec<f64>, Vec<f64>, Vec<f64>, f64, u64);
+    let per_g: Vec<Sums> = m
+        .grid
+        .par_iter()
+        .map(|&ug| {
+            let (mut s, mut c, mut s2) = (vec![0.0; n * n], vec![0.0; n * nc], vec![0.0; n * n]);
+            let (mut z, mut r) = (vec![0.0; n], vec![0.0; nc]);
+            let (mut mass, mut count) = (0.0, 0u64);
+            let (lo, hi) = (ug - h, ug + h);
+            for t in index.gather(ug, h * (1.0 + 1e-12)) {
+                let u = x[t - d];
+                if !(lo <= u && u < hi) {
+                    continue;
+                }
+                let k = local_row(&x, e, (p, q, d), t, ug, h, &mut z, &mut r);
+                accumulate(&mut s, &mut c, &mut s2, &z, &r, k, 1.0, 1.0);
+                mass += k;
+                count += 1;
+            }
+            (s, c, s2, mass, count)
+        })
+        .collect();
+    let g = m.grid.len();
+    let mut st = ChannelState {
+        channel: channel.to_string(),
+        p,
+        q,
+        d,
+        mean: m.mean,
+        bandwidth: h,
+        grid: m.grid.clone(),
+        gram: Vec::with_capacity(g * n * n),
+        cross: Vec::with_capacity(g * n * nc),
+        gram2: Vec::with_capacity(g * n * n),
+        kernel_mass: Vec::with_capacity(g),
+        n_support: Vec::with_capacity(g),
+        b: m.b.clone(),
+        b_gram: vec![0.0; q * q],
+        b_rhs: vec![0.0; q],
+        x_tail: x[x.len() - lag..].to_vec(),
+        e_tail: e[e.len() - lag..].to_vec(),
+        n: x.len() as u64,
+        rss: (lag..x.len()).map(|t| e[t] * e[t]).sum(),
+        rows: (x.len() - lag) as f64,
+        forgetting: 1.0,
+    };
+    for (s, c, s2, mass, count) in per_g {
+        st.gram.extend(s);
+        st.cross.extend(c);
+        st.gram2.extend(s2);
+        st.kernel_mass.push(mass);
+        st.n_support.push(count);
+    }
+    for t in lag..x.len() {
+        for i in 0..q {
+            for j in 0..q {
+                st.b_gram[i * q + j] += e[t - 1 - i] * e[t - 1 - j];
+            }
+        }
+    }
+    for i in 0..q {
+        st.b_rhs[i] = (0..q).map(|j| st.b_gram[i * q + j] * m.b[j]).sum();
+    }
+    st
+}
+
+/// The result of an update.
+#[derive(Clone, Debug)]
+pub struct Updated {
+    /// The state after the new samples (write it to continue later).
+    pub state: ChannelState,
+    /// The updated model in the shape `farma fit` writes (trace and GCV are not
+    /// available without the old data: NaN; `residuals` holds the new samples' only).
+    pub model: FittedFarma,
+    /// w_t = x_t - sum f_m(U_t) x_{t-m} of the new samples (a priori, current f).
+    pub w: Vec<f64>,
+    /// Index of the first new sample in the whole series.
+    pub first_t: u64,
+}
+
+/// Entry `row` of Theta (1, -b)' for one grid point's Theta (2p x (1+q), row-major):
+/// rows 0..p are f_m(u_g), rows p..2p are h f_m'(u_g).
+#[inline]
+fn theta_coef(theta: &[f64], nc: usize, b: &[f64], row: usize) -> f64 {
+    let mut v = theta[row * nc];
+    for (j, bj) in b.iter().enumerate() {
+        v -= bj * theta[row * nc + 1 + j];
+    }
+    v
+}
+
+/// Continues the recursion of `state` over `new` (raw samples, channel units) with
+/// forgetting factor `forgetting` (1: none). See the module documentation.
+pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Updated> {
+    if !(forgetting > 0.0 && forgetting <= 1.0) {
+        return Err(Error::Usage(format!(
+            "--forgetting: {forgetting} is not in (0, 1]"
+        )));
+    }
+    state.check().map_err(Error::Usage)?;
+    if new.is_empty() {
+        return Err(Error::Usage("no new samples".into()));
+    }
+    if new.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Usage(
+            "the channel holds NaN or infinite values".into(),
+        ));
+    }
+    let (p, q, d) = (state.p, state.q, state.d);
+    let (n, nc, lag) = (2 * p, 1 + q, state.lag());
+    let (nn, gl, h, lam) = (new.len(), state.n_grid(), state.bandwidth, forgetting);
+    let mut st = state.clone();
+    let mut xs = st.x_tail.clone();
+    xs.extend(new.iter().map(|v| v - st.mean));
+    let mut es = st.e_tail.clone();
+    es.resize(lag + nn, 0.0);
+    let mut ws = vec![0.0; nn];
+
+    // P and Theta of every solvable grid point
+    let mut pm = vec![0.0; gl * n * n];
+    let mut theta = vec![0.0; gl * n * nc];
+    let mut tracked = vec![false; gl];
+    for g in 0..gl {
+        let c = st.n_support[g] as usize;
+        if c == 0 || c < n {
+            continue;
+        }
+        let rhs = st.right_hand_side(g, &st.b);
+        if let Some((_, inv, _)) = spd_solve_inverse(&st.gram[g * n * n..(g + 1) * n * n], &rhs, n)
+        {
+            let cg = &st.cross[g * n * nc..(g + 1) * n * nc];
+            for i in 0..n {
+                for col in 0..nc {
+                    theta[g * n * nc + i * nc + col] =
+                        (0..n).map(|j| inv[i * n + j] * cg[j * nc + col]).sum();
+                }
+            }
+            pm[g * n * n..(g + 1) * n * n].copy_from_slice(&inv);
+            tracked[g] = true;
+        }
+    }
+    let ti: Vec<usize> = (0..gl).filter(|g| tracked[*g]).collect();
+    if ti.is_empty() {
+        return Err(Error::Usage(
+            "the state has no grid point with a solvable local system".into(),
+        ));
+    }
+    let tg: Vec<f64> = ti.iter().map(|g| st.grid[*g]).collect();
+    let mut pb = vec![0.0; q * q];
+    if q > 0 {
+        pb = spd_solve_inverse(&st.b_gram, &st.b_rhs, q)
+            .ok_or_else(|| Error::Usage("the state's MA normal equations are singular".into()))?
+            .1;
+    }
+    let mut b = st.b.clone();
+    let mut sync = vec![0usize; gl];
+    let (mut f, mut fa, mut z, mut r) = (vec![0.0; p], vec![0.0; p], vec![0.0; n], vec![0.0; nc]);
+    let (mut pz, mut phi, mut pphi) = (vec![0.0; n], vec![0.0; q], vec![0.0; q]);
+    let mut resid = vec![0.0; nc];
+    let f_at = |theta: &[f64], g: usize, b: &[f64], out: &mut [f64]| {
+        let th = &theta[g * n * nc..(g + 1) * n * nc];
+        for m in 0..p {
+            out[m] = theta_coef(th, nc, b, m);
+        }
+    };
+    for k in 0..nn {
+        let t = lag + k;
+        let u = xs[t - d];
+        // 1. current f at U_t: linear between the tracked points, constant beyond
+        if u <= tg[0] {
+            f_at(&theta, ti[0], &b, &mut f);
+        } else if u >= tg[tg.len() - 1] {
+            f_at(&theta, ti[ti.len() - 1], &b, &mut f);
+        } else {
+            let j = tg.partition_point(|v| *v <= u) - 1;
+            let lamw = (u - tg[j]) / (tg[j + 1] - tg[j]);
+            f_at(&theta, ti[j], &b, &mut fa);
+            f_at(&theta, ti[j + 1], &b, &mut f);
+            for m in 0..p {
+                f[m] = fa[m] + lamw * (f[m] - fa[m]);
+            }
+        }
+        // 2. a priori residuals
+        let mut w = xs[t];
+        for m in 0..p {
+            w -= f[m] * xs[t - 1 - m];
+        }
+        let mut e = w;
+        for j in 0..q {
+            e -= b[j] * es[t - 1 - j];
+        }
+        es[t] = e;
+        ws[k] = w;
+        st.rss = lam * st.rss + e * e;
+        st.rows = lam * st.rows + 1.0;
+        // 3a. b by RLS on (phi_t, w_t)
+        if q > 0 {
+            for j in 0..q {
+                phi[j] = es[t - 1 - j];
+            }
+            let mut denom = lam;
+            for i in 0..q {
+                pphi[i] = (0..q).map(|j| pb[i * q + j] * phi[j]).sum();
+                denom += phi[i] * pphi[i];
+            }
+            let err = w - (0..q).map(|j| b[j] * phi[j]).sum::<f64>();
+            for i in 0..q {
+                b[i] += pphi[i] / denom * err;
+            }
+            for i in 0..q {
+                for j in 0..q {
+                    pb[i * q + j] = (pb[i * q + j] - pphi[i] * pphi[j] / denom) / lam;
+                }
+                for j in 0..q {
+                    st.b_gram[i * q + j] = lam * st.b_gram[i * q + j] + phi[i] * phi[j];
+                }
+                st.b_rhs[i] = lam * st.b_rhs[i] + phi[i] * w;
+            }
+        }
+        // 3b. every grid point whose support [u_g - h, u_g + h) holds U_t
+        let g0 = st.grid.partition_point(|v| *v < u - h * (1.0 + 1e-12));
+        for g in g0..gl {
+            let ug = st.grid[g];
+            if ug - h > u {
+                break;
+            }
+            if !(ug - h <= u && u < ug + h) {
+                continue;
+            }
+            let kw = local_row(&xs, &es, (p, q, d), t, ug, h, &mut z, &mut r);
+            // discount for the samples this point did not see, then this one
+            let fac = lam.powf((k - sync[g]) as f64) * lam;
+            sync[g] = k + 1;
+            accumulate(
+                &mut st.gram[g * n * n..(g + 1) * n * n],
+                &mut st.cross[g * n * nc..(g + 1) * n * nc],
+                &mut st.gram2[g * n * n..(g + 1) * n * n],
+                &z,
+                &r,
+                kw,
+                fac,
+                fac * fac,
+            );
+            st.kernel_mass[g] = fac * st.kernel_mass[g] + kw;
+            st.n_support[g] += 1;
+            if !tracked[g] {
+                continue;
+            }
+            // weighted rank-one RLS: P <- P/fac, gain = k P z / (1 + k z'P z)
+            let pg = &mut pm[g * n * n..(g + 1) * n * n];
+            let th = &mut theta[g * n * nc..(g + 1) * n * nc];
+            let mut zpz = 0.0;
+            for i in 0..n {
+                pz[i] = (0..n).map(|j| pg[i * n + j] * z[j]).sum::<f64>() / fac;
+                zpz += z[i] * pz[i];
+            }
+            let denom = 1.0 + kw * zpz;
+            for c in 0..nc {
+                resid[c] = r[c] - (0..n).map(|i| z[i] * th[i * nc + c]).sum::<f64>();
+            }
+            for i in 0..n {
+                let gi = kw * pz[i] / denom;
+                for c in 0..nc {
+                    th[i * nc + c] += gi * resid[c];
+                }
+                for j in 0..n {
+                    pg[i * n + j] = pg[i * n + j] / fac - gi * pz[j];
+                }
+            }
+        }
+    }
+    // discount what the last samples did not reach
+    for g in 0..gl {
+        if sync[g] < nn {
+            let fac = lam.powf((nn - sync[g]) as f64);
+            for v in &mut st.gram[g * n * n..(g + 1) * n * n] {
+                *v *= fac;
+            }
+            for v in &mut st.cross[g * n * nc..(g + 1) * n * nc] {
+                *v *= fac;
+            }
+            for v in &mut st.gram2[g * n * n..(g + 1) * n * n] {
+                *v *= fac * fac;
+            }
+            st.kernel_mass[g] *= fac;
+        }
+    }
+    st.b = b.clone();
+    st.x_tail = xs[xs.len() - lag..].to_vec();
+    st.e_tail = es[es.len() - lag..].to_vec();
+    let first_t = st.n;
+    st.n += nn as u64;
+    st.forgetting = lam;
+
+    // the model: status, conditioning and S^-1 from the accumulated normal equations,
+    // f and slope from the RLS recursion where it ran
+    let mut coef = GridFit::new(gl, p, h);
+    for g in 0..gl {
+        let rhs = st.right_hand_side(g, &b);
+        coef.set_point(
+            g,
+            &st.gram[g * n * n..(g + 1) * n * n],
+            &rhs,
+            st.n_support[g],
+            st.kernel_mass[g],
+        );
+        if tracked[g] && coef.status[g] == PointStatus::Ok {
+            let th = &theta[g * n * nc..(g + 1) * n * nc];
+            for m in 0..p {
+                coef.f[g * p + m] = theta_coef(th, nc, &b, m);
+                coef.slope[g * p + m] = theta_coef(th, nc, &b, p + m) / h;
+            }
+        }
+    }
+    let sigma2 = st.rss / st.rows;
+    let mut se = vec![f64::NAN; gl * p];
+    for g in 0..gl {
+        if coef.status[g] == PointStatus::Ok {
+            let fac = sandwich_diag(
+                &coef.s_inv[g * n * n..(g + 1) * n * n],
+                &st.gram2[g * n * n..(g + 1) * n * n],
+                n,
+                p,
+            );
+            for m in 0..p {
+                se[g * p + m] = fac[m] * sigma2.sqrt();
+            }
+        }
+    }
+    let filled = super::fit::fill_failed(&mut coef, &st.grid)
+        .ok_or_else(|| Error::Usage("no grid point has a local fit after the update".into()))?;
+    let mut notes = Vec::new();
+    let n_filled = filled.iter().filter(|v| **v).count();
+    if n_filled > 0 {
+        notes.push(format!(
+            "{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"
+        ));
+    }
+    let newly = (0..gl)
+        .filter(|g| !tracked[*g] && coef.status[*g] == PointStatus::Ok)
+        .count();
+    if newly > 0 {
+        notes.push(format!(
+            "{newly} grid point(s) without a fit before the update have one now (solved from the accumulated normal equations)"
+        ));
+    }
+    let model = FittedFarma {
+        p,
+        q,
+        d,
+        mean: st.mean,
+        grid: st.grid.clone(),
+        coef,
+        se,
+        filled,
+        b,
+        bandwidth: h,
+        rss: st.rss,
+        sigma2,
+        trace: f64::NAN,
+        gcv: f64::NAN,
+        gcv_table: Vec::new(),
+        ladder_extended: false,
+        iterations: 0,
+        converged: true,
+        rss_history: Vec::new(),
+        init: Init::Arma,
+        path: FitPath::Direct,
+        n: st.n as usize,
+        n_rows: st.n as usize - lag,
+        residuals: es[lag..].to_vec(),
+        notes,
+    };
+    Ok(Updated {
+        state: st,
+        model,
+        w: ws,
+        first_t,
+    })
+}
+
+fn lf(builder: &mut ListBuilder<Float64Builder>, v: &[f64]) {
+    builder.values().append_slice(v);
+    builder.append(true);
+}
+
+/// The state table: one row per channel (see the README for the columns).
+pub fn state_table(states: &[&ChannelState]) -> Result<RecordBatch> {
+    let names = [
+        "grid",
+        "gram",
+        "cross",
+        "gram2",
+        "kernel_mass",
+        "b",
+        "b_gram",
+        "b_rhs",
+        "x_tail",
+        "e_tail",
+    ];
+    let mut lists: Vec<ListBuilder<Float64Builder>> = names
+        .iter()
+        .map(|_| ListBuilder::new(Float64Builder::new()))
+        .collect();
+    let mut nsup = ListBuilder::new(UInt64Builder::new());
+    for s in states {
+        let vals: [&[f64]; 10] = [
+            &s.grid,
+            &s.gram,
+            &s.cross,
+            &s.gram2,
+            &s.kernel_mass,
+            &s.b,
+            &s.b_gram,
+            &s.b_rhs,
+            &s.x_tail,
+            &s.e_tail,
+        ];
+        for (l, v) in lists.iter_mut().zip(vals) {
+            lf(l, v);
+        }
+        nsup.values().append_slice(&s.n_support);
+        nsup.append(true);
+    }
+    let f = |g: &dyn Fn(&ChannelState) -> f64| -> ArrayRef {
+        Arc::new(Float64Array::from(
+            states.iter().map(|s| g(s)).collect::<Vec<_>>(),
+        ))
+    };
+    let i = |g: &dyn Fn(&ChannelState) -> i64| -> ArrayRef {
+        Arc::new(Int64Array::from(
+            states.iter().map(|s| g(s)).collect::<Vec<_>>(),
+        ))
+    };
+    let mut cols: Vec<(&str, ArrayRef)> = vec![
+        (
+            "channel",
+            Arc::new(StringArray::from(
+                states.iter().map(|s| s.channel.clone()).collect::<Vec<_>>(),
+            )),
+        ),
+        ("p", i(&|s| s.p as i64)),
+        ("q", i(&|s| s.q as i64)),
+        ("d", i(&|s| s.d as i64)),
+        ("mean", f(&|s| s.mean)),
+        ("bandwidth", f(&|s| s.bandwidth)),
+        (
+            "n",
+            Arc::new(UInt64Array::from(
+                states.iter().map(|s| s.n).collect::<Vec<_>>(),
+            )),
+        ),
+        ("rss", f(&|s| s.rss)),
+        ("rows", f(&|s| s.rows)),
+        ("forgetting", f(&|s| s.forgetting)),
+        ("n_support", Arc::new(nsup.finish())),
+    ];
+    for (name, mut l) in names.iter().zip(lists) {
+        cols.push((name, Arc::new(l.finish())));
+    }
+    batch(cols)
+}
+
+/// Writes the state file atomically (file metadata: `farma_state_version` and `md`).
+pub fn write_state(path: &Path, states: &[&ChannelState], md: &[(&str, String)]) -> Result<()> {
+    let mut md = md.to_vec();
+    md.push(("farma_state_version", STATE_VERSION.to_string()));
+    crate::output::write_parquet(path, &state_table(states)?, &md)
+}
+
+/// Key-value metadata of a Parquet file.
+pub type Metadata = Vec<(String, String)>;
+
+/// Reads a state file; returns the channels' states and the file's key-value metadata.
+pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let file = std::fs::File::open(path).map_err(|e| Error::input_io(path, e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file)
+        .map_err(|e| Error::format(path, format!("not a readable Parquet file: {e}")))?;
+    let md: Metadata = builder
+        .metadata()
+        .file_metadata()
+        .key_value_metadata()
+        .map(|kv| {
+            kv.iter()
+                .map(|e| (e.key.clone(), e.value.clone().unwrap_or_default()))
+                .collect()
+        })
+        .unwrap_or_default();
+    match md.iter().find(|(k, _)| k == "farma_state_version") {
+        Some((_, v)) if v == STATE_VERSION => {}
+        Some((_, v)) => {
+            return Err(Error::format(
+                path,
+                format!("state version {v}, this farma reads version {STATE_VERSION}"),
+            ));
+        }
+        None => {
+            return Err(Error::format(
+                path,
+                "not a farma state file (no 'farma_state_version' metadata)",
+            ));
+        }
+    }
+    let reader = builder
+        .build()
+        .map_err(|e| Error::format(path, format!("cannot read: {e}")))?;
+    let mut out = Vec::new();
+    for b in reader {
+        let b = b.map_err(|e| Error::format(path, format!("cannot read: {e}")))?;
+        let col = |name: &str| {
+            b.column_by_name(name)
+                .ok_or_else(|| Error::format(path, format!("column '{name}' is missing")))
+        };
+        let wrong = |name: &str| Error::format(path, format!("column '{name}' has the wrong type"));
+        macro_rules! get {
+            ($name:expr, $ty:ty) => {
+                col($name)?
+                    .as_any()
+                    .downcast_ref::<$ty>()
+                    .ok_or_else(|| wrong($name))?
+            };
+        }
+        let channel = get!("channel", StringArray);
+        let (p, q, d) = (
+            get!("p", Int64Array),
+            get!("q", Int64Array),
+            get!("d", Int64Array),
+        );
+        let (mean, bw, n, rss, rows, lam) = (
+            get!("mean", Float64Array),
+            get!("bandwidth", Float64Array),
+            get!("n", UInt64Array),
+            get!("rss", Float64Array),
+            get!("rows", Float64Array),
+            get!("forgetting", Float64Array),
+        );
+        let nsup = get!("n_support", ListArray);
+        let list = |name: &str, row: usize| -> Result<Vec<f64>> {
+            let l = col(name)?
+                .as_any()
+                .downcast_ref::<ListArray>()
+                .ok_or_else(|| wrong(name))?;
+            let v = l.value(row);
+            let v = v
+                .as_any()
+                .downcast_ref::<Float64Array>()
+                .ok_or_else(|| wrong(name))?;
+            Ok(v.values().to_vec())
+        };
+        for row in 0..b.num_rows() {
+            let usz =
+                |a: &Int64Array, name: &str| usize::try_from(a.value(row)).map_err(|_| wrong(name));
+            let ns = nsup.value(row);
+            let ns = ns
+                .as_any()
+                .downcast_ref::<UInt64Array>()
+                .ok_or_else(|| wrong("n_support"))?;
+            let s = ChannelState {
+                channel: channel.value(row).to_string(),
+                p: usz(p, "p")?,
+                q: usz(q, "q")?,
+                d: usz(d, "d")?,
+                mean: mean.value(row),
+                bandwidth: bw.value(row),
+                grid: list("grid", row)?,
+                gram: list("gram", row)?,
+                cross: list("cross", row)?,
+                gram2: list("gram2", row)?,
+                kernel_mass: list("kernel_mass", row)?,
+                n_support: ns.values().to_vec(),
+                b: list("b", row)?,
+                b_gram: list("b_gram", row)?,
+                b_rhs: list("b_rhs", row)?,
+                x_tail: list("x_tail", row)?,
+                e_tail: list("e_tail", row)?,
+                n: n.value(row),
+                rss: rss.value(row),
+                rows: rows.value(row),
+                forgetting: lam.value(row),
+            };
+            s.check()
+                .map_err(|m| Error::format(path, format!("channel '{}': {m}", s.channel)))?;
+            out.push(s);
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::format(path, "the state file holds no channel"));
+    }
+    Ok((out, md))
+}
+
+/// Parameters of updated channels, with the columns of `farma fit`'s params.parquet
+/// (`trace` and `gcv` NaN, `iterations` 0, `init` "state", `method` "rls") plus
+/// `forgetting` and `n_new`.
+pub fn update_params_table(items: &[(String, &Updated)]) -> Result<RecordBatch> {
+    let models: Vec<(String, &FittedFarma)> =
+        items.iter().map(|(n, u)| (n.clone(), &u.model)).collect();
+    let base = super::tables::params_table(&models)?;
+    let schema = base.schema();
+    let mut cols: Vec<(&str, ArrayRef)> = Vec::new();
+    for (k, field) in schema.fields().iter().enumerate() {
+        let name = field.name().as_str();
+        let col: ArrayRef = match name {
+            "init" => Arc::new(StringArray::from(vec!["state"; items.len()])),
+            "method" => Arc::new(StringArray::from(vec!["rls"; items.len()])),
+            _ => base.column(k).clone(),
+        };
+        cols.push((name, col));
+    }
+    cols.push((
+        "forgetting",
+        Arc::new(Float64Array::from(
+            items
+                .iter()
+                .map(|(_, u)| u.state.forgetting)
+                .collect::<Vec<_>>(),
+        )),
+    ));
+    cols.push((
+        "n_new",
+        Arc::new(Int64Array::from(
+            items
+                .iter()
+                .map(|(_, u)| u.w.len() as i64)
+                .collect::<Vec<_>>(),
+        )),
+    ));
+    batch(cols)
+}
+
+/// Residuals of the new samples: channel, t (index in the whole series), residual.
+pub fn update_residual_table(items: &[(String, &Updated)]) -> Result<RecordBatch> {
+    let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
+    for (name, u) in items {
+        for (k, v) in u.model.residuals.iter().enumerate() {
+            ch.push(name.clone());
+            t.push(u.first_t as i64 + k as i64);
+            r.push(*v);
+        }
+    }
+    batch(vec![
+        ("channel", Arc::new(StringArray::from(ch))),
+        ("t", Arc::new(Int64Array::from(t))),
+        ("residual", Arc::new(Float64Array::from(r))),
+    ])
+}

@@ -1,0 +1,317 @@
+//! Online updates (recursive least squares): with lambda = 1 the update equals the
+//! batch local fits on the concatenated data (same residuals, same bandwidth, direct
+//! KD-tree path); with lambda < 1 it equals a brute-force exponentially weighted least
+//! squares over the new rows; the state file round-trips bit for bit.
+
+use farma::estimator::direct::{DirectIndex, fit_grid};
+use farma::estimator::kernel::biweight;
+use farma::estimator::linalg::spd_solve_inverse;
+use farma::estimator::update::{ChannelState, read_state, state_from_fit, update, write_state};
+use farma::estimator::{FarmaParams, FitPath, FittedFarma, PointStatus, VcProblem, fit};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// FARMA(2,1,1): f_1(z) = 0.3 + 0.4 exp(-z^2), f_2(z) = -0.2 + 0.1 tanh(z), b_1 = -0.5.
+fn simulate(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let burn = 200;
+    let mut x = vec![0.0; n + burn];
+    let mut e = vec![0.0; n + burn];
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let z = if t >= 1 { x[t - 1] } else { 0.0 };
+        let mut s = e[t] + 0.2;
+        if t >= 1 {
+            s += (0.3 + 0.4 * f64::exp(-z * z)) * x[t - 1] - 0.5 * e[t - 1];
+        }
+        if t >= 2 {
+            s += (-0.2 + 0.1 * z.tanh()) * x[t - 2];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}
+
+fn fitted(x: &[f64], q: usize) -> FittedFarma {
+    let params = FarmaParams {
+        p: 2,
+        q,
+        d: 1,
+        grid_size: 25,
+        bandwidth: Some(1.2),
+        path: FitPath::Direct,
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    fit(x, &params).unwrap()
+}
+
+fn scale_of(f: &[f64]) -> f64 {
+    f.iter()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |a, v| a.max(v.abs()))
+}
+
+#[test]
+fn update_without_forgetting_equals_batch_on_concatenated_data() {
+    let x = simulate(4000, 11);
+    let (old, new) = x.split_at(2500);
+    for q in [1usize, 0] {
+        let m = fitted(old, q);
+        let st = state_from_fit("x", old, &m);
+        // the state's normal equations reproduce the batch fit at the fit's residuals
+        let xc: Vec<f64> = old.iter().map(|v| v - m.mean).collect();
+        let prob = VcProblem {
+            x: &xc,
+            e: &m.residuals,
+            b: &m.b,
+            p: 2,
+            d: 1,
+            start: 2,
+        };
+        let start_fit = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
+        let up = update(&st, new, 1.0).unwrap();
+        assert_eq!(up.model.residuals.len(), new.len());
+        assert_eq!(up.state.n, 4000);
+
+        // batch reference: direct path on the concatenated series, residuals as the
+        // update produced them, the updated b, the same bandwidth
+        let xa: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+        let mut ea = m.residuals.clone();
+        ea.extend(&up.model.residuals);
+        let prob = VcProblem {
+            x: &xa,
+            e: &ea,
+            b: &up.model.b,
+            p: 2,
+            d: 1,
+            start: 2,
+        };
+        let batch = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
+        let scale = scale_of(&batch.f);
+        let (mut worst, mut moved, mut compared) = (0.0f64, 0.0f64, 0);
+        for g in 0..m.grid.len() {
+            assert_eq!(batch.status[g], up.model.coef.status[g], "status at {g}");
+            assert_eq!(batch.n_support[g], up.model.coef.n_support[g]);
+            if batch.status[g] != PointStatus::Ok {
+                continue;
+            }
+            for k in 0..2 {
+                let (a, b) = (up.model.coef.f[g * 2 + k], batch.f[g * 2 + k]);
+                worst = worst.max((a - b).abs() / scale);
+                let (sa, sb) = (up.model.coef.slope[g * 2 + k], batch.slope[g * 2 + k]);
+                worst = worst.max((sa - sb).abs() * m.bandwidth / scale);
+                if start_fit.status[g] == PointStatus::Ok {
+                    moved = moved.max((start_fit.f[g * 2 + k] - b).abs() / scale);
+                    compared += 1;
+                }
+            }
+        }
+        eprintln!("q = {q}: worst relative difference {worst:.3e}, the fit moved by {moved:.3e}");
+        assert!(compared > 20);
+        assert!(worst < 1e-8, "q = {q}: RLS vs batch {worst:e}");
+        assert!(
+            moved > 1e-3,
+            "the new samples must change the fit ({moved:e})"
+        );
+
+        // b: RLS from the fitted b with the fitted rows' information, against the
+        // closed form (S_0 + sum phi phi')^-1 (S_0 b_0 + sum phi w)
+        if q == 1 {
+            let (mut s, mut r) = (st.b_gram[0], st.b_gram[0] * m.b[0]);
+            for (k, w) in up.w.iter().enumerate() {
+                let phi = ea[2500 + k - 1];
+                s += phi * phi;
+                r += phi * w;
+            }
+            let want = r / s;
+            assert!(
+                (up.model.b[0] - want).abs() < 1e-10 * want.abs(),
+                "b {:?} vs {want}",
+                up.model.b
+            );
+            assert!((up.model.b[0] - m.b[0]).abs() > 1e-6);
+            // the residual recursion: e_t = w_t - b e_{t-1} with b before sample t
+            // implies |e_t - (w_t - b_final e_{t-1})| is small but e is a priori
+        }
+        // sigma^2 = RSS / (N - max(p,q,d)) over all samples
+        let rss: f64 = ea[2..].iter().map(|v| v * v).sum();
+        assert!((up.model.rss - rss).abs() < 1e-10 * rss);
+        assert!((up.model.sigma2 - rss / 3998.0).abs() < 1e-10 * up.model.sigma2);
+    }
+}
+
+/// Brute force: (l^n S_0 + sum_k l^(n-1-k) K z z')^-1 (l^n C_0 + sum_k l^(n-1-k) K z r') (1, -b)'
+/// at grid point g, over all new rows (no tree).
+fn brute_ewls(
+    st: &ChannelState,
+    new: &[f64],
+    e_new: &[f64],
+    b: &[f64],
+    lam: f64,
+    g: usize,
+) -> Option<Vec<f64>> {
+    let (p, q, d) = (st.p, st.q, st.d);
+    let (n, nc) = (2 * p, 1 + q);
+    let lag = p.max(q).max(d);
+    let mut x = st.x_tail.clone();
+    x.extend(new.iter().map(|v| v - st.mean));
+    let mut e = st.e_tail.clone();
+    e.extend(e_new);
+    let nn = new.len();
+    let ln = lam.powi(nn as i32);
+    let mut s: Vec<f64> = st.gram[g * n * n..(g + 1) * n * n]
+        .iter()
+        .map(|v| v * ln)
+        .collect();
+    let mut c: Vec<f64> = st.cross[g * n * nc..(g + 1) * n * nc]
+        .iter()
+        .map(|v| v * ln)
+        .collect();
+    let (ug, h) = (st.grid[g], st.bandwidth);
+    for k in 0..nn {
+        let t = lag + k;
+        let u = x[t - d];
+        if !(ug - h <= u && u < ug + h) {
+            continue;
+        }
+        let w = (u - ug) / h;
+        let kw = biweight(w) * lam.powi((nn - 1 - k) as i32);
+        let z: Vec<f64> = (0..n)
+            .map(|i| {
+                if i < p {
+                    x[t - 1 - i]
+                } else {
+                    w * x[t - 1 - (i - p)]
+                }
+            })
+            .collect();
+        let mut r = vec![x[t]];
+        r.extend((0..q).map(|j| e[t - 1 - j]));
+        for i in 0..n {
+            for j in 0..n {
+                s[i * n + j] += kw * z[i] * z[j];
+            }
+            for col in 0..nc {
+                c[i * nc + col] += kw * z[i] * r[col];
+            }
+        }
+    }
+    let rhs: Vec<f64> = (0..n)
+        .map(|i| c[i * nc] - (0..q).map(|j| b[j] * c[i * nc + 1 + j]).sum::<f64>())
+        .collect();
+    spd_solve_inverse(&s, &rhs, n).map(|(z, _, _)| z)
+}
+
+#[test]
+fn update_with_forgetting_equals_exponentially_weighted_least_squares() {
+    let x = simulate(3200, 5);
+    let (old, new) = x.split_at(2000);
+    let m = fitted(old, 1);
+    let st = state_from_fit("x", old, &m);
+    let lam = 0.998;
+    let up = update(&st, new, lam).unwrap();
+    let scale = scale_of(&up.model.coef.f);
+    let mut worst = 0.0f64;
+    let mut checked = 0;
+    let mut unforgotten = 0.0f64;
+    let plain = update(&st, new, 1.0).unwrap();
+    for g in 0..st.n_grid() {
+        if up.model.coef.status[g] != PointStatus::Ok {
+            continue;
+        }
+        let want = brute_ewls(&st, new, &up.model.residuals, &up.model.b, lam, g).unwrap();
+        for k in 0..2 {
+            worst = worst.max((up.model.coef.f[g * 2 + k] - want[k]).abs() / scale);
+            worst = worst
+                .max((up.model.coef.slope[g * 2 + k] * st.bandwidth - want[2 + k]).abs() / scale);
+            unforgotten = unforgotten.max((plain.model.coef.f[g * 2 + k] - want[k]).abs() / scale);
+        }
+        checked += 1;
+    }
+    eprintln!(
+        "lambda = {lam}: worst {worst:.3e} over {checked} points; without forgetting {unforgotten:.3e} away"
+    );
+    assert!(checked > 10);
+    assert!(
+        worst < 1e-8,
+        "RLS with forgetting vs brute force: {worst:e}"
+    );
+    assert!(unforgotten > 1e-3, "forgetting must matter");
+    // b: closed form of the exponentially weighted regression of w on e_{t-1}
+    let nn = new.len();
+    let (mut s, mut r) = (
+        st.b_gram[0] * lam.powi(nn as i32),
+        st.b_gram[0] * m.b[0] * lam.powi(nn as i32),
+    );
+    let mut e = st.e_tail.clone();
+    e.extend(&up.model.residuals);
+    for k in 0..nn {
+        let phi = e[2 + k - 1];
+        let wt = lam.powi((nn - 1 - k) as i32);
+        s += wt * phi * phi;
+        r += wt * phi * up.w[k];
+    }
+    assert!(
+        (up.model.b[0] - r / s).abs() < 1e-10,
+        "{:?} vs {}",
+        up.model.b,
+        r / s
+    );
+    // the state after the update holds the discounted normal equations
+    let want = brute_ewls(&st, new, &up.model.residuals, &up.model.b, lam, 12).unwrap();
+    let n = 4;
+    let s12 = &up.state.gram[12 * n * n..13 * n * n];
+    let rhs: Vec<f64> = (0..n)
+        .map(|i| {
+            up.state.cross[12 * n * 2 + i * 2]
+                - up.model.b[0] * up.state.cross[12 * n * 2 + i * 2 + 1]
+        })
+        .collect();
+    let (sol, _, _) = spd_solve_inverse(s12, &rhs, n).unwrap();
+    for i in 0..n {
+        assert!(
+            (sol[i] - want[i]).abs() < 1e-10 * scale,
+            "{sol:?} vs {want:?}"
+        );
+    }
+}
+
+#[test]
+fn two_updates_equal_one_and_the_state_file_round_trips() {
+    let x = simulate(3000, 8);
+    let m = fitted(&x[..2000], 1);
+    let st = state_from_fit("gyro", &x[..2000], &m);
+    for lam in [1.0, 0.999] {
+        let once = update(&st, &x[2000..], lam).unwrap();
+        let first = update(&st, &x[2000..2400], lam).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.parquet");
+        write_state(&path, &[&first.state], &[("order", "2,1,1".into())]).unwrap();
+        let (back, md) = read_state(&path).unwrap();
+        assert_eq!(back.len(), 1);
+        assert_eq!(back[0], first.state, "bit-exact round trip");
+        assert!(md.iter().any(|(k, v)| k == "order" && v == "2,1,1"));
+        let twice = update(&back[0], &x[2400..], lam).unwrap();
+        let scale = scale_of(&once.model.coef.f);
+        for (a, b) in once.model.coef.f.iter().zip(&twice.model.coef.f) {
+            assert!((a - b).abs() < 1e-9 * scale, "{a} vs {b}");
+        }
+        for (a, b) in once.model.residuals[400..]
+            .iter()
+            .zip(&twice.model.residuals)
+        {
+            assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+        }
+        assert!((once.model.b[0] - twice.model.b[0]).abs() < 1e-10);
+        assert_eq!(twice.state.n, 3000);
+        assert_eq!(twice.first_t, 2400);
+    }
+    // bad input
+    assert!(update(&st, &x[2000..], 1.5).is_err());
+    assert!(update(&st, &x[2000..], 0.0).is_err());
+    assert!(update(&st, &[], 1.0).is_err());
+    assert!(update(&st, &[1.0, f64::NAN], 1.0).is_err());
+}
