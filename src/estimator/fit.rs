@@ -433,7 +433,7 @@ fn gcv_select(sm: &Smoother, range: f64) -> (Vec<GcvRow>, Vec<GridFit>, usize, b
 }
 
 /// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}.
-fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
+pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     let q = b0.len();
     let n = w.len();
     let mut b = b0.to_vec();

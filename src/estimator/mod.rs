@@ -16,6 +16,7 @@ pub mod fit;
 pub mod kernel;
 pub mod linalg;
 pub mod moments;
+pub mod multivariate;
 pub mod problem;
 pub mod tables;
 pub mod update;
