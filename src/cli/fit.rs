@@ -52,6 +52,19 @@ pub struct FitArgs {
     /// Also write state.parquet, what `farma update` needs to continue the fit.
     #[arg(long)]
     pub save_state: bool,
+    /// Index of the coefficient functions: `lag` (x_(t-d), default) or `lag,CHANNEL`
+    /// (x_(t-d) and another channel of the log, e.g. lag,temp_c).
+    #[arg(long, value_name = "lag[,CHANNEL]")]
+    pub index: Option<String>,
+    /// Lag of the second index channel (default: d).
+    #[arg(long, value_name = "D2")]
+    pub index_lag: Option<usize>,
+    /// Grid points per coordinate of a 2-D index.
+    #[arg(long, default_value = "21,21", value_name = "N1,N2")]
+    pub index_grid: String,
+    /// With a 2-D index and --bandwidth: the bandwidth of the second coordinate.
+    #[arg(long, value_name = "H2")]
+    pub bandwidth2: Option<f64>,
     #[command(flatten)]
     pub log_args: LogArgs,
     /// One JSON object per channel on stdout (JSON Lines).
@@ -59,7 +72,7 @@ pub struct FitArgs {
     pub json: bool,
 }
 
-fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
+pub(super) fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
     let v: Vec<&str> = s.split(',').map(str::trim).collect();
     let bad = || {
         Error::Usage(format!(
@@ -77,6 +90,9 @@ fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
 }
 
 pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
+    if let Some(second) = super::fit_index2::second_index(a.index.as_deref())? {
+        return super::fit_index2::run(a, second, progress);
+    }
     let (p, q, d) = parse_order(&a.order)?;
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;

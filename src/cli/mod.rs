@@ -6,6 +6,7 @@
 
 mod adev;
 mod fit;
+mod fit_index2;
 mod info;
 mod ingest;
 mod update;

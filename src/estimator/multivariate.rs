@@ -685,16 +685,16 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let (x_lo, x_hi) = range_of(&x);
     let (z_lo, z_hi) = range_of(z);
     let range = (x_hi - x_lo, z_hi - z_lo);
-    if !(range.0 > 0.0) {
+    if range.0 <= 0.0 {
         return bad("the channel is constant: nothing to fit".into());
     }
-    if !(range.1 > 0.0) {
+    if range.1 <= 0.0 {
         return bad("the index channel is constant: it cannot index anything".into());
     }
     let half = (range.0 / 2.0, range.1 / 2.0);
     let q1 = quantile_pair((pp..n).map(|t| x[t - d]).collect(), prm.grid_quantiles);
     let q2 = quantile_pair((pp..n).map(|t| z[t - d2]).collect(), prm.grid_quantiles);
-    if !(q1.1 > q1.0) || !(q2.1 > q2.0) {
+    if q1.1 <= q1.0 || q2.1 <= q2.0 {
         return bad(
             "an index coordinate takes one value over its central quantiles: no grid to fit on"
                 .into(),

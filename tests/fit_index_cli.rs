@@ -1,0 +1,184 @@
+//! `farma fit --index lag,CHANNEL`: the 2-D index from the command line: tables with
+//! `grid2` and the second index named in the file metadata, identical bytes with 1 and
+//! 2 threads, bad requests exit 2.
+
+mod common;
+
+use std::fs::File;
+
+use arrow_array::{Array, Float64Array};
+use common::{farma, fixture, stderr, stdout};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+
+#[test]
+fn fit_with_a_temperature_index_writes_grid2_and_is_thread_independent() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let run = |threads: &str, out: &str| {
+        let o = farma(
+            &[
+                "--threads",
+                threads,
+                "fit",
+                log.to_str().unwrap(),
+                "--channel",
+                "gyro_x",
+                "--order",
+                "2,0,1",
+                "--index",
+                "lag,temp_c",
+                "--index-grid",
+                "7,5",
+                "--residuals",
+                "--json",
+                "-o",
+                dir.path().join(out).to_str().unwrap(),
+            ],
+            dir.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        o
+    };
+    let one = run("1", "t1");
+    let two = run("2", "t2");
+    for f in [
+        "coef.parquet",
+        "params.parquet",
+        "gcv.parquet",
+        "residuals.parquet",
+    ] {
+        let a = std::fs::read(dir.path().join("t1").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("t2").join(f)).unwrap();
+        assert!(a == b, "{f} differs between 1 and 2 threads");
+    }
+    assert_eq!(stdout(&one), stdout(&two).replace("/t2/", "/t1/"));
+    let v: serde_json::Value = serde_json::from_str(stdout(&one).lines().next().unwrap()).unwrap();
+    assert_eq!(v["index2"], serde_json::json!("temp_c"));
+    assert!(v["bandwidth2"].as_f64().unwrap() > 0.0);
+
+    let file = File::open(dir.path().join("t1").join("coef.parquet")).unwrap();
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).unwrap();
+    let kv = builder
+        .metadata()
+        .file_metadata()
+        .key_value_metadata()
+        .unwrap()
+        .clone();
+    let meta = |k: &str| kv.iter().find(|e| e.key == k).and_then(|e| e.value.clone());
+    assert_eq!(meta("index2").as_deref(), Some("temp_c"));
+    assert_eq!(meta("index2_lag").as_deref(), Some("1"));
+    let batches: Vec<_> = builder.build().unwrap().map(|b| b.unwrap()).collect();
+    let rows: usize = batches.iter().map(|b| b.num_rows()).sum();
+    assert_eq!(rows, 70);
+    let g2 = batches[0]
+        .column_by_name("grid2")
+        .unwrap()
+        .as_any()
+        .downcast_ref::<Float64Array>()
+        .unwrap()
+        .clone();
+    // the temperature grid spans the central quantiles of temp_c (about 25..30 degC)
+    let (lo, hi) = (g2.value(0), g2.value(8));
+    assert!(lo > 24.0 && hi < 31.0 && hi > lo, "{lo} {hi}");
+    assert!(batches[0].column_by_name("slope2").is_some());
+    assert_eq!(g2.len(), 70);
+}
+
+#[test]
+fn fit_with_a_bad_index_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let l = log.to_str().unwrap();
+    let out = dir.path().join("o");
+    let o = out.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,nope",
+                "-o",
+                o,
+            ],
+            "no channel 'nope'",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "temp_c",
+                "-o",
+                o,
+            ],
+            "--index",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,temp_c",
+                "--save-state",
+                "-o",
+                o,
+            ],
+            "--save-state",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,temp_c",
+                "--bandwidth",
+                "0.1",
+                "-o",
+                o,
+            ],
+            "--bandwidth2",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,temp_c",
+                "--index-grid",
+                "7",
+                "-o",
+                o,
+            ],
+            "--index-grid",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,gyro_x",
+                "-o",
+                o,
+            ],
+            "--index-lag",
+        ),
+    ] {
+        let r = farma(&args, dir.path());
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {}", stderr(&r));
+        assert!(stderr(&r).contains(needle), "{args:?}: {}", stderr(&r));
+    }
+    assert!(!out.join("coef.parquet").exists());
+}
