@@ -52,12 +52,11 @@ use arrow_array::{
 };
 use rayon::prelude::*;
 
-use super::direct::DirectIndex;
 use super::fit::{FitPath, FittedFarma, Init};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::sandwich_diag;
-use super::problem::{GridFit, PointStatus, VcProblem};
+use super::problem::{GridFit, PointStatus};
 use crate::error::{Error, Result};
 use crate::output::batch;
 
@@ -222,49 +221,106 @@ fn accumulate(
     }
 }
 
+/// The grid points whose support [u_g - h, u_g + h) may hold `u` (check exactly).
+#[inline]
+fn candidates(grid: &[f64], u: f64, h: f64) -> std::ops::Range<usize> {
+    let a = grid.partition_point(|v| *v < u - h * (1.0 + 1e-12));
+    let b = grid.partition_point(|v| *v <= u + h * (1.0 + 1e-12));
+    a..b
+}
+
+/// Normal equations of every grid point over rows `rows` (one pass, no discount).
+struct Sums {
+    gram: Vec<f64>,
+    cross: Vec<f64>,
+    gram2: Vec<f64>,
+    mass: Vec<f64>,
+    count: Vec<u64>,
+}
+
+impl Sums {
+    fn zeros(g: usize, p: usize, q: usize) -> Sums {
+        let n = 2 * p;
+        Sums {
+            gram: vec![0.0; g * n * n],
+            cross: vec![0.0; g * n * (1 + q)],
+            gram2: vec![0.0; g * n * n],
+            mass: vec![0.0; g],
+            count: vec![0; g],
+        }
+    }
+
+    fn add(&mut self, o: &Sums) {
+        let pairs = [
+            (&mut self.gram, &o.gram),
+            (&mut self.cross, &o.cross),
+            (&mut self.gram2, &o.gram2),
+            (&mut self.mass, &o.mass),
+        ];
+        for (a, b) in pairs {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        self.count
+            .iter_mut()
+            .zip(&o.count)
+            .for_each(|(x, y)| *x += y);
+    }
+}
+
 /// The state of a fitted channel: its normal equations at the fit's final residuals
-/// and b (one direct pass: KD-tree gather per grid point, rows summed in order, grid
-/// points in parallel; the result does not depend on the number of threads).
+/// and b. One pass over the rows adds each row to the grid points whose support holds
+/// it (the rows of [`super::direct::fit_grid`]); rows are cut into fixed blocks (their
+/// size does not depend on the threads), blocks run in parallel and are added in
+/// order: the result does not depend on the number of threads.
 pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+    const BLOCK: usize = 1 << 15;
+    const GROUP: usize = 32;
     let (p, q, d) = (m.p, m.q, m.d);
     let lag = p.max(q).max(d);
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
     let e = &m.residuals;
     let h = m.bandwidth;
-    let prob = VcProblem {
-        x: &x,
-        e,
-        b: &[],
-        p,
-        d,
-        start: lag,
-    };
-    let index = DirectIndex::build(&prob);
+    let grid = &m.grid;
     let n = 2 * p;
     let nc = 1 + q;
-    type Sums = (Vec<f64>, Vec<f64>, Vec<f64>, f64, u64);
-    let per_g: Vec<Sums> = m
-        .grid
-        .par_iter()
-        .map(|&ug| {
-            let (mut s, mut c, mut s2) = (vec![0.0; n * n], vec![0.0; n * nc], vec![0.0; n * n]);
-            let (mut z, mut r) = (vec![0.0; n], vec![0.0; nc]);
-            let (mut mass, mut count) = (0.0, 0u64);
-            let (lo, hi) = (ug - h, ug + h);
-            for t in index.gather(ug, h * (1.0 + 1e-12)) {
-                let u = x[t - d];
-                if !(lo <= u && u < hi) {
-                    continue;
+    let g = grid.len();
+    let starts: Vec<usize> = (lag..x.len()).step_by(BLOCK).collect();
+    let mut total = Sums::zeros(g, p, q);
+    for group in starts.chunks(GROUP) {
+        let parts: Vec<Sums> = group
+            .par_iter()
+            .map(|&s0| {
+                let mut acc = Sums::zeros(g, p, q);
+                let (mut z, mut r) = (vec![0.0; n], vec![0.0; nc]);
+                for t in s0..(s0 + BLOCK).min(x.len()) {
+                    let u = x[t - d];
+                    for k in candidates(grid, u, h) {
+                        let ug = grid[k];
+                        if !(ug - h <= u && u < ug + h) {
+                            continue;
+                        }
+                        let kw = local_row(&x, e, (p, q, d), t, ug, h, &mut z, &mut r);
+                        accumulate(
+                            &mut acc.gram[k * n * n..(k + 1) * n * n],
+                            &mut acc.cross[k * n * nc..(k + 1) * n * nc],
+                            &mut acc.gram2[k * n * n..(k + 1) * n * n],
+                            &z,
+                            &r,
+                            kw,
+                            1.0,
+                            1.0,
+                        );
+                        acc.mass[k] += kw;
+                        acc.count[k] += 1;
+                    }
                 }
-                let k = local_row(&x, e, (p, q, d), t, ug, h, &mut z, &mut r);
-                accumulate(&mut s, &mut c, &mut s2, &z, &r, k, 1.0, 1.0);
-                mass += k;
-                count += 1;
-            }
-            (s, c, s2, mass, count)
-        })
-        .collect();
-    let g = m.grid.len();
+                acc
+            })
+            .collect();
+        for part in &parts {
+            total.add(part);
+        }
+    }
     let mut st = ChannelState {
         channel: channel.to_string(),
         p,
@@ -272,12 +328,12 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
         d,
         mean: m.mean,
         bandwidth: h,
-        grid: m.grid.clone(),
-        gram: Vec::with_capacity(g * n * n),
-        cross: Vec::with_capacity(g * n * nc),
-        gram2: Vec::with_capacity(g * n * n),
-        kernel_mass: Vec::with_capacity(g),
-        n_support: Vec::with_capacity(g),
+        grid: grid.clone(),
+        gram: total.gram,
+        cross: total.cross,
+        gram2: total.gram2,
+        kernel_mass: total.mass,
+        n_support: total.count,
         b: m.b.clone(),
         b_gram: vec![0.0; q * q],
         b_rhs: vec![0.0; q],
@@ -288,13 +344,6 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
         rows: (x.len() - lag) as f64,
         forgetting: 1.0,
     };
-    for (s, c, s2, mass, count) in per_g {
-        st.gram.extend(s);
-        st.cross.extend(c);
-        st.gram2.extend(s2);
-        st.kernel_mass.push(mass);
-        st.n_support.push(count);
-    }
     for t in lag..x.len() {
         for i in 0..q {
             for j in 0..q {
@@ -462,18 +511,18 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
             }
         }
         // 3b. every grid point whose support [u_g - h, u_g + h) holds U_t
-        let g0 = st.grid.partition_point(|v| *v < u - h * (1.0 + 1e-12));
-        for g in g0..gl {
+        for g in candidates(&st.grid, u, h) {
             let ug = st.grid[g];
-            if ug - h > u {
-                break;
-            }
             if !(ug - h <= u && u < ug + h) {
                 continue;
             }
             let kw = local_row(&xs, &es, (p, q, d), t, ug, h, &mut z, &mut r);
             // discount for the samples this point did not see, then this one
-            let fac = lam.powf((k - sync[g]) as f64) * lam;
+            let fac = if lam == 1.0 {
+                1.0
+            } else {
+                lam.powf((k - sync[g]) as f64) * lam
+            };
             sync[g] = k + 1;
             accumulate(
                 &mut st.gram[g * n * n..(g + 1) * n * n],
