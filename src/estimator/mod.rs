@@ -7,6 +7,9 @@
 //! from which every grid point and every bandwidth of the GCV ladder is solved; see
 //! `shared/design/fast-exact-fits.md`). [`problem`] defines the regression both solve,
 //! [`kernel`] the Biweight, [`linalg`] the small dense solves (faer).
+//! [`update`] continues a fit over new samples by recursive least squares (the state
+//! file of `farma update`); [`multivariate`] fits f_m on a 2-D index
+//! (x_{t-d}, z_{t-d2}), z another channel such as temperature.
 
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
