@@ -133,8 +133,9 @@ fn update_without_forgetting_equals_batch_on_concatenated_data() {
                 up.model.b
             );
             assert!((up.model.b[0] - m.b[0]).abs() > 1e-6);
-            // the residual recursion: e_t = w_t - b e_{t-1} with b before sample t
-            // implies |e_t - (w_t - b_final e_{t-1})| is small but e is a priori
+        } else {
+            // without an MA part the a priori residual is w_t itself
+            assert_eq!(up.model.residuals, up.w);
         }
         // sigma^2 = RSS / (N - max(p,q,d)) over all samples
         let rss: f64 = ea[2..].iter().map(|v| v * v).sum();
