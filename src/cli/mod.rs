@@ -8,6 +8,7 @@ mod adev;
 mod fit;
 mod info;
 mod ingest;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -40,6 +41,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
+    /// Simulate a gyro log from a simulation spec (TOML).
+    Simulate(simulate::SimulateArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -134,5 +137,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::run(a, &progress),
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
+        Command::Simulate(a) => simulate::run(a, &progress),
     }
 }
