@@ -668,3 +668,276 @@ fn bad_requests_are_clear_errors() {
     let err = simulate(&s, &req).unwrap_err();
     assert!(err.to_string().contains("no channel 'nope'"), "{err}");
 }
+
+// ---------------------------------------------------------------------------------
+// A fitted model, and the command line.
+
+/// Fits gyro_y of the bundled multi-axis log into `dir/fits/gyro_y` with `farma fit`;
+/// returns its JSON line.
+fn fit_gyro_y(dir: &Path) -> serde_json::Value {
+    let out = dir.join("fits").join("gyro_y");
+    let o = common::farma(
+        &[
+            "fit",
+            common::fixture("multiaxis.csv").to_str().unwrap(),
+            "--channel",
+            "gyro_y",
+            "--order",
+            "2,1,1",
+            "--grid",
+            "41",
+            "--json",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", common::stderr(&o));
+    serde_json::from_str(common::stdout(&o).trim()).unwrap()
+}
+
+#[test]
+fn fitted_model_loads_back_and_drives_the_recursion() {
+    use farma::estimator::saved::{interp, load_saved};
+    let dir = tempfile::tempdir().unwrap();
+    let fit = fit_gyro_y(dir.path());
+    let m = load_saved(&dir.path().join("fits/gyro_y"), None).unwrap();
+    assert_eq!((m.p, m.q, m.d), (2, 1, 1));
+    assert_eq!(m.channel, "gyro_y");
+    assert_eq!(m.sigma2, fit["sigma2"].as_f64().unwrap());
+    assert_eq!(m.mean, fit["mean"].as_f64().unwrap());
+    let b: Vec<f64> = fit["b"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(m.b, b);
+    assert!(m.grid.iter().all(|g| g.len() == 41));
+    // Linear between grid points, constant beyond.
+    let (g, f) = (&m.grid[0], &m.f[0]);
+    assert_eq!(interp(g, f, g[3]), f[3]);
+    let mid = 0.25 * g[3] + 0.75 * g[4];
+    assert!((interp(g, f, mid) - (0.25 * f[3] + 0.75 * f[4])).abs() < 1e-12);
+    assert_eq!(interp(g, f, g[0] - 10.0), f[0]);
+    assert_eq!(interp(g, f, g[40] + 10.0), f[40]);
+    // A spec naming an unknown fitted channel is a clear error.
+    assert!(
+        load_saved(&dir.path().join("fits/gyro_y"), Some("gyro_q"))
+            .unwrap_err()
+            .to_string()
+            .contains("no fitted channel 'gyro_q'")
+    );
+
+    // Simulate the model; running it backwards recovers white innovations of
+    // variance sigma2 (relative standard error sqrt(2 / N)).
+    let s = spec(
+        "sample_rate_hz = 10.0\nseed = 2\n[[channel]]\nname = \"gyro_y\"\n[[channel.component]]\nkind = \"farma\"\nmodel = \"fits/gyro_y\"\n",
+    );
+    let n = 60_000;
+    let mut req = SimRequest::new(n, FS);
+    req.base_dir = Some(dir.path().to_path_buf());
+    let y = simulate(&s, &req).unwrap().channels[0].1.clone();
+    let z: Vec<f64> = y.iter().map(|v| v - m.mean).collect();
+    let f = |k: usize, u: f64| interp(&m.grid[k - 1], &m.f[k - 1], u + m.mean);
+    let e = farma_residuals(&z, 1, &f, 2, &m.b, 500);
+    let v = var(&e);
+    assert!(
+        rel(v, m.sigma2) < 5.0 * (2.0 / e.len() as f64).sqrt(),
+        "{v} vs {}",
+        m.sigma2
+    );
+    let r1 = acov(&e, 1) / acov(&e, 0);
+    assert!(r1.abs() < 5.0 / (e.len() as f64).sqrt(), "r1 {r1}");
+    // The output is in channel units: its mean is the fitted mean (standard error by
+    // batch means: 60 batches of 1000 samples, far longer than the correlation).
+    let batches: Vec<f64> = y.chunks(1000).map(mean).collect();
+    let se = (var(&batches) / batches.len() as f64).sqrt();
+    assert!(
+        (mean(&y) - m.mean).abs() < 5.0 * se,
+        "mean {} vs {} (se {se})",
+        mean(&y),
+        m.mean
+    );
+}
+
+/// Files left in `dir` besides `keep` (temporary files included).
+fn leftovers(dir: &Path, keep: &[&str]) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !keep.contains(&n.as_str()))
+        .collect()
+}
+
+#[test]
+fn cli_simulates_every_component_like_a_real_log_and_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fit_gyro_y(d);
+    let spec_path = d.join("every.toml");
+    std::fs::copy(common::fixture("specs/every_component.toml"), &spec_path).unwrap();
+    let real = common::fixture("multiaxis.csv");
+    let cache = d.join("cache");
+    for ext in ["parquet", "arrow", "csv"] {
+        let out = d.join(format!("sim.{ext}"));
+        let o = common::farma(
+            &[
+                "simulate",
+                spec_path.to_str().unwrap(),
+                "--like",
+                real.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--json",
+            ],
+            &cache,
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", common::stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(common::stdout(&o).trim()).unwrap();
+        assert_eq!(v["n_samples"], 4000);
+        assert_eq!(v["sample_rate_hz"], 10.0);
+        assert_eq!(v["seed"], 7);
+        assert_eq!(v["channels"].as_array().unwrap().len(), 3);
+        let o = common::farma(&["info", out.to_str().unwrap(), "--json"], &cache);
+        assert_eq!(o.status.code(), Some(0), "{}", common::stderr(&o));
+        let info: serde_json::Value = serde_json::from_str(common::stdout(&o).trim()).unwrap();
+        assert_eq!(info["n_samples"], 4000);
+        assert_eq!(info["sample_rate_hz"], 10.0);
+        let names: Vec<&str> = info["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["name"].as_str().unwrap())
+            .collect();
+        assert_eq!(names, ["gyro_x", "gyro_y", "gyro_z", "temp_c"]);
+        let o = common::farma(
+            &[
+                "adev",
+                out.to_str().unwrap(),
+                "--channel",
+                "gyro_x",
+                "--json",
+            ],
+            &cache,
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", common::stderr(&o));
+    }
+    // The store holds exactly what the library simulates, and the real temperature.
+    let store = farma::store::Store::open(&d.join("sim.arrow")).unwrap();
+    let spec = farma::simulator::load_spec(&spec_path).unwrap();
+    let (_, cols) = common::reference_parse_csv(&real);
+    let temp = cols[4].clone();
+    let mut req = SimRequest::new(4000, FS);
+    req.temperature_c = Some(&temp);
+    req.base_dir = Some(d.to_path_buf());
+    let lib = simulate(&spec, &req).unwrap();
+    for (name, v) in &lib.channels {
+        assert_eq!(store.column(name).unwrap(), v.as_slice(), "{name}");
+    }
+    assert_eq!(store.column("temp_c").unwrap(), temp.as_slice());
+    let t = store.column("time").unwrap();
+    assert_eq!(t[0], 0.0);
+    assert_eq!(t[3999], 399.9);
+    // CSV cells are the shortest round-trip decimal: the values read back exactly.
+    let (names, csv) = common::reference_parse_csv(&d.join("sim.csv"));
+    assert_eq!(names[0], "time");
+    assert_eq!(csv[1], lib.channels[0].1);
+}
+
+#[test]
+fn cli_refuses_bad_requests_with_exit_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = d.join("cache");
+    std::fs::create_dir(&cache).unwrap();
+    let every = common::fixture("specs/every_component.toml");
+    let simple = d.join("simple.toml");
+    std::fs::write(
+        &simple,
+        "sample_rate_hz = 10.0\n[[channel]]\nname = \"x\"\n[[channel.component]]\nkind = \"white_noise\"\nn = 0.1\n",
+    )
+    .unwrap();
+    let no_temp_log = d.join("notemp.csv");
+    std::fs::write(&no_temp_log, "time,gyro_x\n0,1\n0.1,2\n0.2,3\n").unwrap();
+    let out = d.join("out.parquet");
+    let (e, s, o, nt) = (
+        every.to_str().unwrap(),
+        simple.to_str().unwrap(),
+        out.to_str().unwrap(),
+        no_temp_log.to_str().unwrap(),
+    );
+    let txt = d.join("out.txt");
+    let bad_spec = common::fixture("specs/bad")
+        .read_dir()
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["simulate", s, "-o", o], "--duration"),
+        (vec!["simulate", s, "--duration=-5", "-o", o], "--duration"),
+        (
+            vec!["simulate", s, "--duration", "0.01", "-o", o],
+            "less than one sample",
+        ),
+        (
+            vec![
+                "simulate",
+                s,
+                "--duration",
+                "10",
+                "-o",
+                txt.to_str().unwrap(),
+            ],
+            ".parquet",
+        ),
+        (
+            vec![
+                "simulate",
+                s,
+                "--duration",
+                "10",
+                "--channel",
+                "nope",
+                "-o",
+                o,
+            ],
+            "no channel 'nope'",
+        ),
+        (vec!["simulate", e, "--duration", "10", "-o", o], "--like"),
+        (vec!["simulate", e, "--like", nt, "-o", o], "temp_c"),
+        (
+            vec![
+                "simulate",
+                bad_spec.to_str().unwrap(),
+                "--duration",
+                "10",
+                "-o",
+                o,
+            ],
+            "",
+        ),
+        (
+            vec![
+                "simulate",
+                "/no/such/spec.toml",
+                "--duration",
+                "10",
+                "-o",
+                o,
+            ],
+            "spec.toml",
+        ),
+    ];
+    for (args, needle) in cases {
+        let r = common::farma(&args, &cache);
+        let err = common::stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        let left = leftovers(d, &["cache", "simple.toml", "notemp.csv"]);
+        assert!(left.is_empty(), "{args:?} left {left:?}");
+    }
+}

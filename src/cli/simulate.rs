@@ -108,7 +108,13 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
                     }
                     Some((name.as_str(), &t[..n_samples]))
                 }
-                Err(e) if needed => return Err(e),
+                Err(_) if needed => {
+                    return Err(Error::Usage(format!(
+                        "{}: no channel '{name}', the spec's temperature_channel; channels are: {} (hint: set the spec's temperature_channel to the log's temperature column)",
+                        s.label().display(),
+                        s.channel_names().join(", ")
+                    )));
+                }
                 Err(_) => None,
             }
         }
@@ -142,10 +148,10 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         .iter()
         .map(|(n, v)| (n.as_str(), v.as_slice()))
         .collect();
-    if let Some((name, t)) = temperature {
-        if !columns.iter().any(|c| c.0 == name) {
-            columns.push((name, t));
-        }
+    if let Some((name, t)) = temperature
+        && !columns.iter().any(|c| c.0 == name)
+    {
+        columns.push((name, t));
     }
     for (name, _) in &columns {
         if ["time", "time_s", "t", "timestamp"].contains(name) {

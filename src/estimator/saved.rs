@@ -7,7 +7,7 @@
 //! at the raw index value x_{t-d}; between grid points f_m is linear, beyond the ends
 //! constant, exactly as the estimator evaluates it (`GridFit::eval`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use arrow_array::{Array, Float64Array, Int64Array, ListArray, RecordBatch, StringArray};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -191,7 +191,7 @@ fn read_all(path: &Path) -> Result<Vec<RecordBatch>> {
         .collect()
 }
 
-fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &PathBuf) -> Result<&'a T> {
+fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &Path) -> Result<&'a T> {
     let col = batch.column_by_name(name).ok_or_else(|| {
         Error::column(
             path,
@@ -210,40 +210,36 @@ fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &PathBuf) ->
 }
 
 fn strings(batches: &[RecordBatch], name: &str, path: &Path) -> Result<Vec<String>> {
-    let path = path.to_path_buf();
     let mut out = Vec::new();
     for b in batches {
-        let a: &StringArray = column(b, name, &path)?;
+        let a: &StringArray = column(b, name, path)?;
         out.extend((0..a.len()).map(|i| a.value(i).to_string()));
     }
     Ok(out)
 }
 
 fn ints(batches: &[RecordBatch], name: &str, path: &Path) -> Result<Vec<i64>> {
-    let path = path.to_path_buf();
     let mut out = Vec::new();
     for b in batches {
-        let a: &Int64Array = column(b, name, &path)?;
+        let a: &Int64Array = column(b, name, path)?;
         out.extend(a.values().iter().copied());
     }
     Ok(out)
 }
 
 fn floats(batches: &[RecordBatch], name: &str, path: &Path) -> Result<Vec<f64>> {
-    let path = path.to_path_buf();
     let mut out = Vec::new();
     for b in batches {
-        let a: &Float64Array = column(b, name, &path)?;
+        let a: &Float64Array = column(b, name, path)?;
         out.extend(a.values().iter().copied());
     }
     Ok(out)
 }
 
 fn list_row(batches: &[RecordBatch], name: &str, row: usize, path: &Path) -> Result<Vec<f64>> {
-    let pathb = path.to_path_buf();
     let mut base = 0;
     for b in batches {
-        let a: &ListArray = column(b, name, &pathb)?;
+        let a: &ListArray = column(b, name, path)?;
         if row < base + a.len() {
             let v = a.value(row - base);
             let f = v.as_any().downcast_ref::<Float64Array>().ok_or_else(|| {

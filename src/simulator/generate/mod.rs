@@ -233,10 +233,16 @@ impl<'a> Simulator<'a> {
                         let name = channel.as_deref().unwrap_or(&ch.name);
                         // Default: the spec channel's name, or the only channel fitted.
                         let m = match load_saved(&dir, Some(name)) {
-                            Ok(m) => m,
-                            Err(e) if channel.is_none() => load_saved(&dir, None).map_err(|_| e)?,
-                            Err(e) => return Err(e),
-                        };
+                            Ok(m) => Ok(m),
+                            Err(e) if channel.is_none() => load_saved(&dir, None).map_err(|_| e),
+                            Err(e) => Err(e),
+                        }
+                        .map_err(|e| {
+                            Error::Usage(format!(
+                                "{place}: cannot load the fitted model '{}' (an output folder of `farma fit`): {e}",
+                                dir.display()
+                            ))
+                        })?;
                         saved.insert((ci, k), m);
                     }
                     _ => {}

@@ -88,7 +88,7 @@ fn recurse(buf: &mut [f64], r: &Recursion, xs: &mut [f64], es: &mut [f64]) -> Re
         for (b, ep) in r.ma.iter().zip(es.iter()) {
             x += b * ep;
         }
-        if !(x.abs() < 1e150) {
+        if x.is_nan() || x.abs() >= 1e150 {
             return Err(t);
         }
         if !xs.is_empty() {
