@@ -148,9 +148,29 @@ impl<'a> Simulator<'a> {
                 }
             }
         }
+        // Channels simulated: the requested ones and the sources of their cross_axis.
+        let mut used: Vec<bool> = spec
+            .channels
+            .iter()
+            .map(|c| req.channels.as_ref().is_none_or(|w| w.contains(&c.name)))
+            .collect();
+        for (ci, c) in spec.channels.iter().enumerate() {
+            if used[ci] {
+                for comp in &c.components {
+                    if let Component::CrossAxis { from, .. } = comp
+                        && let Some(j) = spec.channels.iter().position(|x| &x.name == from)
+                    {
+                        used[j] = true;
+                    }
+                }
+            }
+        }
         let needs_temp: Vec<String> = spec
             .channels
             .iter()
+            .zip(&used)
+            .filter(|(_, u)| **u)
+            .map(|(c, _)| c)
             .flat_map(|c| {
                 c.components
                     .iter()
