@@ -570,8 +570,9 @@ pub fn bi_bounds(comp: &Component, n_samples: usize, rate_hz: f64) -> (f64, f64)
     }
 }
 
-/// Adds the signal of component `component` (index in the channel) of channel
-/// `channel` (name) to nothing: a convenience over [`Simulator::component_signal`].
+/// The signal of component `component` (index in the channel) of channel `channel`
+/// (by name) alone: a one-off convenience over [`Simulator::component_signal`] (which
+/// a caller that simulates many components should keep, to load fitted models once).
 pub fn component_signal(
     spec: &Spec,
     channel: &str,
