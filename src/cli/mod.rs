@@ -10,6 +10,7 @@ mod fit_index2;
 mod info;
 mod ingest;
 mod update;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -44,6 +45,8 @@ pub enum Command {
     Adev(adev::AdevArgs),
     /// Update fitted FARMA models with new samples (recursive least squares).
     Update(update::UpdateArgs),
+    /// Simulate a gyro log from a simulation spec (TOML).
+    Simulate(simulate::SimulateArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -139,5 +142,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
         Command::Update(a) => update::run(a, &progress),
+        Command::Simulate(a) => simulate::run(a, &progress),
     }
 }

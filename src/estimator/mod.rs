@@ -21,6 +21,7 @@ pub mod linalg;
 pub mod moments;
 pub mod multivariate;
 pub mod problem;
+pub mod saved;
 pub mod tables;
 pub mod update;
 
