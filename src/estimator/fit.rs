@@ -27,6 +27,7 @@ use super::linalg::normal_equations;
 use super::moments::{MomentTable, breakpoints};
 use super::problem::{GridFit, PointStatus, VcProblem};
 use crate::error::{Error, Result};
+use std::time::Instant;
 
 /// How the alternation starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -156,6 +157,40 @@ pub struct GcvRow {
     pub n_failed: usize,
 }
 
+/// Wall-clock seconds of the steps of one alternation.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AlternationTiming {
+    /// The f-step: moment tables (or KD-tree gathers) and local solves, GCV excluded.
+    pub f_step_s: f64,
+    /// GCV ladders run in this alternation (the first one, and re-checks after
+    /// convergence), tables and solves for every bandwidth included.
+    pub gcv_s: f64,
+    /// The b-step (Gauss-Newton or one least-squares step).
+    pub b_step_s: f64,
+    /// Residual recursion and RSS.
+    pub residuals_s: f64,
+}
+
+impl AlternationTiming {
+    pub fn total_s(&self) -> f64 {
+        self.f_step_s + self.gcv_s + self.b_step_s + self.residuals_s
+    }
+}
+
+/// Where the time of a fit went (wall clock, seconds), for benchmarks and logs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FitTimings {
+    /// Mean, checks, range, quantiles, grid.
+    pub prepare_s: f64,
+    /// Linear ARMA start and the first residuals.
+    pub start_s: f64,
+    /// One entry per alternation.
+    pub alternations: Vec<AlternationTiming>,
+    /// Final fit, trace and standard errors at the chosen bandwidth.
+    pub final_s: f64,
+    pub total_s: f64,
+}
+
 /// A fitted FARMA model.
 #[derive(Clone, Debug)]
 pub struct FittedFarma {
@@ -195,6 +230,8 @@ pub struct FittedFarma {
     pub residuals: Vec<f64>,
     /// Messages for the user (ladder extensions, filled points).
     pub notes: Vec<String>,
+    /// Where the time went.
+    pub timings: FitTimings,
 }
 
 /// Quantile of a strided sample of at most 1e6 values (exact for shorter series).
@@ -511,6 +548,15 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let prm = params.params();
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = series.len();
+    let t_total = Instant::now();
+    let mut timings = FitTimings::default();
+    let mut clock = Instant::now();
+    // seconds since the last lap
+    let mut lap = move || {
+        let s = clock.elapsed().as_secs_f64();
+        clock = Instant::now();
+        s
+    };
     let pp = p.max(q).max(d);
     let mean = if prm.demean {
         series.iter().sum::<f64>() / n as f64
@@ -550,6 +596,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         .map(|k| glo + (ghi - glo) * k as f64 / (g - 1) as f64)
         .collect();
 
+    timings.prepare_s = lap();
     // 1. start
     let (a0, mut b) = match prm.init {
         Init::Arma => match fit_arma(&x, p, q) {
@@ -574,6 +621,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     residuals(&x, d, &grid, &coef, &b, &mut e);
     let mut rss = rss_from(&e, pp);
     let mut rss_history = vec![rss];
+    timings.start_s = lap();
 
     let mut h = prm.bandwidth.unwrap_or(f64::NAN);
     let mut gcv_table = Vec::new();
@@ -586,11 +634,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut need_gcv = prm.bandwidth.is_none();
     while iterations < prm.max_iter {
         iterations += 1;
+        let mut at = AlternationTiming::default();
+        lap();
         // 2. f-step
         let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
         let mut fit_h = if need_gcv {
             need_gcv = false;
             let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range);
+            at.gcv_s = lap();
             ladder_extended |= ext;
             notes.extend(nt);
             h = rows[best].bandwidth;
@@ -605,6 +656,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             ))
         })?;
         coef = fit_h;
+        at.f_step_s = lap();
         // 3. b-step
         if q > 0 {
             let mut w = vec![0.0; n];
@@ -626,9 +678,11 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 }
             };
         }
+        at.b_step_s = lap();
         // 4. residuals
         residuals(&x, d, &grid, &coef, &b, &mut e);
         let new_rss = rss_from(&e, pp);
+        at.residuals_s = lap();
         let change = (rss - new_rss).abs();
         rss = new_rss;
         rss_history.push(rss);
@@ -637,6 +691,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 // re-check the bandwidth at the converged residuals
                 let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
                 let (rows, _, best, ext, nt) = gcv_select(&sm, range);
+                at.gcv_s += lap();
+                timings.alternations.push(at.clone());
                 reselections += 1;
                 if rows[best].bandwidth != h {
                     notes.push(format!(
@@ -650,11 +706,15 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                     continue;
                 }
                 gcv_table = rows;
+            } else {
+                timings.alternations.push(at.clone());
             }
             converged = true;
             break;
         }
+        timings.alternations.push(at);
     }
+    lap();
     // GCV, trace and standard errors at the final bandwidth
     let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
@@ -673,6 +733,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     if n_filled > 0 {
         notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));
     }
+    timings.final_s = lap();
+    timings.total_s = t_total.elapsed().as_secs_f64();
     Ok(FittedFarma {
         p,
         q,
@@ -699,5 +761,6 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         n_rows: n - pp,
         residuals: e,
         notes,
+        timings,
     })
 }

@@ -19,5 +19,7 @@ pub mod moments;
 pub mod problem;
 pub mod tables;
 
-pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};
+pub use fit::{
+    AlternationTiming, FarmaParams, FitPath, FitTimings, FittedFarma, Init, ValidParams, fit,
+};
 pub use problem::{GridFit, PointStatus, VcProblem};
