@@ -529,7 +529,9 @@ fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
             if t >= start {
                 rss += s * s;
             }
-            hist.copy_within(0..q.saturating_sub(1), 1);
+            for k in (1..q).rev() {
+                hist[k] = hist[k - 1];
+            }
             hist[0] = s;
         }
         rss
@@ -567,9 +569,13 @@ fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
                     jte[i] -= de[i] * s;
                 }
             }
-            ehist.copy_within(0..q.saturating_sub(1), 1);
+            for k in (1..q).rev() {
+                ehist[k] = ehist[k - 1];
+                for j in 0..q {
+                    dhist[k * q + j] = dhist[(k - 1) * q + j];
+                }
+            }
             ehist[0] = s;
-            dhist.copy_within(0..q.saturating_sub(1) * q, q);
             dhist[..q].copy_from_slice(&de[..q]);
         }
         let Some(step) = normal_equations(&jtj, &jte, q) else {
@@ -578,6 +584,21 @@ fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
         // Stop on the size of the step, not on the RSS: near the optimum the RSS is
         // flat to rounding while b is still determined to ~1e-12.
         if step.iter().all(|s| s.abs() < 1e-12) {
+            break;
+        }
+        // A step this small is inside the quadratic basin: the RSS cannot tell the
+        // trial from b any more (their difference is below its rounding), so the line
+        // search would only halve the step 30 times, a pass each, and give up. Take
+        // the Gauss-Newton step and stop.
+        if step
+            .iter()
+            .zip(&b)
+            .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
+        {
+            let bt: Vec<f64> = (0..q).map(|i| b[i] + step[i]).collect();
+            if ma_invertible(&bt) {
+                b = bt;
+            }
             break;
         }
         let mut scale = 1.0;
