@@ -1,8 +1,8 @@
 //! Fitting a FARMA(p,q,d) model: validated parameters in, a fitted model out.
 //!
 //! The scheme of the paper, made to converge to the right answer:
-//! 1. start: a linear ARMA(p,q) by conditional least squares ([`super::arma`]) gives
-//!    constant f_m = a_m and b (`Init::Arma`, default); `Init::Literal` is the paper's
+//! 1. start: a linear ARMA(p,q) by conditional least squares ([`super::arma`]) on the
+//!    first [`START_MAX`] samples gives constant f_m = a_m and b (`Init::Arma`, default); `Init::Literal` is the paper's
 //!    literal start (least-squares AR(p), b = 0), kept for comparison: it stalls with
 //!    b near 0 when the MA part is strong;
 //! 2. f-step: with e and b fixed, y_t = x_t - sum b_m e_{t-m}; local-linear Biweight
@@ -24,9 +24,10 @@
 use super::arma::{fit_arma, ma_invertible};
 use super::direct::{self, DirectIndex};
 use super::linalg::normal_equations;
-use super::moments::{MomentTable, breakpoints};
+use super::moments::{IntervalLookup, MomentTable, breakpoints};
 use super::problem::{GridFit, PointStatus, VcProblem};
 use crate::error::{Error, Result};
+use std::time::Instant;
 
 /// How the alternation starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -156,6 +157,40 @@ pub struct GcvRow {
     pub n_failed: usize,
 }
 
+/// Wall-clock seconds of the steps of one alternation.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AlternationTiming {
+    /// The f-step: moment tables (or KD-tree gathers) and local solves, GCV excluded.
+    pub f_step_s: f64,
+    /// GCV ladders run in this alternation (the first one, and re-checks after
+    /// convergence), tables and solves for every bandwidth included.
+    pub gcv_s: f64,
+    /// The b-step (Gauss-Newton or one least-squares step).
+    pub b_step_s: f64,
+    /// Residual recursion and RSS.
+    pub residuals_s: f64,
+}
+
+impl AlternationTiming {
+    pub fn total_s(&self) -> f64 {
+        self.f_step_s + self.gcv_s + self.b_step_s + self.residuals_s
+    }
+}
+
+/// Where the time of a fit went (wall clock, seconds), for benchmarks and logs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FitTimings {
+    /// Mean, checks, range, quantiles, grid.
+    pub prepare_s: f64,
+    /// Linear ARMA start and the first residuals.
+    pub start_s: f64,
+    /// One entry per alternation.
+    pub alternations: Vec<AlternationTiming>,
+    /// Final fit, trace and standard errors at the chosen bandwidth.
+    pub final_s: f64,
+    pub total_s: f64,
+}
+
 /// A fitted FARMA model.
 #[derive(Clone, Debug)]
 pub struct FittedFarma {
@@ -195,6 +230,8 @@ pub struct FittedFarma {
     pub residuals: Vec<f64>,
     /// Messages for the user (ladder extensions, filled points).
     pub notes: Vec<String>,
+    /// Where the time went.
+    pub timings: FitTimings,
 }
 
 /// Quantile of a strided sample of at most 1e6 values (exact for shorter series).
@@ -202,15 +239,16 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
     let n = rows.len();
     let stride = n.div_ceil(1_000_000).max(1);
     let mut v: Vec<f64> = rows.step_by(stride).map(u).collect();
-    v.sort_by(f64::total_cmp);
+    // order statistics by selection (the values a full sort would put there)
     qs.iter()
         .map(|q| {
             let pos = q * (v.len() - 1) as f64;
             let (i, frac) = (pos.floor() as usize, pos - pos.floor());
-            if i + 1 < v.len() {
-                v[i] + frac * (v[i + 1] - v[i])
-            } else {
-                v[i]
+            let (_, vi, right) = v.select_nth_unstable_by(i, f64::total_cmp);
+            let vi = *vi;
+            match right.iter().min_by(|a, b| a.total_cmp(b)) {
+                Some(&next) => vi + frac * (next - vi),
+                None => vi,
             }
         })
         .collect()
@@ -219,11 +257,12 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
 /// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
 /// U_t = x_{t-d} (0 before the first sample).
 pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
+    let lookup = IntervalLookup::new(grid);
     let p = coef.p;
     let mut f = vec![0.0; p];
     for t in 0..x.len() {
         let u = if t >= d { x[t - d] } else { 0.0 };
-        coef.eval(grid, u, &mut f);
+        eval_with(coef, grid, &lookup, u, &mut f);
         let mut s = x[t];
         for m in 0..p.min(t) {
             s -= f[m] * x[t - m - 1];
@@ -234,6 +273,40 @@ pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e
             }
         }
         e[t] = s;
+    }
+}
+
+/// `GridFit::eval` with the grid cell found by an [`IntervalLookup`] instead of a
+/// binary search: the same cell, the same arithmetic, the same bits.
+#[inline]
+fn eval_with(coef: &GridFit, grid: &[f64], lookup: &IntervalLookup, u: f64, out: &mut [f64]) {
+    let p = coef.p;
+    let g = grid.len();
+    if u <= grid[0] {
+        out.copy_from_slice(&coef.f[..p]);
+    } else if u >= grid[g - 1] {
+        out.copy_from_slice(&coef.f[(g - 1) * p..g * p]);
+    } else {
+        let k = lookup.find(u) - 1;
+        let lam = (u - grid[k]) / (grid[k + 1] - grid[k]);
+        for m in 0..p {
+            let a = coef.f[k * p + m];
+            out[m] = a + lam * (coef.f[(k + 1) * p + m] - a);
+        }
+    }
+}
+
+/// Turns w (in `buf`) into the residuals e_t = w_t - sum b_m e_{t-m} in place, zeros
+/// before the first sample: e_t needs only earlier e, already in place.
+fn ma_filter_in_place(buf: &mut [f64], b: &[f64]) {
+    for t in 0..buf.len() {
+        let mut s = buf[t];
+        for (m, bm) in b.iter().enumerate() {
+            if t > m {
+                s -= bm * buf[t - m - 1];
+            }
+        }
+        buf[t] = s;
     }
 }
 
@@ -432,47 +505,78 @@ fn gcv_select(sm: &Smoother, range: f64) -> (Vec<GcvRow>, Vec<GridFit>, usize, b
     }
 }
 
-/// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}.
+/// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}
+/// (derivatives d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j), with step
+/// halving. Streaming: the recursions need only the last q values of e and of the
+/// derivatives, so each iteration is one pass over w for the normal equations and
+/// one per trial step, and nothing N-long is allocated. The arithmetic (and its
+/// order) is that of the stored-array version, so the result is the same to the bit.
 pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     let q = b0.len();
     let n = w.len();
     let mut b = b0.to_vec();
-    let mut e = vec![0.0; n];
-    let resid = |b: &[f64], e: &mut [f64]| {
+    // RSS of the residuals of b; hist[k] = e_{t-k-1}
+    let resid = |b: &[f64]| -> f64 {
+        let mut hist = [0.0f64; 8];
+        let mut rss = 0.0;
         for t in 0..n {
             let mut s = w[t];
             for (m, bm) in b.iter().enumerate() {
                 if t > m {
-                    s -= bm * e[t - m - 1];
+                    s -= bm * hist[m];
                 }
             }
-            e[t] = s;
+            if t >= start {
+                rss += s * s;
+            }
+            for k in (1..q).rev() {
+                hist[k] = hist[k - 1];
+            }
+            hist[0] = s;
         }
-        e[start..].iter().map(|v| v * v).sum::<f64>()
+        rss
     };
-    let mut rss = resid(&b, &mut e);
-    let mut de = vec![0.0; n * q];
+    let mut rss = resid(&b);
     for _ in 0..30 {
-        for t in 0..n {
-            for j in 0..q {
-                let mut v = if t > j { -e[t - j - 1] } else { 0.0 };
-                for (k, bk) in b.iter().enumerate() {
-                    if t > k {
-                        v -= bk * de[(t - k - 1) * q + j];
-                    }
-                }
-                de[t * q + j] = v;
-            }
-        }
+        // residuals and derivatives at b, with the normal equations, in one pass
+        let mut ehist = [0.0f64; 8];
+        // dhist[k * q + j] = d e_{t-k-1} / d b_j
+        let mut dhist = [0.0f64; 64];
+        let mut de = [0.0f64; 8];
         let mut jtj = vec![0.0; q * q];
         let mut jte = vec![0.0; q];
-        for t in start..n {
-            for i in 0..q {
-                for j in 0..q {
-                    jtj[i * q + j] += de[t * q + i] * de[t * q + j];
+        for t in 0..n {
+            let mut s = w[t];
+            for (m, bm) in b.iter().enumerate() {
+                if t > m {
+                    s -= bm * ehist[m];
                 }
-                jte[i] -= de[t * q + i] * e[t];
             }
+            for j in 0..q {
+                let mut v = if t > j { -ehist[j] } else { 0.0 };
+                for (k, bk) in b.iter().enumerate() {
+                    if t > k {
+                        v -= bk * dhist[k * q + j];
+                    }
+                }
+                de[j] = v;
+            }
+            if t >= start {
+                for i in 0..q {
+                    for j in 0..q {
+                        jtj[i * q + j] += de[i] * de[j];
+                    }
+                    jte[i] -= de[i] * s;
+                }
+            }
+            for k in (1..q).rev() {
+                ehist[k] = ehist[k - 1];
+                for j in 0..q {
+                    dhist[k * q + j] = dhist[(k - 1) * q + j];
+                }
+            }
+            ehist[0] = s;
+            dhist[..q].copy_from_slice(&de[..q]);
         }
         let Some(step) = normal_equations(&jtj, &jte, q) else {
             break;
@@ -482,18 +586,31 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
         if step.iter().all(|s| s.abs() < 1e-12) {
             break;
         }
+        // A step this small is inside the quadratic basin: the RSS cannot tell the
+        // trial from b any more (their difference is below its rounding), so the line
+        // search would only halve the step 30 times, a pass each, and give up. Take
+        // the Gauss-Newton step and stop.
+        if step
+            .iter()
+            .zip(&b)
+            .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
+        {
+            let bt: Vec<f64> = (0..q).map(|i| b[i] + step[i]).collect();
+            if ma_invertible(&bt) {
+                b = bt;
+            }
+            break;
+        }
         let mut scale = 1.0;
         let mut moved = false;
-        let mut e_try = vec![0.0; n];
         for _ in 0..30 {
             let bt: Vec<f64> = (0..q).map(|i| b[i] + scale * step[i]).collect();
             if ma_invertible(&bt) {
-                let r = resid(&bt, &mut e_try);
+                let r = resid(&bt);
                 if r <= rss * (1.0 + 1e-14) {
                     moved = true;
                     b = bt;
                     rss = r;
-                    std::mem::swap(&mut e, &mut e_try);
                     break;
                 }
             }
@@ -506,11 +623,23 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     b
 }
 
+/// Samples the linear ARMA start is fitted on (the first ones).
+pub const START_MAX: usize = 1 << 16;
+
 /// Fits a FARMA model to `series`.
 pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let prm = params.params();
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = series.len();
+    let t_total = Instant::now();
+    let mut timings = FitTimings::default();
+    let mut clock = Instant::now();
+    // seconds since the last lap
+    let mut lap = move || {
+        let s = clock.elapsed().as_secs_f64();
+        clock = Instant::now();
+        s
+    };
     let pp = p.max(q).max(d);
     let mean = if prm.demean {
         series.iter().sum::<f64>() / n as f64
@@ -550,9 +679,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         .map(|k| glo + (ghi - glo) * k as f64 / (g - 1) as f64)
         .collect();
 
-    // 1. start
+    timings.prepare_s = lap();
+    // 1. start, on the first START_MAX samples (it is only a start: the alternation
+    // then uses every sample; on longer series the linear ARMA's own passes would
+    // cost as much as the alternation, and its work arrays several copies of the
+    // series)
+    let x_start = &x[..n.min(START_MAX)];
     let (a0, mut b) = match prm.init {
-        Init::Arma => match fit_arma(&x, p, q) {
+        Init::Arma => match fit_arma(x_start, p, q) {
             Some(m) => (m.ar, m.ma),
             None => {
                 return Err(Error::Usage(
@@ -560,7 +694,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 ));
             }
         },
-        Init::Literal => match fit_arma(&x, p, 0) {
+        Init::Literal => match fit_arma(x_start, p, 0) {
             Some(m) => (m.ar, vec![0.0; q]),
             None => return Err(Error::Usage("the AR start failed (singular design)".into())),
         },
@@ -574,6 +708,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     residuals(&x, d, &grid, &coef, &b, &mut e);
     let mut rss = rss_from(&e, pp);
     let mut rss_history = vec![rss];
+    timings.start_s = lap();
 
     let mut h = prm.bandwidth.unwrap_or(f64::NAN);
     let mut gcv_table = Vec::new();
@@ -586,11 +721,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut need_gcv = prm.bandwidth.is_none();
     while iterations < prm.max_iter {
         iterations += 1;
+        let mut at = AlternationTiming::default();
+        lap();
         // 2. f-step
         let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
         let mut fit_h = if need_gcv {
             need_gcv = false;
             let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range);
+            at.gcv_s = lap();
             ladder_extended |= ext;
             notes.extend(nt);
             h = rows[best].bandwidth;
@@ -605,30 +743,43 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             ))
         })?;
         coef = fit_h;
-        // 3. b-step
-        if q > 0 {
-            let mut w = vec![0.0; n];
-            residuals(&x, d, &grid, &coef, &[], &mut w);
-            b = match prm.init {
-                Init::Arma => ma_cls(&w, pp, &b),
-                Init::Literal => {
-                    let mut ata = vec![0.0; q * q];
-                    let mut aty = vec![0.0; q];
-                    for t in pp..n {
-                        for i in 0..q {
-                            for j in 0..q {
-                                ata[i * q + j] += e[t - i - 1] * e[t - j - 1];
-                            }
-                            aty[i] += e[t - i - 1] * w[t];
-                        }
+        at.f_step_s = lap();
+        // 3. b-step; 4. residuals. For Gauss-Newton the residual buffer first takes
+        // w_t = x_t - sum f_m(U_t) x_{t-m} (the old residuals are no longer needed),
+        // b is fitted to it by streaming passes, and the MA filter then turns w into
+        // the new residuals in place: one N-long vector in all.
+        if q > 0 && prm.init == Init::Arma {
+            residuals(&x, d, &grid, &coef, &[], &mut e);
+            b = ma_cls(&e, pp, &b);
+            at.b_step_s = lap();
+            ma_filter_in_place(&mut e, &b);
+        } else {
+            if q > 0 {
+                // the paper's step: least squares of w_t on the previous residuals
+                let lookup = IntervalLookup::new(&grid);
+                let mut f = vec![0.0; p];
+                let mut ata = vec![0.0; q * q];
+                let mut aty = vec![0.0; q];
+                for t in pp..n {
+                    eval_with(&coef, &grid, &lookup, x[t - d], &mut f);
+                    let mut w = x[t];
+                    for m in 0..p {
+                        w -= f[m] * x[t - m - 1];
                     }
-                    normal_equations(&ata, &aty, q).unwrap_or(b)
+                    for i in 0..q {
+                        for j in 0..q {
+                            ata[i * q + j] += e[t - i - 1] * e[t - j - 1];
+                        }
+                        aty[i] += e[t - i - 1] * w;
+                    }
                 }
-            };
+                b = normal_equations(&ata, &aty, q).unwrap_or(b);
+            }
+            at.b_step_s = lap();
+            residuals(&x, d, &grid, &coef, &b, &mut e);
         }
-        // 4. residuals
-        residuals(&x, d, &grid, &coef, &b, &mut e);
         let new_rss = rss_from(&e, pp);
+        at.residuals_s = lap();
         let change = (rss - new_rss).abs();
         rss = new_rss;
         rss_history.push(rss);
@@ -637,6 +788,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 // re-check the bandwidth at the converged residuals
                 let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
                 let (rows, _, best, ext, nt) = gcv_select(&sm, range);
+                at.gcv_s += lap();
+                timings.alternations.push(at.clone());
                 reselections += 1;
                 if rows[best].bandwidth != h {
                     notes.push(format!(
@@ -650,11 +803,15 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                     continue;
                 }
                 gcv_table = rows;
+            } else {
+                timings.alternations.push(at.clone());
             }
             converged = true;
             break;
         }
+        timings.alternations.push(at);
     }
+    lap();
     // GCV, trace and standard errors at the final bandwidth
     let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
@@ -673,6 +830,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     if n_filled > 0 {
         notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));
     }
+    timings.final_s = lap();
+    timings.total_s = t_total.elapsed().as_secs_f64();
     Ok(FittedFarma {
         p,
         q,
@@ -699,5 +858,6 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         n_rows: n - pp,
         residuals: e,
         notes,
+        timings,
     })
 }

@@ -25,5 +25,7 @@ pub mod saved;
 pub mod tables;
 pub mod update;
 
-pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};
+pub use fit::{
+    AlternationTiming, FarmaParams, FitPath, FitTimings, FittedFarma, Init, ValidParams, fit,
+};
 pub use problem::{GridFit, PointStatus, VcProblem};

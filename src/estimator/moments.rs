@@ -17,7 +17,9 @@
 //!
 //! The pass runs over fixed blocks of rows (their size depends on N only), blocks in
 //! parallel, block tables added in block order: the result does not depend on the
-//! number of threads.
+//! number of threads. The interval of a sample is found through a uniform bucket
+//! table over the breakpoints (a guess, corrected by stepping to the exact interval),
+//! not by a binary search.
 
 use rayon::prelude::*;
 
@@ -42,6 +44,52 @@ pub struct MomentTable {
     count: Vec<u64>,
 }
 
+/// Adds moments `src` (nfam rows of deg + 1, powers of (U - c_src)/s_src) to `acc` as
+/// powers 0..=smax of (U - c_dst)/s_dst: with a = s_src/s_dst, b = (c_src - c_dst)/s_dst,
+/// ((U - c_dst)/s_dst)^s = sum_i C(s,i) a^i b^(s-i) ((U - c_src)/s_src)^i.
+/// With `s_dst = None` the powers are unscaled, (U - c_dst)^s.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn recentre_into(
+    src: &[f64],
+    (c_src, s_src): (f64, f64),
+    (c_dst, s_dst): (f64, Option<f64>),
+    nfam: usize,
+    d1: usize,
+    smax: usize,
+    binom: &[[f64; 13]; 13],
+    acc: &mut [f64],
+) {
+    let (a, b) = match s_dst {
+        None => (s_src, c_src - c_dst),
+        Some(sd) => (s_src / sd, (c_src - c_dst) / sd),
+    };
+    let mut sp = [1.0f64; 13];
+    let mut dp = [1.0f64; 13];
+    for k in 1..=smax {
+        sp[k] = sp[k - 1] * a;
+        dp[k] = dp[k - 1] * b;
+    }
+    // coefficient table C(s,i) a^i b^(s-i), shared by every family
+    let mut coef = [[0.0f64; 13]; 13];
+    for s in 0..=smax {
+        for i in 0..=s {
+            coef[s][i] = binom[s][i] * sp[i] * dp[s - i];
+        }
+    }
+    for f in 0..nfam {
+        let mrow = &src[f * d1..(f + 1) * d1];
+        let arow = &mut acc[f * d1..(f + 1) * d1];
+        for s in 0..=smax {
+            let mut sum = 0.0;
+            for i in 0..=s {
+                sum += coef[s][i] * mrow[i];
+            }
+            arow[s] += sum;
+        }
+    }
+}
+
 impl MomentTable {
     fn n_intervals(&self) -> usize {
         self.breaks.len() + 1
@@ -54,12 +102,6 @@ impl MomentTable {
 
     fn one_fam(&self) -> usize {
         self.nfam - 1
-    }
-
-    /// Interval holding u.
-    #[inline]
-    fn interval(&self, u: f64) -> usize {
-        self.breaks.partition_point(|b| *b <= u)
     }
 
     /// Index of an exact breakpoint value.
@@ -123,12 +165,56 @@ impl MomentTable {
         t
     }
 
+    /// Adds the moments of intervals lo..=hi about `u` (unscaled powers 0..=smax) to
+    /// `acc` in ascending or descending order of the intervals, and returns their
+    /// sample count. (Summing from the intervals nearest u outwards keeps the small
+    /// terms first; the order is part of the result to the last bit.)
+    #[allow(clippy::too_many_arguments)]
+    fn add_range(
+        &self,
+        lo: usize,
+        hi: usize,
+        u: f64,
+        smax: usize,
+        binom: &[[f64; 13]; 13],
+        acc: &mut [f64],
+        descending: bool,
+    ) -> u64 {
+        let hi = hi.min(self.n_intervals() - 1);
+        if lo > hi {
+            return 0;
+        }
+        let d1 = self.deg + 1;
+        let width = self.nfam * d1;
+        let mut count = 0;
+        let mut one = |e: usize| {
+            recentre_into(
+                &self.m[e * width..(e + 1) * width],
+                (self.centre[e], self.half[e]),
+                (u, None),
+                self.nfam,
+                d1,
+                smax,
+                binom,
+                acc,
+            );
+            count += self.count[e];
+        };
+        if descending {
+            (lo..=hi).rev().for_each(&mut one);
+        } else {
+            (lo..=hi).for_each(&mut one);
+        }
+        count
+    }
+
     fn accumulate(&mut self, prob: &VcProblem) {
         let n_rows = prob.n_rows();
         let block = (n_rows / 64).clamp(1 << 16, 1 << 22);
         let starts: Vec<usize> = (prob.start..prob.x.len()).step_by(block).collect();
         let wave = rayon::current_num_threads().max(1);
         let width = self.nfam * (self.deg + 1);
+        let lookup = IntervalLookup::new(&self.breaks);
         for group in starts.chunks(wave) {
             let parts: Vec<(Vec<f64>, Vec<u64>)> = group
                 .par_iter()
@@ -141,7 +227,7 @@ impl MomentTable {
                     let nv = self.p + 1;
                     for t in s..end {
                         let u = prob.u(t);
-                        let e = self.interval(u);
+                        let e = lookup.find(u);
                         count[e] += 1;
                         let z = (u - self.centre[e]) / self.half[e];
                         pw[0] = 1.0;
@@ -183,40 +269,6 @@ impl MomentTable {
         }
     }
 
-    /// Adds interval e's moments about `u` (unscaled powers 0..=smax) into `acc`
-    /// (nfam x (deg + 1)).
-    fn add_recentred(
-        &self,
-        e: usize,
-        u: f64,
-        smax: usize,
-        binom: &[[f64; 13]; 13],
-        acc: &mut [f64],
-    ) {
-        let d1 = self.deg + 1;
-        let s_e = self.half[e];
-        let delta = self.centre[e] - u;
-        // coef[s][i] = C(s,i) s_e^i delta^(s-i)
-        let mut sp = [1.0f64; 13];
-        let mut dp = [1.0f64; 13];
-        for k in 1..=smax {
-            sp[k] = sp[k - 1] * s_e;
-            dp[k] = dp[k - 1] * delta;
-        }
-        let base = e * self.nfam * d1;
-        for f in 0..self.nfam {
-            let mrow = &self.m[base + f * d1..base + (f + 1) * d1];
-            let arow = &mut acc[f * d1..(f + 1) * d1];
-            for s in 0..=smax {
-                let mut sum = 0.0;
-                for i in 0..=s {
-                    sum += binom[s][i] * sp[i] * dp[s - i] * mrow[i];
-                }
-                arow[s] += sum;
-            }
-        }
-    }
-
     /// Local-linear fits at every grid point for every bandwidth in `hs`. Every
     /// `u_g`, `u_g - h` and `u_g + h` must be a breakpoint.
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
@@ -242,13 +294,11 @@ impl MomentTable {
                     let h = hs[j];
                     let new_lo = self.break_index(ug - h) + 1;
                     let new_hi = self.break_index(ug + h);
-                    for e in (new_lo..lo).rev() {
-                        self.add_recentred(e, ug, 6, &binom, &mut acc);
-                        count += self.count[e];
+                    if new_lo < lo {
+                        count += self.add_range(new_lo, lo - 1, ug, 6, &binom, &mut acc, true);
                     }
-                    for e in hi + 1..=new_hi {
-                        self.add_recentred(e, ug, 6, &binom, &mut acc);
-                        count += self.count[e];
+                    if new_hi > hi {
+                        count += self.add_range(hi + 1, new_hi, ug, 6, &binom, &mut acc, false);
                     }
                     lo = lo.min(new_lo);
                     hi = hi.max(new_hi);
@@ -311,9 +361,7 @@ impl MomentTable {
         binom: &[[f64; 13]; 13],
     ) -> Vec<f64> {
         let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
-        for e in lo..=hi.min(self.n_intervals() - 1) {
-            self.add_recentred(e, u, smax, binom, &mut acc);
-        }
+        self.add_range(lo, hi, u, smax, binom, &mut acc, false);
         acc
     }
 
@@ -474,6 +522,64 @@ impl MomentTable {
     }
 }
 
+/// The interval of a value among sorted distinct breakpoints: exactly
+/// `breaks.partition_point(|b| *b <= u)`, found from a guess out of a uniform bucket
+/// table (4 buckets per breakpoint) corrected by stepping, instead of a binary search.
+pub struct IntervalLookup<'a> {
+    breaks: &'a [f64],
+    lo: f64,
+    scale: f64,
+    first: Vec<u32>,
+}
+
+impl<'a> IntervalLookup<'a> {
+    pub fn new(breaks: &'a [f64]) -> Self {
+        let nb = breaks.len();
+        let buckets = 4 * nb + 1;
+        let (lo, hi) = (breaks[0], breaks[nb - 1]);
+        let scale = if hi > lo {
+            buckets as f64 / (hi - lo)
+        } else {
+            0.0
+        };
+        let first = (0..buckets)
+            .map(|k| {
+                let edge = if scale > 0.0 {
+                    lo + k as f64 / scale
+                } else {
+                    lo
+                };
+                breaks.partition_point(|b| *b <= edge) as u32
+            })
+            .collect();
+        IntervalLookup {
+            breaks,
+            lo,
+            scale,
+            first,
+        }
+    }
+
+    #[inline]
+    pub fn find(&self, u: f64) -> usize {
+        let k = (u - self.lo) * self.scale;
+        let k = if k > 0.0 {
+            (k as usize).min(self.first.len() - 1)
+        } else {
+            0
+        };
+        let mut e = self.first[k] as usize;
+        let b = self.breaks;
+        while e < b.len() && b[e] <= u {
+            e += 1;
+        }
+        while e > 0 && b[e - 1] > u {
+            e -= 1;
+        }
+        e
+    }
+}
+
 /// sqrt of the first p diagonal entries of Q S2 Q (Q symmetric, row-major n x n).
 pub fn sandwich_diag(q: &[f64], s2: &[f64], n: usize, p: usize) -> Vec<f64> {
     (0..p)
@@ -500,4 +606,33 @@ pub fn breakpoints(grid: &[f64], hs: &[f64]) -> Vec<f64> {
         }
     }
     b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interval_lookup_equals_binary_search() {
+        // uneven breakpoints (a grid and its windows), values inside, outside, on breaks
+        let grid: Vec<f64> = (0..21).map(|k| -1.3 + 0.13 * k as f64).collect();
+        let hs: Vec<f64> = (0..21).map(|j| 1.1f64.powi(-j) * 1.7).collect();
+        let mut b = breakpoints(&grid, &hs);
+        b.sort_by(f64::total_cmp);
+        b.dedup();
+        let lk = IntervalLookup::new(&b);
+        let mut us: Vec<f64> = b.clone();
+        us.extend(b.iter().map(|v| v.next_up()));
+        us.extend(b.iter().map(|v| v.next_down()));
+        us.extend((0..20_001).map(|i| -6.0 + 12.0 * i as f64 / 20_000.0));
+        us.extend([f64::MAX, f64::MIN, 0.0, -0.0]);
+        for u in us {
+            assert_eq!(lk.find(u), b.partition_point(|v| *v <= u), "u = {u}");
+        }
+        let one = [0.5];
+        let lk = IntervalLookup::new(&one);
+        for u in [0.0, 0.5, 1.0] {
+            assert_eq!(lk.find(u), one.partition_point(|v| *v <= u));
+        }
+    }
 }

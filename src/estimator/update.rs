@@ -663,6 +663,7 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
         n_rows: st.n as usize - lag,
         residuals: es[lag..].to_vec(),
         notes,
+        timings: Default::default(),
     };
     Ok(Updated {
         state: st,
