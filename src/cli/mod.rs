@@ -4,10 +4,12 @@
 //! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
 //! 2 bad input or usage (see [`crate::error`]).
 
+mod acf;
 mod adev;
 mod fit;
 mod info;
 mod ingest;
+mod psd;
 
 use std::path::PathBuf;
 
@@ -40,6 +42,10 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
+    /// One-sided power spectral density of channels (Welch: Hann window, 50 % overlap).
+    Psd(psd::PsdArgs),
+    /// Autocorrelation of channels up to a maximum lag, with the +-1.96/sqrt(N) band.
+    Acf(acf::AcfArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -134,5 +140,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::run(a, &progress),
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
+        Command::Psd(a) => psd::run(a, &progress),
+        Command::Acf(a) => acf::run(a, &progress),
     }
 }
