@@ -249,3 +249,102 @@ fn white_plus_rate_random_walk_plus_bias_instability() {
         check(&id, Term::BiasInstability, 0.01, &what);
     }
 }
+
+mod common;
+
+#[test]
+fn adev_cli_terms_text_and_spec_out() {
+    use common::{farma, stderr, stdout};
+    let dir = tempfile::tempdir().unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    // White noise n = 0.02 at 100 Hz as a CSV log.
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let y = white(1 << 15, 0.02, &mut rng);
+    let log = dir.path().join("w.csv");
+    let mut text = String::from("rate\n");
+    for v in &y {
+        text.push_str(&format!("{v:?}\n"));
+    }
+    std::fs::write(&log, text).unwrap();
+    let spec = dir.path().join("spec.toml");
+    let o = farma(
+        &[
+            "adev",
+            log.to_str().unwrap(),
+            "--rate",
+            "100",
+            "--json",
+            "--spec-out",
+            spec.to_str().unwrap(),
+        ],
+        cache.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    let n = v["terms"]["white_noise"]["n"].as_f64().unwrap();
+    let u = v["terms"]["white_noise"]["n_unc"].as_f64().unwrap();
+    assert!((n - 0.02).abs() <= 3.0 * u, "{n} +- {u}");
+    // The library gives the same terms on the same data.
+    let lib = identify("t", &y, RATE_HZ, &Options::default()).unwrap();
+    assert_eq!(
+        v["terms"].as_object().unwrap().len(),
+        lib.terms.len(),
+        "{}",
+        v["terms"]
+    );
+    // The spec reads back with the same coefficient and the channel's mean.
+    let s = farma::simulator::load_spec(&spec).unwrap();
+    assert_eq!(s.sample_rate_hz, 100.0);
+    assert_eq!(s.channels.len(), 1);
+    assert_eq!(s.channels[0].name, "rate");
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let mut saw_n = false;
+    for c in &s.channels[0].components {
+        match c {
+            farma::simulator::Component::WhiteNoise { n: sn } => {
+                assert!((sn - n).abs() <= 1e-12 * n);
+                saw_n = true;
+            }
+            farma::simulator::Component::ConstantBias { value } => {
+                assert!((value - mean).abs() < 1e-9)
+            }
+            _ => {}
+        }
+    }
+    assert!(saw_n);
+    // Text table.
+    let o = farma(
+        &[
+            "adev",
+            log.to_str().unwrap(),
+            "--rate",
+            "100",
+            "--fit-tau-min",
+            "0.02",
+        ],
+        cache.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("noise terms") && out.contains("white_noise"),
+        "{out}"
+    );
+    // Bad flag: exit 2; nothing written.
+    let bad = dir.path().join("bad.toml");
+    let o = farma(
+        &[
+            "adev",
+            log.to_str().unwrap(),
+            "--rate",
+            "100",
+            "--fit-tau-min",
+            "-1",
+            "--spec-out",
+            bad.to_str().unwrap(),
+        ],
+        cache.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!bad.exists());
+}

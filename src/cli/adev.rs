@@ -74,6 +74,10 @@ pub struct AdevArgs {
     /// Also write the curves as a Parquet table (one row per channel, kind and tau).
     #[arg(long, short, value_name = "OUT.parquet")]
     pub output: Option<PathBuf>,
+    /// Fit the noise terms to taus >= this only (seconds; default: every octave tau).
+    /// Use it when the sensor's internal filtering bends the curve at the shortest taus.
+    #[arg(long, value_name = "SECONDS")]
+    pub fit_tau_min: Option<f64>,
     /// Write the identified noise terms as a simulation spec (TOML, contracts.md section 2).
     #[arg(long, value_name = "FILE.toml")]
     pub spec_out: Option<PathBuf>,
@@ -117,6 +121,13 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             a.alpha
         )));
     }
+    if let Some(t) = a.fit_tau_min
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return Err(Error::Usage(format!(
+            "--fit-tau-min must be a non-negative number of seconds, got {t}"
+        )));
+    }
     let grid = a.grid()?;
     let kinds = a.kinds();
     let ci = CiOptions {
@@ -146,7 +157,11 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
                 .collect(),
             _ => octave_avar(y, rate_hz),
         };
-        let id = identify_from(&what, y, rate_hz, &octave, &Options::default());
+        let opts = Options {
+            tau_min_s: a.fit_tau_min,
+            ..Options::default()
+        };
+        let id = identify_from(&what, y, rate_hz, &octave, &opts);
         if let Err(e) = &id {
             if a.spec_out.is_some() {
                 return Err(Error::Usage(format!("--spec-out: {e}")));

@@ -308,15 +308,20 @@ pub(crate) fn sandwich_cov(pr: &Problem, fit: &SubsetFit) -> Option<Vec<f64>> {
 }
 
 /// Fits `terms`; with the Gauss-Markov hump among them, T is searched on a log grid
-/// (8 points per octave from the smallest tau / 2 to the largest tau) and refined by a
+/// (8 points per octave from twice the smallest tau to half the largest: a hump whose
+/// correlation time lies outside is white noise or a rate random walk over the fitted
+/// taus) and refined by a
 /// golden-section search on ln T, minimising the deviance.
 pub(crate) fn fit_subset(pr: &Problem, terms: &[Term]) -> Option<SubsetFit> {
     if !terms.contains(&Term::GaussMarkov) {
         return fit_fixed(pr, terms, 1.0);
     }
     let points = &pr.points;
-    let lo = (points.first()?.tau_s / 2.0).ln();
-    let hi = points.last()?.tau_s.ln();
+    let lo = (points.first()?.tau_s * 2.0).ln();
+    let hi = (points.last()?.tau_s / 2.0).ln();
+    if hi <= lo {
+        return None;
+    }
     let step = std::f64::consts::LN_2 / 8.0;
     let dev = |lnt: f64| {
         fit_fixed(pr, terms, lnt.exp())

@@ -46,6 +46,10 @@ pub struct Options {
     pub candidates: Vec<Term>,
     /// Penalty per parameter on the deviance (default None: ln(number of taus), BIC).
     pub penalty: Option<f64>,
+    /// Fit only taus >= this [s] (default: all). Real sensors filter and decimate
+    /// internally, which bends the Allan curve at the first few taus; with their very
+    /// large EDF those points would otherwise dominate the fit.
+    pub tau_min_s: Option<f64>,
 }
 
 impl Default for Options {
@@ -53,6 +57,7 @@ impl Default for Options {
         Options {
             candidates: Term::ALL.to_vec(),
             penalty: None,
+            tau_min_s: None,
         }
     }
 }
@@ -266,6 +271,7 @@ pub fn identify_curve(
         .iter()
         .copied()
         .filter(|p| p.avar.is_finite() && p.avar > 0.0)
+        .filter(|p| opts.tau_min_s.is_none_or(|t| p.tau_s >= t * (1.0 - 1e-12)))
         .collect();
     if pts.len() < 3 {
         return Err(Error::TooShort {
@@ -290,11 +296,11 @@ pub fn identify_curve(
         .filter(|f| f.n_params() < pts.len())
         .filter_map(|mut f| {
             f.cov = fit::sandwich_cov(&problem, &f)?;
+            // Before the dispersion: a model that misfits has a large one, which would
+            // make every term of a richer (better) model look insignificant.
             let k = f.cov.len().isqrt();
-            let dof = (pts.len() - f.n_params()) as f64;
-            let disp = (f.pearson / dof).max(1.0);
-            let significant = (0..f.terms.len())
-                .all(|j| f.coef_sq[j] >= MIN_Z * (f.cov[j * k + j] * disp).sqrt());
+            let significant =
+                (0..f.terms.len()).all(|j| f.coef_sq[j] >= MIN_Z * f.cov[j * k + j].sqrt());
             significant.then(|| (f.deviance + penalty * f.n_params() as f64, f))
         })
         .collect();
