@@ -1,12 +1,12 @@
 //! Sample autocorrelation of a channel up to a maximum lag, by FFT with zero padding,
 //! with the +-1.96 / sqrt(N) band of a white series.
 //!
-//! Definition (G. E. P. Box, G. M. Jenkins, "Time Series Analysis", 1976, eq. (2.1.12);
+//! Definition (G. E. P. Box, G. M. Jenkins, "Time Series Analysis", 1976, chapter 2;
 //! statsmodels `acf(x, nlags, fft=True, adjusted=False)`): with the mean x-bar,
 //! c_k = (1 / N) sum_{t=0}^{N-1-k} (x_t - x-bar)(x_{t+k} - x-bar) and r_k = c_k / c_0,
 //! k = 0..=max_lag. Under the null of a white series, r_k (k >= 1) is about
-//! normal(0, 1 / N), hence the band +-1.96 / sqrt(N) (95 %; Box and Jenkins 2.1.6, the
-//! band statsmodels' plot_acf draws for alpha = 0.05 before Bartlett's correction).
+//! normal(0, 1 / N), hence the band +-1.96 / sqrt(N) (95 %; Box and Jenkins ch. 2 on
+//! the standard error of autocorrelations under white noise).
 //!
 //! Speed: the lagged sums are computed block by block: for a block of B samples
 //! starting at s, the cross-correlation of x[s..s+B] with x[s..s+B+L] (L = max_lag) by
@@ -56,7 +56,7 @@ fn check(what: &str, n: usize, max_lag: usize) -> Result<()> {
 
 fn finish(sums: Vec<f64>, n: usize, what: &str) -> Result<Acf> {
     let c0 = sums[0] / n as f64;
-    if !(c0 > 0.0) {
+    if c0.is_nan() || c0 <= 0.0 {
         return Err(Error::Usage(format!(
             "{what}: the channel is constant; its autocorrelation is undefined"
         )));

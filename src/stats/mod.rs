@@ -1,4 +1,5 @@
-//! Statistics of channels: summaries now; Allan deviation, PSD and ACF as they arrive.
+//! Statistics of channels: summaries, Allan deviations, noise-term identification,
+//! Welch PSD and autocorrelation.
 
 pub mod acf;
 pub mod adev;

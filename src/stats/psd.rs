@@ -100,7 +100,7 @@ fn scale_and_freqs(sums: &mut [f64], l: usize, rate_hz: f64, n_seg: usize, w: &[
     let base = 1.0 / (rate_hz * s2 * n_seg as f64);
     let last = sums.len() - 1;
     for (k, v) in sums.iter_mut().enumerate() {
-        let one = k == 0 || (l % 2 == 0 && k == last);
+        let one = k == 0 || (l.is_multiple_of(2) && k == last);
         *v *= if one { base } else { 2.0 * base };
     }
     (0..sums.len())

@@ -8,9 +8,10 @@
 //! nu_i / 2 and mean mu_i; the model is linear in the squared coefficients, so its
 //! maximum-likelihood estimate is found by iteratively reweighted least squares with
 //! weights w_i = nu_i / (2 mu_i^2) (the Gamma GLM with identity link; P. McCullagh,
-//! J. A. Nelder, "Generalized Linear Models", 2nd ed., 1989, section 2.5 and chapter
-//! 8). The deviance D = sum_i nu_i [(a_i - mu_i) / mu_i - ln(a_i / mu_i)] (ibid. 8.3)
-//! measures the misfit.
+//! J. A. Nelder, "Generalized Linear Models", 2nd ed., 1989: iteratively reweighted
+//! least squares, and chapter 8 on the Gamma family). The deviance
+//! D = sum_i nu_i [(a_i - mu_i) / mu_i - ln(a_i / mu_i)] (the Gamma deviance with
+//! shape nu_i / 2) measures the misfit.
 //!
 //! Non-negativity: each subset is fitted without constraints and kept only when every
 //! squared coefficient comes out positive; a subset whose fit wants a negative term is
@@ -32,7 +33,7 @@
 //! truth, and a rate random walk often took a spurious ramp beside it. Any remaining
 //! misfit shows in the Pearson statistic X^2 = sum_i w_i (a_i - mu_i)^2, and the
 //! covariance is multiplied by the dispersion max(1, X^2 / (n_taus - n_params))
-//! (McCullagh and Nelder 9.2.2).
+//! (the moment estimate of the dispersion, McCullagh and Nelder).
 //!
 //! Uncertainty: the covariance of the squared coefficients (and of ln T for the hump)
 //! is the sandwich of [`sandwich_cov`] times the dispersion; a coefficient's standard
@@ -173,7 +174,7 @@ pub(crate) fn fit_fixed(pr: &Problem, terms: &[Term], corr_time_s: f64) -> Optio
             .map(|i| edf[i] / (2.0 * model[i] * model[i]))
             .collect();
         let s = wls::solve(&design, &a, &w)?;
-        if s.coef.iter().any(|&c| !(c > 0.0)) {
+        if s.coef.iter().any(|&c| c.is_nan() || c <= 0.0) {
             return None;
         }
         let new_model: Vec<f64> = design

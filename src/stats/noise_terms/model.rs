@@ -4,7 +4,8 @@
 //! Sources: IEEE Std 952-1997, Annex C (C.1-C.6: quantization, angle random walk, bias
 //! instability, rate random walk, rate ramp, exponentially correlated (Markov) noise);
 //! N. El-Sheimy, H. Hou, X. Niu, "Analysis and modeling of inertial sensors using Allan
-//! variance", IEEE Trans. Instrum. Meas. 57(1), 2008, Table I and eq. (13).
+//! variance", IEEE Trans. Instrum. Meas. 57(1), 2008 (the terms and their Allan
+//! variances, exponentially correlated noise included).
 //!
 //! | term | coefficient | AVAR(tau) |
 //! |---|---|---|
@@ -19,7 +20,8 @@
 //! function D(s) = E[(theta(t+s) - theta(t))^2] = 2 sigma^2 (T s - T^2 (1 - e^{-s/T})),
 //! AVAR(tau) = (4 D(tau) - D(2 tau)) / (2 tau^2), which is
 //! g(x) = (1 / x) [2 - (1 / x)(3 - 4 e^{-x} + e^{-2x})], x = tau / T
-//! (El-Sheimy et al. eq. (13) with q_c^2 = 2 sigma^2 / T). Limits: g ~ 2x/3 for
+//! (El-Sheimy et al.'s form, with their q_c^2 = 2 sigma^2 / T; derived here from D and
+//! checked against a numerical integral in the tests below). Limits: g ~ 2x/3 for
 //! x -> 0 (a rate random walk with K^2 = 2 sigma^2 / T) and g ~ 2 / x for x -> inf
 //! (white noise with N^2 = 2 sigma^2 T). Below x = 0.1 the Taylor series
 //! g(x) = 2x/3 - x^2/2 + 7x^3/30 - x^4/12 + 31x^5/1260 - x^6/160 + ... replaces the

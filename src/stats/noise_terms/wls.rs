@@ -71,8 +71,8 @@ pub fn solve(a: &[Vec<f64>], b: &[f64], w: &[f64]) -> Option<Wls> {
     let mut x = vec![0.0; k];
     for i in (0..k).rev() {
         let mut acc = rhs[i];
-        for j in i + 1..k {
-            acc -= r(i, j) * x[j];
+        for (j, xj) in x.iter().enumerate().skip(i + 1) {
+            acc -= r(i, j) * xj;
         }
         x[i] = acc / r(i, i);
     }
