@@ -171,9 +171,17 @@ mod tests {
     #[test]
     fn gauss_markov_series_meets_closed_form_and_limits() {
         let closed = |x: f64| (2.0 - (3.0 - 4.0 * (-x).exp() + (-2.0 * x).exp()) / x) / x;
-        // Both sides of the switch agree.
-        let (a, b) = (gauss_markov_g(0.1 - 1e-12), closed(0.1));
-        assert!((a - b).abs() / b < 1e-12, "{a} {b}");
+        // Both sides of the switch against the exact value (mpmath, 40 digits:
+        // g(0.1 - 1e-12) = 0.061891906585070053436..., g(0.1) = 0.061891906585643398706...).
+        let below = gauss_markov_g(0.1 - 1e-12);
+        assert!(
+            // Truncation of the 9-term series at x = 0.1: about 1.4e-14 relative.
+            (below / 0.061_891_906_585_070_053 - 1.0).abs() < 1e-13,
+            "{below}"
+        );
+        let at = gauss_markov_g(0.1);
+        assert!((at / 0.061_891_906_585_643_399 - 1.0).abs() < 1e-12, "{at}");
+        assert!((closed(0.1) / at - 1.0).abs() < 1e-12);
         for x in [0.02, 0.05, 0.08] {
             assert!((gauss_markov_g(x) - closed(x)).abs() / closed(x) < 1e-9);
         }
