@@ -20,7 +20,12 @@
 //!   IEEE Frequency Control Symposium), h_0 = 1, h_k = h_{k-1} (k - 1/2) / k, applied
 //!   by FFT convolution; its rate PSD is 2 s^2 tau0 / (2 sin(pi f tau0)) one-sided,
 //!   about s^2 / (pi f) at low f, which is IEEE 952's B^2 / (2 pi f) two-sided for
-//!   B = s. (The `sim` branch had no generator yet when this was written.)
+//!   B = s. The `sim` branch's generator (merged later) is used too: its bias
+//!   instability alone is recovered (`bias_instability_alone_from_the_simulator`). Its
+//!   white + rate random walk + bias instability sum (n = 0.005, k = 2e-3, b = 0.01,
+//!   default flicker band) gave n = 0.0050455 +- 0.0000082 (5.6 uncertainties high) for
+//!   seed 1, so that case is tested with the Kasdin flicker above; why the simulator's
+//!   flicker adds to the short-tau white level is not yet known.
 
 use farma::stats::noise_terms::{Identification, Options, Term, identify};
 use rand::SeedableRng;
@@ -347,4 +352,47 @@ fn adev_cli_terms_text_and_spec_out() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!bad.exists());
+}
+
+/// The `sim` branch's generator (farma::simulator::simulate) for a spec of `components`.
+fn simulated(components: Vec<farma::simulator::Component>, seed: u64) -> Vec<f64> {
+    use farma::simulator::{ChannelSpec, SimRequest, Spec, simulate};
+    let spec = Spec {
+        sample_rate_hz: RATE_HZ,
+        temperature_channel: None,
+        seed: Some(seed),
+        channels: vec![ChannelSpec {
+            name: "rate".into(),
+            components,
+        }],
+    };
+    let mut req = SimRequest::new(N, RATE_HZ);
+    req.seed = Some(seed);
+    simulate(&spec, &req)
+        .unwrap()
+        .channel("rate")
+        .unwrap()
+        .to_vec()
+}
+
+#[test]
+fn bias_instability_alone_from_the_simulator() {
+    use farma::simulator::Component;
+    for seed in SEEDS {
+        let y = simulated(
+            vec![Component::BiasInstability {
+                b: 0.01,
+                tau_min_s: None,
+                tau_max_s: None,
+            }],
+            seed,
+        );
+        let id = identify("sim flicker", &y, RATE_HZ, &Options::default()).unwrap();
+        check(
+            &id,
+            Term::BiasInstability,
+            0.01,
+            &format!("sim flicker seed {seed}"),
+        );
+    }
 }

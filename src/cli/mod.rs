@@ -10,6 +10,7 @@ mod fit;
 mod info;
 mod ingest;
 mod psd;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -46,6 +47,8 @@ pub enum Command {
     Psd(psd::PsdArgs),
     /// Autocorrelation of channels up to a maximum lag, with the +-1.96/sqrt(N) band.
     Acf(acf::AcfArgs),
+    /// Simulate a gyro log from a simulation spec (TOML).
+    Simulate(simulate::SimulateArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -142,5 +145,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Adev(a) => adev::run(a, &progress),
         Command::Psd(a) => psd::run(a, &progress),
         Command::Acf(a) => acf::run(a, &progress),
+        Command::Simulate(a) => simulate::run(a, &progress),
     }
 }
