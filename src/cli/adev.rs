@@ -11,8 +11,11 @@ use serde_json::{Map, Value, json};
 use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::log::Progress;
-use crate::output::{batch, write_parquet};
-use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid, curves};
+use crate::output::{batch, write_parquet, write_text};
+use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid, curves, phase};
+use crate::stats::noise_terms::{
+    AvarPoint, Identification, Options, identify_from, octave_avar, to_spec,
+};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum KindArg {
@@ -71,6 +74,13 @@ pub struct AdevArgs {
     /// Also write the curves as a Parquet table (one row per channel, kind and tau).
     #[arg(long, short, value_name = "OUT.parquet")]
     pub output: Option<PathBuf>,
+    /// Fit the noise terms to taus >= this only (seconds; default: every octave tau).
+    /// Use it when the sensor's internal filtering bends the curve at the shortest taus.
+    #[arg(long, value_name = "SECONDS")]
+    pub fit_tau_min: Option<f64>,
+    /// Write the identified noise terms as a simulation spec (TOML, contracts.md section 2).
+    #[arg(long, value_name = "FILE.toml")]
+    pub spec_out: Option<PathBuf>,
 }
 
 impl AdevArgs {
@@ -111,6 +121,13 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             a.alpha
         )));
     }
+    if let Some(t) = a.fit_tau_min
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return Err(Error::Usage(format!(
+            "--fit-tau-min must be a non-negative number of seconds, got {t}"
+        )));
+    }
     let grid = a.grid()?;
     let kinds = a.kinds();
     let ci = CiOptions {
@@ -120,27 +137,52 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate_hz = store.sample_rate_hz();
-    // Averages must not straddle a gap: use the longest uniform segment.
-    let segments = &store.meta().segments;
-    let (start, len) = match segments.iter().max_by_key(|s| s.len) {
-        Some(s) if segments.len() > 1 => {
-            eprintln!(
-                "farma: warning: {}: {} segments (gaps); using the longest, rows {}..{}",
-                a.log.display(),
-                segments.len(),
-                s.start,
-                s.start + s.len
-            );
-            (s.start as usize, s.len as usize)
-        }
-        _ => (0, store.n_samples()),
-    };
+    let (start, len) = longest_segment(&store, &a.log);
     let mut results: Vec<(String, Vec<Curve>)> = Vec::new();
+    let mut idents: Vec<(String, Result<Identification>, f64)> = Vec::new();
     for name in &names {
         let y = &store.column(name)?[start..start + len];
         let what = format!("{}: channel '{name}'", a.log.display());
         let c = curves(&what, y, rate_hz, &kinds, grid, ci)?;
+        // The identification fits the octave AVAR: reuse the curve when it is one.
+        let octave: Vec<AvarPoint> = match c.iter().find(|c| c.kind == Kind::Adev) {
+            Some(c) if grid == TauGrid::Octave => c
+                .points
+                .iter()
+                .map(|p| AvarPoint {
+                    m: p.m,
+                    tau_s: p.tau_s,
+                    avar: p.dev * p.dev,
+                })
+                .collect(),
+            _ => octave_avar(y, rate_hz),
+        };
+        let opts = Options {
+            tau_min_s: a.fit_tau_min,
+            ..Options::default()
+        };
+        let id = identify_from(&what, y, rate_hz, &octave, &opts);
+        if let Err(e) = &id {
+            if a.spec_out.is_some() {
+                return Err(Error::Usage(format!("--spec-out: {e}")));
+            }
+            eprintln!("farma: warning: no noise terms: {e}");
+        }
+        idents.push((name.clone(), id, phase::mean(y)));
         results.push((name.clone(), c));
+    }
+    if let Some(path) = &a.spec_out {
+        let chans: Vec<(String, &Identification, f64)> = idents
+            .iter()
+            .filter_map(|(n, id, mean)| id.as_ref().ok().map(|id| (n.clone(), id, *mean)))
+            .collect();
+        let spec = to_spec(rate_hz, &chans);
+        let text = format!(
+            "# identified by farma adev from {} (IEEE Std 952 terms fitted to the octave Allan variance)\n{}",
+            a.log.display(),
+            spec.to_toml()?
+        );
+        write_text(path, &text)?;
     }
 
     if let Some(out) = &a.output {
@@ -174,6 +216,21 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             }
             if let Some(out) = &a.output {
                 o.insert("output".into(), json!(out.display().to_string()));
+            }
+            let id = idents.iter().find(|(n, _, _)| n == name).map(|x| &x.1);
+            match id {
+                Some(Ok(id)) => {
+                    o.insert("terms".into(), terms_json(id));
+                    o.insert("terms_fit".into(), terms_fit_json(id));
+                }
+                Some(Err(e)) => {
+                    o.insert("terms".into(), Value::Null);
+                    o.insert("terms_error".into(), json!(e.to_string()));
+                }
+                None => {}
+            }
+            if let Some(p) = &a.spec_out {
+                o.insert("spec_out".into(), json!(p.display().to_string()));
             }
             println!("{}", Value::Object(o));
         }
@@ -213,7 +270,113 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             }
         }
     }
+    print_terms(&idents);
     Ok(())
+}
+
+/// `terms` of the JSON line: {kind: {coef: value, coef_unc: u, unit: ...}} for each
+/// selected term (contracts.md section 4); gauss_markov also has tau_s, tau_s_unc.
+fn terms_json(id: &Identification) -> Value {
+    let mut o = Map::new();
+    for t in &id.terms {
+        let c = t.term.coef_name();
+        let mut e = Map::new();
+        e.insert(c.into(), json!(t.coef.value));
+        e.insert(format!("{c}_unc"), json!(t.coef.unc));
+        if let Some(ct) = t.corr_time_s {
+            e.insert("tau_s".into(), json!(ct.value));
+            e.insert("tau_s_unc".into(), json!(ct.unc));
+        }
+        e.insert("unit".into(), json!(t.term.coef_unit()));
+        o.insert(t.term.kind_name().into(), Value::Object(e));
+    }
+    Value::Object(o)
+}
+
+/// `terms_fit`: how the terms were chosen and how well they fit.
+fn terms_fit_json(id: &Identification) -> Value {
+    json!({
+        "method": "Gamma maximum likelihood on the octave overlapping AVAR (Greenhall EDF), subsets ranked by deviance + penalty * parameters",
+        "deviance": id.deviance,
+        "pearson_chi2": id.pearson,
+        "dof": id.dof,
+        "dispersion": id.dispersion,
+        "penalty": id.penalty,
+        "tau_s": id.points.iter().map(|p| p.tau_s).collect::<Vec<f64>>(),
+        "avar": id.points.iter().map(|p| p.avar).collect::<Vec<f64>>(),
+        "avar_model": id.points.iter().map(|p| p.model).collect::<Vec<f64>>(),
+        "edf": id.points.iter().map(|p| p.edf).collect::<Vec<f64>>(),
+        "candidates": id.candidates,
+    })
+}
+
+fn print_terms(idents: &[(String, Result<Identification>, f64)]) {
+    println!();
+    println!(
+        "noise terms (IEEE Std 952) fitted to the octave Allan variance; uncertainty: one standard uncertainty; u = the channel's unit"
+    );
+    println!(
+        "{:<16} {:<18} {:<6} {:>14} {:>12} {:<10}",
+        "channel", "kind", "param", "value", "unc", "unit"
+    );
+    for (name, id, _) in idents {
+        let Ok(id) = id else {
+            println!("{name:<16} (none: the log is too short)");
+            continue;
+        };
+        for t in &id.terms {
+            println!(
+                "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10}",
+                name,
+                t.term.kind_name(),
+                t.term.coef_name(),
+                t.coef.value,
+                t.coef.unc,
+                t.term.coef_unit()
+            );
+            if let Some(ct) = t.corr_time_s {
+                println!(
+                    "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10}",
+                    name,
+                    t.term.kind_name(),
+                    "tau_s",
+                    ct.value,
+                    ct.unc,
+                    "s"
+                );
+            }
+        }
+        println!(
+            "{:<16} fit: {} taus, deviance {:.3}, dispersion {:.3}",
+            name,
+            id.points.len(),
+            id.deviance,
+            id.dispersion
+        );
+    }
+}
+
+/// Averages must not straddle a gap: the rows (start, len) of the longest uniform
+/// segment (the whole log when it has one), with a warning on stderr when there are
+/// several. Shared by `adev`, `psd` and `acf`.
+pub(super) fn longest_segment(
+    store: &crate::store::Store,
+    log: &std::path::Path,
+) -> (usize, usize) {
+    let segments = &store.meta().segments;
+    match segments.iter().max_by_key(|s| s.len) {
+        Some(s) if segments.len() > 1 => {
+            eprintln!(
+                "farma: warning: {}: {} segments (gaps); using the longest, rows {}..{}",
+                log.display(),
+                segments.len(),
+                s.start,
+                s.start + s.len
+            );
+            (s.start as usize, s.len as usize)
+        }
+        _ => (0, store.n_samples()),
+    }
 }
 
 fn grid_name(g: TauGrid) -> String {

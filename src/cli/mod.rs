@@ -4,12 +4,14 @@
 //! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
 //! 2 bad input or usage (see [`crate::error`]).
 
+mod acf;
 mod adev;
 mod fit;
 mod fit_index2;
 mod info;
 mod ingest;
 mod update;
+mod psd;
 mod simulate;
 
 use std::path::PathBuf;
@@ -45,6 +47,10 @@ pub enum Command {
     Adev(adev::AdevArgs),
     /// Update fitted FARMA models with new samples (recursive least squares).
     Update(update::UpdateArgs),
+    /// One-sided power spectral density of channels (Welch: Hann window, 50 % overlap).
+    Psd(psd::PsdArgs),
+    /// Autocorrelation of channels up to a maximum lag, with the +-1.96/sqrt(N) band.
+    Acf(acf::AcfArgs),
     /// Simulate a gyro log from a simulation spec (TOML).
     Simulate(simulate::SimulateArgs),
 }
@@ -142,6 +148,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
         Command::Update(a) => update::run(a, &progress),
+        Command::Psd(a) => psd::run(a, &progress),
+        Command::Acf(a) => acf::run(a, &progress),
         Command::Simulate(a) => simulate::run(a, &progress),
     }
 }

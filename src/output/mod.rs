@@ -32,6 +32,27 @@ pub fn batch(columns: Vec<(&str, ArrayRef)>) -> Result<RecordBatch> {
         .map_err(|e| Error::Internal(format!("output table: {e}")))
 }
 
+/// Writes `text` to `path` atomically (a temporary file beside it, then a rename).
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    use std::io::Write;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".farma-")
+        .suffix(".tmp")
+        .permissions(crate::store::output_permissions())
+        .tempfile_in(&dir)
+        .map_err(|e| Error::output_io(path, e))?;
+    tmp.write_all(text.as_bytes())
+        .and_then(|_| tmp.flush())
+        .map_err(|e| Error::output_io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| Error::output_io(path, e.error))?;
+    Ok(())
+}
+
 /// Writes `batch` to `path` as zstd Parquet with key-value metadata, atomically.
 pub fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(&str, String)]) -> Result<()> {
     let dir = match path.parent() {

@@ -1,6 +1,10 @@
-//! Statistics of channels: summaries now; Allan deviation, PSD and ACF as they arrive.
+//! Statistics of channels: summaries, Allan deviations, noise-term identification,
+//! Welch PSD and autocorrelation.
 
+pub mod acf;
 pub mod adev;
+pub mod noise_terms;
+pub mod psd;
 pub mod summary;
 
 pub use summary::{ChannelSummary, summarize};
