@@ -6,6 +6,7 @@
 
 mod adev;
 mod fit;
+mod gap;
 mod info;
 mod ingest;
 
@@ -40,6 +41,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
+    /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
+    Gap(gap::GapArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -134,5 +137,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::run(a, &progress),
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
+        Command::Gap(a) => gap::run(a, &progress),
     }
 }
