@@ -9,6 +9,7 @@ mod fit;
 mod gap;
 mod info;
 mod ingest;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -41,6 +42,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
+    /// Simulate a gyro log from a simulation spec (TOML).
+    Simulate(simulate::SimulateArgs),
     /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
     Gap(gap::GapArgs),
 }
@@ -137,6 +140,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::run(a, &progress),
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
+        Command::Simulate(a) => simulate::run(a, &progress),
         Command::Gap(a) => gap::run(a, &progress),
     }
 }
