@@ -941,3 +941,19 @@ fn cli_refuses_bad_requests_with_exit_2_and_writes_nothing() {
         assert!(left.is_empty(), "{args:?} left {left:?}");
     }
 }
+
+#[test]
+fn only_the_channels_simulated_need_a_temperature() {
+    let (s, _) = everything();
+    let mut req = SimRequest::new(1000, FS);
+    req.channels = Some(vec!["gyro_z".into()]);
+    let out = simulate(&s, &req).unwrap();
+    assert_eq!(out.channels.len(), 1);
+    // gyro_y couples gyro_x, whose temperature effects need the series.
+    req.channels = Some(vec!["gyro_y".into()]);
+    let err = simulate(&s, &req).unwrap_err();
+    assert!(
+        err.to_string().contains("needs a temperature series"),
+        "{err}"
+    );
+}

@@ -1,5 +1,5 @@
-//! The gyro drift simulator: a spec of noise components per channel, and (later) the
-//! generator.
+//! The gyro drift simulator: a spec of noise components per channel, and the generator
+//! that turns it into simulated channels.
 //!
 //! - [`spec`]: the simulation spec of `../shared/design/contracts.md` section 2 (TOML):
 //!   parsing, validation with errors that name the key, and writing a spec back out.

@@ -3,7 +3,8 @@
 //! `.parquet` (zstd, row groups of 1M rows, `sample_rate_hz` and provenance in the
 //! key-value metadata), `.arrow` (a farma store, memory-mapped by every command, rate
 //! and provenance in the schema metadata), `.csv` (comma separated, a `#` provenance
-//! line, then the header). Every format is written to a temporary file beside the
+//! line, then the header; numbers in Rust's shortest round-trip form, so they read
+//! back exactly). Every format is written to a temporary file beside the
 //! target and renamed into place, so a failed run leaves nothing behind.
 
 use std::io::Write;
@@ -221,9 +222,9 @@ fn write_csv(
         }
         writeln!(w).map_err(io)?;
         for k in 0..n {
-            write!(w, "{}", time(k)).map_err(io)?;
+            write!(w, "{:?}", time(k)).map_err(io)?;
             for (_, v) in columns {
-                write!(w, ",{}", v[k]).map_err(io)?;
+                write!(w, ",{:?}", v[k]).map_err(io)?;
             }
             writeln!(w).map_err(io)?;
         }

@@ -148,9 +148,29 @@ impl<'a> Simulator<'a> {
                 }
             }
         }
+        // Channels simulated: the requested ones and the sources of their cross_axis.
+        let mut used: Vec<bool> = spec
+            .channels
+            .iter()
+            .map(|c| req.channels.as_ref().is_none_or(|w| w.contains(&c.name)))
+            .collect();
+        for (ci, c) in spec.channels.iter().enumerate() {
+            if used[ci] {
+                for comp in &c.components {
+                    if let Component::CrossAxis { from, .. } = comp
+                        && let Some(j) = spec.channels.iter().position(|x| &x.name == from)
+                    {
+                        used[j] = true;
+                    }
+                }
+            }
+        }
         let needs_temp: Vec<String> = spec
             .channels
             .iter()
+            .zip(&used)
+            .filter(|(_, u)| **u)
+            .map(|(c, _)| c)
             .flat_map(|c| {
                 c.components
                     .iter()
@@ -550,8 +570,9 @@ pub fn bi_bounds(comp: &Component, n_samples: usize, rate_hz: f64) -> (f64, f64)
     }
 }
 
-/// Adds the signal of component `component` (index in the channel) of channel
-/// `channel` (name) to nothing: a convenience over [`Simulator::component_signal`].
+/// The signal of component `component` (index in the channel) of channel `channel`
+/// (by name) alone: a one-off convenience over [`Simulator::component_signal`] (which
+/// a caller that simulates many components should keep, to load fitted models once).
 pub fn component_signal(
     spec: &Spec,
     channel: &str,
