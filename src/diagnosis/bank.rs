@@ -58,7 +58,8 @@ pub fn temperature_profile(n: usize, rate_hz: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Every case: (hidden component or recalibration, whether it needs the temperature).
+/// Every case. Each hidden effect is sized to matter in an hour of data (its gap
+/// several times the noise floor), not to sit at the edge of detection.
 pub fn cases(rate_hz: f64) -> Vec<Case> {
     let mut out = Vec::new();
     let mut add = |expect: &str, comp: Option<Component>, temp: bool, truth_edit: Option<(usize, Component)>| {
@@ -77,13 +78,13 @@ pub fn cases(rate_hz: f64) -> Vec<Case> {
         });
     };
     use Component as C;
-    add("constant_bias", Some(C::ConstantBias { value: 0.01 }), false, None);
-    add("rate_ramp", Some(C::RateRamp { r: 1.5e-6 }), false, None);
-    add("warmup", Some(C::Warmup { amplitude: 0.03, tau_s: 600.0 }), false, None);
+    add("constant_bias", Some(C::ConstantBias { value: 0.03 }), false, None);
+    add("rate_ramp", Some(C::RateRamp { r: 6e-6 }), false, None);
+    add("warmup", Some(C::Warmup { amplitude: 0.08, tau_s: 600.0 }), false, None);
     add(
         "sinusoid",
         Some(C::Sinusoid {
-            amplitude: 0.004,
+            amplitude: 0.01,
             freq_hz: 0.05,
             phase_rad: 0.3,
         }),
@@ -98,7 +99,7 @@ pub fn cases(rate_hz: f64) -> Vec<Case> {
     add(
         "temperature_bias",
         Some(C::TemperatureBias {
-            coeffs: vec![0.004],
+            coeffs: vec![0.01],
             reference_c: None,
         }),
         true,
