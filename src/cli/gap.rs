@@ -122,7 +122,10 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
         "channel {}: gap {:.3} before, {:.3} after (noise floor {:.3}, significant above {:.3})",
         d.channel, d.gap_before, d.gap_after, d.noise_floor, d.gap_threshold
     );
-    let _ = writeln!(s, "\nwhere the real log leaves the simulations' band (withheld part):");
+    let _ = writeln!(
+        s,
+        "\nwhere the real log leaves the simulations' band (withheld part):"
+    );
     if d.where_before.is_empty() {
         let _ = writeln!(s, "  nowhere");
     }
@@ -138,7 +141,10 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
             r.excess
         );
     }
-    let _ = writeln!(s, "\ncandidate effects, by shrink of the withheld-part gap:");
+    let _ = writeln!(
+        s,
+        "\ncandidate effects, by shrink of the withheld-part gap:"
+    );
     for e in &d.effects {
         let _ = writeln!(
             s,
@@ -149,11 +155,19 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
             e.params
         );
     }
-    let _ = writeln!(s, "\nadded: {}", if d.added.is_empty() {
-        "nothing".to_string()
-    } else {
-        d.added.iter().map(|e| e.kind.clone()).collect::<Vec<_>>().join(", ")
-    });
+    let _ = writeln!(
+        s,
+        "\nadded: {}",
+        if d.added.is_empty() {
+            "nothing".to_string()
+        } else {
+            d.added
+                .iter()
+                .map(|e| e.kind.clone())
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    );
     for n in &d.notes {
         let _ = writeln!(s, "note: {n}");
     }

@@ -62,7 +62,10 @@ pub fn temperature_profile(n: usize, rate_hz: f64) -> Vec<f64> {
 /// several times the noise floor), not to sit at the edge of detection.
 pub fn cases(rate_hz: f64) -> Vec<Case> {
     let mut out = Vec::new();
-    let mut add = |expect: &str, comp: Option<Component>, temp: bool, truth_edit: Option<(usize, Component)>| {
+    let mut add = |expect: &str,
+                   comp: Option<Component>,
+                   temp: bool,
+                   truth_edit: Option<(usize, Component)>| {
         let spec = base_spec(rate_hz, temp);
         let mut truth = spec.clone();
         if let Some(c) = comp {
@@ -78,9 +81,22 @@ pub fn cases(rate_hz: f64) -> Vec<Case> {
         });
     };
     use Component as C;
-    add("constant_bias", Some(C::ConstantBias { value: 0.03 }), false, None);
+    add(
+        "constant_bias",
+        Some(C::ConstantBias { value: 0.03 }),
+        false,
+        None,
+    );
     add("rate_ramp", Some(C::RateRamp { r: 6e-6 }), false, None);
-    add("warmup", Some(C::Warmup { amplitude: 0.08, tau_s: 600.0 }), false, None);
+    add(
+        "warmup",
+        Some(C::Warmup {
+            amplitude: 0.08,
+            tau_s: 600.0,
+        }),
+        false,
+        None,
+    );
     add(
         "sinusoid",
         Some(C::Sinusoid {
@@ -91,11 +107,42 @@ pub fn cases(rate_hz: f64) -> Vec<Case> {
         false,
         None,
     );
-    add("outliers", Some(C::Outliers { rate_hz: 0.01, scale: 0.3 }), false, None);
-    add("quantization", Some(C::Quantization { q: 0.003 }), false, None);
-    add("rate_random_walk", Some(C::RateRandomWalk { k: 3e-4 }), false, None);
-    add("gauss_markov", Some(C::GaussMarkov { sigma: 0.006, tau_s: 20.0 }), false, None);
-    add("recalibrate:white_noise", None, false, Some((0, C::WhiteNoise { n: 0.02 })));
+    add(
+        "outliers",
+        Some(C::Outliers {
+            rate_hz: 0.01,
+            scale: 0.3,
+        }),
+        false,
+        None,
+    );
+    add(
+        "quantization",
+        Some(C::Quantization { q: 0.003 }),
+        false,
+        None,
+    );
+    add(
+        "rate_random_walk",
+        Some(C::RateRandomWalk { k: 3e-4 }),
+        false,
+        None,
+    );
+    add(
+        "gauss_markov",
+        Some(C::GaussMarkov {
+            sigma: 0.006,
+            tau_s: 20.0,
+        }),
+        false,
+        None,
+    );
+    add(
+        "recalibrate:white_noise",
+        None,
+        false,
+        Some((0, C::WhiteNoise { n: 0.02 })),
+    );
     add(
         "temperature_bias",
         Some(C::TemperatureBias {
@@ -105,7 +152,15 @@ pub fn cases(rate_hz: f64) -> Vec<Case> {
         true,
         None,
     );
-    add("thermal_rate", Some(C::ThermalRate { coeff: 6.0, smoothing_s: 30.0 }), true, None);
+    add(
+        "thermal_rate",
+        Some(C::ThermalRate {
+            coeff: 6.0,
+            smoothing_s: 30.0,
+        }),
+        true,
+        None,
+    );
     add(
         "heteroskedastic",
         Some(C::Heteroskedastic {

@@ -99,7 +99,10 @@ mod tests {
         for (k, f) in [(10, 0.7), (10, 0.3), (20, 0.25), (9, 0.5)] {
             let b = Blocks::interleaved(100_000, k, f).unwrap();
             let n_train = b.train.iter().filter(|t| **t).count();
-            assert!((n_train as f64 - f * k as f64).abs() <= 1.0, "{k} {f} {n_train}");
+            assert!(
+                (n_train as f64 - f * k as f64).abs() <= 1.0,
+                "{k} {f} {n_train}"
+            );
             assert!(b.train[0]);
         }
     }

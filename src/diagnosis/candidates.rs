@@ -153,7 +153,12 @@ fn fit_nonneg(y: &[f64], u: &[f64], a: &[f64], ms: &[usize]) -> (f64, f64) {
 
 /// Least squares of y on the regressors (and an intercept) over `ranges`:
 /// (coefficients of the regressors, RSS).
-fn ls(y: &[f64], regs: &[&[f64]], intercept: bool, ranges: &[Range<usize>]) -> Option<(Vec<f64>, f64)> {
+fn ls(
+    y: &[f64],
+    regs: &[&[f64]],
+    intercept: bool,
+    ranges: &[Range<usize>],
+) -> Option<(Vec<f64>, f64)> {
     let k = regs.len() + usize::from(intercept);
     let mut ata = vec![0.0; k * k];
     let mut aty = vec![0.0; k];
@@ -364,10 +369,18 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
         })
     };
     if !has(Kind::ConstantBias) {
-        let s: f64 = ranges.iter().map(|r| res[r.clone()].iter().sum::<f64>()).sum();
+        let s: f64 = ranges
+            .iter()
+            .map(|r| res[r.clone()].iter().sum::<f64>())
+            .sum();
         let v = s / cx.n_train() as f64;
         let c = Component::ConstantBias { value: v };
-        det("constant_bias", c, vec![v; n], "mean of the training residual".into());
+        det(
+            "constant_bias",
+            c,
+            vec![v; n],
+            "mean of the training residual".into(),
+        );
     }
     if !has(Kind::RateRamp) {
         let u = unit(Component::RateRamp { r: 1.0 })?;
@@ -428,7 +441,10 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
     match cx.temperature {
         None => {
             for k in ["temperature_bias", "thermal_rate", "heteroskedastic"] {
-                skip(k, "the log has no temperature channel (temperature_channel in the spec)");
+                skip(
+                    k,
+                    "the log has no temperature channel (temperature_channel in the spec)",
+                );
             }
         }
         Some(tp) => {
@@ -443,7 +459,11 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
                     reference_c: Some(tm),
                 })?;
                 if let Some((b, _)) = ls(&res, &[&u1, &u2], true, &ranges) {
-                    let sig: Vec<f64> = u1.iter().zip(&u2).map(|(a, c)| b[0] * a + b[1] * c).collect();
+                    let sig: Vec<f64> = u1
+                        .iter()
+                        .zip(&u2)
+                        .map(|(a, c)| b[0] * a + b[1] * c)
+                        .collect();
                     det(
                         "temperature_bias",
                         Component::TemperatureBias {
@@ -477,14 +497,18 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
                             smoothing_s: sm,
                         },
                         sig,
-                        "least squares on dT/dt, smoothing chosen over 0, 10, 30, 100, 300 s".into(),
+                        "least squares on dT/dt, smoothing chosen over 0, 10, 30, 100, 300 s"
+                            .into(),
                     );
                 }
             }
             if !has(Kind::Heteroskedastic) {
                 match heteroskedastic(cx, tp, tm)? {
                     Some(p) => props.push(p),
-                    None => skip("heteroskedastic", "the spec's channel has no noise component to modulate"),
+                    None => skip(
+                        "heteroskedastic",
+                        "the spec's channel has no noise component to modulate",
+                    ),
                 }
             }
         }
@@ -518,7 +542,10 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
         {
             let (c, _, u) = noise_add(unit_c.clone())?;
             if c <= 0.0 {
-                skip(kind.as_str(), "no excess Allan variance where this term shows");
+                skip(
+                    kind.as_str(),
+                    "no excess Allan variance where this term shows",
+                );
                 continue;
             }
             let comp = scaled(&unit_c, c).expect("noise kinds scale");
@@ -527,7 +554,11 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
                 params: params_json(&comp),
                 component: comp,
                 replaces: None,
-                delta: Delta::Each(u.into_iter().map(|v| v.iter().map(|e| e * c).collect()).collect()),
+                delta: Delta::Each(
+                    u.into_iter()
+                        .map(|v| v.iter().map(|e| e * c).collect())
+                        .collect(),
+                ),
                 note: "weighted least squares on the excess training Allan variance".into(),
             });
         }
@@ -541,31 +572,42 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
                 tau_s: tau,
             };
             let (c, wrss, u) = noise_add(unit_c)?;
-            if c > 0.0
-                && best.as_ref().is_none_or(|b| wrss < b.2)
-            {
+            if c > 0.0 && best.as_ref().is_none_or(|b| wrss < b.2) {
                 best = Some((c, tau, wrss, u));
             }
         }
         match best {
             Some((c, tau, _, u)) => {
-                let comp = Component::GaussMarkov { sigma: c, tau_s: tau };
+                let comp = Component::GaussMarkov {
+                    sigma: c,
+                    tau_s: tau,
+                };
                 props.push(Proposal {
                     kind: "gauss_markov".into(),
                     params: params_json(&comp),
                     component: comp,
                     replaces: None,
-                    delta: Delta::Each(u.into_iter().map(|v| v.iter().map(|e| e * c).collect()).collect()),
+                    delta: Delta::Each(
+                        u.into_iter()
+                            .map(|v| v.iter().map(|e| e * c).collect())
+                            .collect(),
+                    ),
                     note: "excess training Allan variance, tau_s over a log grid of 8".into(),
                 });
             }
-            None => skip("gauss_markov", "no excess Allan variance where this term shows"),
+            None => skip(
+                "gauss_markov",
+                "no excess Allan variance where this term shows",
+            ),
         }
     }
     if !has(Kind::Outliers) {
         match outliers(cx)? {
             Some(p) => props.push(p),
-            None => skip("outliers", "no more spikes in the training part than in the simulations"),
+            None => skip(
+                "outliers",
+                "no more spikes in the training part than in the simulations",
+            ),
         }
     }
     if !has(Kind::CrossAxis) {
@@ -745,7 +787,9 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (usize, f64, f64) {
     let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let mut all: Vec<f64> = ranges
         .iter()
-        .flat_map(|r| (r.start + 1..r.end - 1).map(move |t| (x[t] - 0.5 * (x[t - 1] + x[t + 1])).abs()))
+        .flat_map(|r| {
+            (r.start + 1..r.end - 1).map(move |t| (x[t] - 0.5 * (x[t - 1] + x[t + 1])).abs())
+        })
         .collect();
     if all.is_empty() {
         return (0, 0.0, 0.0);

@@ -76,7 +76,11 @@ impl EnsembleStats {
 pub fn gap(z: &[f64], defs: &[FeatureDef]) -> f64 {
     let mut fams: Vec<(Statistic, f64, usize)> = Vec::new();
     for (zk, d) in z.iter().zip(defs) {
-        let v = if zk.is_finite() { (zk * zk).min(1e6) } else { 1e6 };
+        let v = if zk.is_finite() {
+            (zk * zk).min(1e6)
+        } else {
+            1e6
+        };
         match fams.iter_mut().find(|f| f.0 == d.statistic) {
             Some(f) => {
                 f.1 += v;
@@ -184,7 +188,13 @@ pub struct Region {
 }
 
 /// The regions of `z` out of the band, largest first.
-pub fn regions(z: &[f64], real: &[f64], ens: &EnsembleStats, defs: &[FeatureDef], cal: &Calibration) -> Vec<Region> {
+pub fn regions(
+    z: &[f64],
+    real: &[f64],
+    ens: &EnsembleStats,
+    defs: &[FeatureDef],
+    cal: &Calibration,
+) -> Vec<Region> {
     let mut out: Vec<Region> = Vec::new();
     let mut k = 0;
     while k < z.len() {
@@ -208,7 +218,9 @@ pub fn regions(z: &[f64], real: &[f64], ens: &EnsembleStats, defs: &[FeatureDef]
             .unwrap_or(k);
         let diff = real[worst] - ens.mean[worst];
         let lo = (k..=e).map(|i| defs[i].lo).fold(f64::INFINITY, f64::min);
-        let hi = (k..=e).map(|i| defs[i].hi).fold(f64::NEG_INFINITY, f64::max);
+        let hi = (k..=e)
+            .map(|i| defs[i].hi)
+            .fold(f64::NEG_INFINITY, f64::max);
         out.push(Region {
             statistic: defs[k].statistic,
             feature: defs[k].name.clone(),
@@ -232,7 +244,11 @@ mod tests {
     fn defs(n: usize) -> Vec<FeatureDef> {
         (0..n)
             .map(|i| FeatureDef {
-                statistic: if i < n / 2 { Statistic::Adev } else { Statistic::Time },
+                statistic: if i < n / 2 {
+                    Statistic::Adev
+                } else {
+                    Statistic::Time
+                },
                 name: "x".into(),
                 lo: i as f64,
                 hi: i as f64,

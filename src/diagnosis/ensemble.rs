@@ -37,7 +37,12 @@ impl<'a> SimBase<'a> {
 
     /// Signals of components `comps` of channel `channel` of `spec`, for every replica:
     /// out[r][j] is component comps[j] in replica r.
-    pub fn component_signals(&self, spec: &Spec, channel: usize, comps: &[usize]) -> Result<Vec<Vec<Vec<f64>>>> {
+    pub fn component_signals(
+        &self,
+        spec: &Spec,
+        channel: usize,
+        comps: &[usize],
+    ) -> Result<Vec<Vec<Vec<f64>>>> {
         (0..self.replicas)
             .into_par_iter()
             .map(|r| {
@@ -53,7 +58,12 @@ impl<'a> SimBase<'a> {
 
     /// The signal of `extra`, appended as a new component of channel `channel` of `spec`,
     /// in every replica (one vector when the component is deterministic).
-    pub fn extra_signal(&self, spec: &Spec, channel: usize, extra: &Component) -> Result<Vec<Vec<f64>>> {
+    pub fn extra_signal(
+        &self,
+        spec: &Spec,
+        channel: usize,
+        extra: &Component,
+    ) -> Result<Vec<Vec<f64>>> {
         let mut s2 = spec.clone();
         s2.channels[channel].components.push(extra.clone());
         let k = s2.channels[channel].components.len() - 1;

@@ -256,10 +256,14 @@ impl Layout {
             let t_mean = t.iter().sum::<f64>() / t.len() as f64;
             let (tmin, tmax) = t
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
             let (rmin, rmax) = rr
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
             let t_edges = quantile_edges(t);
             let r_edges = quantile_edges(rr);
             for (name, unit) in [
@@ -267,7 +271,11 @@ impl Layout {
                 ("coef_t2", "degC"),
                 ("coef_dtdt", "degC/s"),
             ] {
-                let (lo, hi) = if unit == "degC" { (tmin, tmax) } else { (rmin, rmax) };
+                let (lo, hi) = if unit == "degC" {
+                    (tmin, tmax)
+                } else {
+                    (rmin, rmax)
+                };
                 defs.push(FeatureDef {
                     statistic: Statistic::Temperature,
                     name: name.into(),
@@ -372,7 +380,12 @@ impl Layout {
 
     /// The features of series `x` (a whole log's length), with the log's temperature and
     /// the other channels (same order as the names given to [`Layout::new`]).
-    pub fn compute(&self, x: &[f64], temperature: Option<&Temperature>, others: &[&[f64]]) -> Vec<f64> {
+    pub fn compute(
+        &self,
+        x: &[f64],
+        temperature: Option<&Temperature>,
+        others: &[&[f64]],
+    ) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.defs.len());
         out.extend(self.ln_avar(x));
         out.extend(self.ln_psd(x));
@@ -396,9 +409,11 @@ impl Layout {
             out.push(corr_pairs(self.ranges.iter().flat_map(|r| {
                 (r.start + 1..r.end).map(move |t| (x[t] - x[t - 1], o[t] - o[t - 1]))
             })));
-            out.push(corr_pairs(self.windows.iter().map(|w| {
-                (mean_var(&x[w.clone()]).0, mean_var(&o[w.clone()]).0)
-            })));
+            out.push(corr_pairs(
+                self.windows
+                    .iter()
+                    .map(|w| (mean_var(&x[w.clone()]).0, mean_var(&o[w.clone()]).0)),
+            ));
         }
         debug_assert_eq!(out.len(), self.defs.len());
         out
@@ -447,7 +462,8 @@ impl Layout {
                 for i in 0..l {
                     buf[i] = (seg[i] - mean) * win[i];
                 }
-                fft.process(&mut buf, &mut spec).expect("fft sizes are fixed");
+                fft.process(&mut buf, &mut spec)
+                    .expect("fft sizes are fixed");
                 for (a, c) in acc.iter_mut().zip(&spec) {
                     *a += c.norm_sqr();
                 }

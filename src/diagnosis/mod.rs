@@ -329,7 +329,9 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 }
             }
             None => {
-                st.spec.channels[channel].components.push(p.component.clone());
+                st.spec.channels[channel]
+                    .components
+                    .push(p.component.clone());
                 for (r, parts) in st.parts.iter_mut().enumerate() {
                     parts.push(p.delta.get(r).to_vec());
                 }
@@ -340,7 +342,10 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         st.gap = eff.gap_after;
         added.push(eff);
         if added.len() >= prm.max_added {
-            notes.push(format!("stopped after {} effects (--max-effects)", added.len()));
+            notes.push(format!(
+                "stopped after {} effects (--max-effects)",
+                added.len()
+            ));
             break;
         }
     }

@@ -83,11 +83,20 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
     let za = d.ens_after.z(&d.real);
     let feats = batch(vec![
         ("channel", ch(k)),
-        ("statistic", strs(d.defs.iter().map(|f| f.statistic.as_str().into()).collect())),
-        ("feature", strs(d.defs.iter().map(|f| f.name.clone()).collect())),
+        (
+            "statistic",
+            strs(d.defs.iter().map(|f| f.statistic.as_str().into()).collect()),
+        ),
+        (
+            "feature",
+            strs(d.defs.iter().map(|f| f.name.clone()).collect()),
+        ),
         ("lo", f64s(d.defs.iter().map(|f| f.lo).collect())),
         ("hi", f64s(d.defs.iter().map(|f| f.hi).collect())),
-        ("unit", strs(d.defs.iter().map(|f| f.unit.clone()).collect())),
+        (
+            "unit",
+            strs(d.defs.iter().map(|f| f.unit.clone()).collect()),
+        ),
         ("real", f64s(d.real.clone())),
         ("sim_mean_before", f64s(d.ens_before.mean.clone())),
         ("sim_sd_before", f64s(d.ens_before.sd.clone())),
@@ -106,13 +115,30 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
     let reg = batch(vec![
         ("channel", ch(nr)),
         ("phase", strs(regions.iter().map(|r| r.0.into()).collect())),
-        ("statistic", strs(regions.iter().map(|r| r.1.statistic.as_str().into()).collect())),
-        ("feature", strs(regions.iter().map(|r| r.1.feature.clone()).collect())),
+        (
+            "statistic",
+            strs(
+                regions
+                    .iter()
+                    .map(|r| r.1.statistic.as_str().into())
+                    .collect(),
+            ),
+        ),
+        (
+            "feature",
+            strs(regions.iter().map(|r| r.1.feature.clone()).collect()),
+        ),
         ("lo", f64s(regions.iter().map(|r| r.1.lo).collect())),
         ("hi", f64s(regions.iter().map(|r| r.1.hi).collect())),
-        ("unit", strs(regions.iter().map(|r| r.1.unit.clone()).collect())),
+        (
+            "unit",
+            strs(regions.iter().map(|r| r.1.unit.clone()).collect()),
+        ),
         ("excess", f64s(regions.iter().map(|r| r.1.excess).collect())),
-        ("ratio_or_delta", f64s(regions.iter().map(|r| r.1.ratio_or_delta).collect())),
+        (
+            "ratio_or_delta",
+            f64s(regions.iter().map(|r| r.1.ratio_or_delta).collect()),
+        ),
     ])?;
     let ne = d.effects.len() + d.added.len();
     let rows: Vec<(&str, i64, &super::Effect)> = d
@@ -120,22 +146,49 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
         .iter()
         .enumerate()
         .map(|(i, e)| ("ranked", i as i64 + 1, e))
-        .chain(d.added.iter().enumerate().map(|(i, e)| ("added", i as i64 + 1, e)))
+        .chain(
+            d.added
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ("added", i as i64 + 1, e)),
+        )
         .collect();
     let eff = batch(vec![
         ("channel", ch(ne)),
         ("list", strs(rows.iter().map(|r| r.0.into()).collect())),
-        ("rank", Arc::new(Int64Array::from(rows.iter().map(|r| r.1).collect::<Vec<_>>())) as ArrayRef),
-        ("kind", strs(rows.iter().map(|r| r.2.kind.clone()).collect())),
-        ("gap_after", f64s(rows.iter().map(|r| r.2.gap_after).collect())),
+        (
+            "rank",
+            Arc::new(Int64Array::from(
+                rows.iter().map(|r| r.1).collect::<Vec<_>>(),
+            )) as ArrayRef,
+        ),
+        (
+            "kind",
+            strs(rows.iter().map(|r| r.2.kind.clone()).collect()),
+        ),
+        (
+            "gap_after",
+            f64s(rows.iter().map(|r| r.2.gap_after).collect()),
+        ),
         ("shrink", f64s(rows.iter().map(|r| r.2.shrink).collect())),
-        ("params", strs(rows.iter().map(|r| r.2.params.to_string()).collect())),
-        ("note", strs(rows.iter().map(|r| r.2.note.clone()).collect())),
+        (
+            "params",
+            strs(rows.iter().map(|r| r.2.params.to_string()).collect()),
+        ),
+        (
+            "note",
+            strs(rows.iter().map(|r| r.2.note.clone()).collect()),
+        ),
         (
             "added",
             Arc::new(BooleanArray::from(
                 rows.iter()
-                    .map(|r| r.0 == "added" || d.added.iter().any(|a| a.kind == r.2.kind && a.params == r.2.params))
+                    .map(|r| {
+                        r.0 == "added"
+                            || d.added
+                                .iter()
+                                .any(|a| a.kind == r.2.kind && a.params == r.2.params)
+                    })
                     .collect::<Vec<_>>(),
             )) as ArrayRef,
         ),
@@ -175,12 +228,15 @@ pub fn write_text(path: &Path, text: &str) -> Result<()> {
         .tempfile_in(&dir)
         .map_err(|e| Error::output_io(path, e))?;
     std::fs::write(tmp.path(), text).map_err(|e| Error::output_io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::output_io(path, e.error))?;
+    tmp.persist(path)
+        .map_err(|e| Error::output_io(path, e.error))?;
     Ok(())
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// A self-contained SVG: the Allan deviation of the real log's withheld part against
@@ -218,10 +274,16 @@ pub fn svg(d: &Diagnosis) -> String {
         let (ymin, ymax) = all
             .iter()
             .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
         let (ymin, ymax) = (ymin - 0.1, ymax + 0.1);
         let (x0, x1) = (tau[0], tau[tau.len() - 1]);
-        let panel = |s: &mut String, top: f64, title: &str, e: &super::EnsembleStats, regions: &[Region]| {
+        let panel = |s: &mut String,
+                     top: f64,
+                     title: &str,
+                     e: &super::EnsembleStats,
+                     regions: &[Region]| {
             let (px, py, pw, ph) = (80.0, top, 780.0, 220.0);
             let fx = |v: f64| px + (v - x0) / (x1 - x0).max(1e-12) * pw;
             let fy = |v: f64| py + ph - (v - ymin) / (ymax - ymin).max(1e-12) * ph;
@@ -241,40 +303,85 @@ pub fn svg(d: &Diagnosis) -> String {
             }
             let mut band = String::new();
             for (j, &i) in idx.iter().enumerate() {
-                let _ = write!(band, "{:.1},{:.1} ", fx(tau[j]), fy(to_l(e.mean[i] + 2.0 * e.sd[i])));
+                let _ = write!(
+                    band,
+                    "{:.1},{:.1} ",
+                    fx(tau[j]),
+                    fy(to_l(e.mean[i] + 2.0 * e.sd[i]))
+                );
             }
             for (j, &i) in idx.iter().enumerate().rev() {
-                let _ = write!(band, "{:.1},{:.1} ", fx(tau[j]), fy(to_l(e.mean[i] - 2.0 * e.sd[i])));
+                let _ = write!(
+                    band,
+                    "{:.1},{:.1} ",
+                    fx(tau[j]),
+                    fy(to_l(e.mean[i] - 2.0 * e.sd[i]))
+                );
             }
-            let _ = writeln!(s, r##"<polygon points="{band}" fill="#9ecae1" opacity="0.6"/>"##);
+            let _ = writeln!(
+                s,
+                r##"<polygon points="{band}" fill="#9ecae1" opacity="0.6"/>"##
+            );
             let mut line = String::new();
             for (j, &i) in idx.iter().enumerate() {
                 let _ = write!(line, "{:.1},{:.1} ", fx(tau[j]), fy(to_l(d.real[i])));
             }
-            let _ = writeln!(s, r##"<polyline points="{line}" fill="none" stroke="#d62728" stroke-width="2"/>"##);
+            let _ = writeln!(
+                s,
+                r##"<polyline points="{line}" fill="none" stroke="#d62728" stroke-width="2"/>"##
+            );
             // axes: decades
             let mut dec = x0.floor();
             while dec <= x1 {
                 if dec >= x0 {
-                    let _ = writeln!(s, r##"<text x="{:.1}" y="{}" text-anchor="middle">1e{dec}</text>"##, fx(dec), py + ph + 14.0);
+                    let _ = writeln!(
+                        s,
+                        r##"<text x="{:.1}" y="{}" text-anchor="middle">1e{dec}</text>"##,
+                        fx(dec),
+                        py + ph + 14.0
+                    );
                 }
                 dec += 1.0;
             }
             let mut dy = ymin.ceil();
             while dy <= ymax {
-                let _ = writeln!(s, r##"<text x="{}" y="{:.1}" text-anchor="end">1e{dy}</text>"##, px - 4.0, fy(dy) + 4.0);
+                let _ = writeln!(
+                    s,
+                    r##"<text x="{}" y="{:.1}" text-anchor="end">1e{dy}</text>"##,
+                    px - 4.0,
+                    fy(dy) + 4.0
+                );
                 dy += 1.0;
             }
         };
-        panel(&mut s, 60.0, "Allan deviation, withheld part: real (red) vs simulations of the spec (blue, +-2 sd); out-of-band taus shaded. tau [s]", &d.ens_before, &d.where_before);
-        panel(&mut s, 330.0, "... after adding the effects", &d.ens_after, &d.where_after);
+        panel(
+            &mut s,
+            60.0,
+            "Allan deviation, withheld part: real (red) vs simulations of the spec (blue, +-2 sd); out-of-band taus shaded. tau [s]",
+            &d.ens_before,
+            &d.where_before,
+        );
+        panel(
+            &mut s,
+            330.0,
+            "... after adding the effects",
+            &d.ens_after,
+            &d.where_after,
+        );
     }
     let top = 590.0;
-    let _ = writeln!(s, r#"<text x="80" y="{top}">Candidate effects, ranked by shrink of the withheld-part gap (added effects in bold)</text>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="80" y="{top}">Candidate effects, ranked by shrink of the withheld-part gap (added effects in bold)</text>"#
+    );
     for (i, e) in d.effects.iter().take(8).enumerate() {
         let y = top + 14.0 + i as f64 * 18.0;
         let bw = (e.shrink.clamp(0.0, 1.0)) * 400.0;
-        let bold = if d.added.iter().any(|a| a.kind == e.kind) { "bold" } else { "normal" };
+        let bold = if d.added.iter().any(|a| a.kind == e.kind) {
+            "bold"
+        } else {
+            "normal"
+        };
         let _ = writeln!(
             s,
             r##"<text x="250" y="{:.1}" text-anchor="end" font-weight="{bold}">{}</text><rect x="260" y="{:.1}" width="{bw:.1}" height="12" fill="#2ca02c"/><text x="{:.1}" y="{:.1}">{:.1} %</text>"##,
