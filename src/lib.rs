@@ -13,6 +13,7 @@
 //! - [`error`]: the error enum and exit codes.
 
 pub mod cli;
+pub mod diagnosis;
 pub mod error;
 pub mod estimator;
 pub mod log;

@@ -8,6 +8,7 @@ mod acf;
 mod adev;
 mod fit;
 mod fit_index2;
+mod gap;
 mod info;
 mod ingest;
 mod update;
@@ -53,6 +54,8 @@ pub enum Command {
     Acf(acf::AcfArgs),
     /// Simulate a gyro log from a simulation spec (TOML).
     Simulate(simulate::SimulateArgs),
+    /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
+    Gap(gap::GapArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -151,5 +154,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Psd(a) => psd::run(a, &progress),
         Command::Acf(a) => acf::run(a, &progress),
         Command::Simulate(a) => simulate::run(a, &progress),
+        Command::Gap(a) => gap::run(a, &progress),
     }
 }

@@ -1,0 +1,175 @@
+//! `farma gap --real LOG --sim SPEC --channel NAME -o OUTDIR`: where a simulator differs
+//! from the real sensor, which effect it misses, how far the gap shrinks.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+
+use super::LogArgs;
+use crate::diagnosis::{GapParams, RealLog, diagnose, report};
+use crate::error::{Error, Result};
+use crate::log::Progress;
+use crate::simulator::load_spec;
+
+#[derive(Args, Debug)]
+pub struct GapArgs {
+    /// The real log: a store, CSV, Parquet or Arrow IPC.
+    #[arg(long, value_name = "LOG")]
+    pub real: PathBuf,
+    /// The simulation spec (TOML, contracts.md section 2).
+    #[arg(long, value_name = "SPEC")]
+    pub sim: PathBuf,
+    /// The channel to diagnose (a channel of the spec and of the log).
+    #[arg(long)]
+    pub channel: String,
+    /// Share of the time blocks used to estimate effects; the rest is withheld for scoring.
+    #[arg(long, default_value_t = 0.5, value_name = "F")]
+    pub train_fraction: f64,
+    /// Simulations of the spec in the ensemble.
+    #[arg(long, default_value_t = 20, value_name = "M")]
+    pub replicas: usize,
+    /// Interleaved time blocks the log is cut into.
+    #[arg(long, default_value_t = 8, value_name = "N")]
+    pub blocks: usize,
+    /// Seed of the ensemble (default: the spec's seed, else 1).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Most effects the greedy search adds.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub max_effects: usize,
+    /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
+    #[arg(short, long, value_name = "OUTDIR")]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub log_args: LogArgs,
+    /// The JSON object of contracts.md section 3 on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
+    let started = Instant::now();
+    let spec = load_spec(&a.sim)?;
+    let store = a.log_args.open(&a.real, progress)?;
+    let x = store.column(&a.channel)?;
+    let temperature_c = match &spec.temperature_channel {
+        Some(t) => Some(store.column(t).map_err(|_| {
+            Error::Usage(format!(
+                "{}: the spec's temperature_channel '{t}' is not a column of the real log {}",
+                a.sim.display(),
+                a.real.display()
+            ))
+        })?),
+        None => None,
+    };
+    let log_names = store.channel_names();
+    let others: Vec<(String, &[f64])> = spec
+        .channels
+        .iter()
+        .filter(|c| c.name != a.channel && log_names.contains(&c.name.as_str()))
+        .map(|c| Ok((c.name.clone(), store.column(&c.name)?)))
+        .collect::<Result<_>>()?;
+    let real = RealLog {
+        channel: a.channel.clone(),
+        x,
+        rate_hz: store.sample_rate_hz(),
+        temperature_c,
+        others,
+        spec_dir: a.sim.parent().map(|p| p.to_path_buf()),
+    };
+    let prm = GapParams {
+        train_fraction: a.train_fraction,
+        replicas: a.replicas,
+        n_blocks: a.blocks,
+        seed: a.seed,
+        max_added: a.max_effects,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm)?;
+    let mut json = report::to_json(&d);
+    if let Some(dir) = &a.output {
+        let meta = [
+            ("real", a.real.display().to_string()),
+            ("spec", a.sim.display().to_string()),
+            ("channel", a.channel.clone()),
+        ];
+        let files = report::write_outputs(&d, dir, &meta)?;
+        json["outputs"] = serde_json::json!(files);
+    }
+    eprintln!(
+        "farma gap {}: gap {:.3} -> {:.3} on the withheld part (noise floor {:.3}, significant above {:.3}); {:.1} s",
+        d.channel,
+        d.gap_before,
+        d.gap_after,
+        d.noise_floor,
+        d.gap_threshold,
+        started.elapsed().as_secs_f64()
+    );
+    if a.json {
+        println!("{json}");
+    } else {
+        print!("{}", text(&d));
+    }
+    Ok(())
+}
+
+fn text(d: &crate::diagnosis::Diagnosis) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "channel {}: gap {:.3} before, {:.3} after (noise floor {:.3}, significant above {:.3})",
+        d.channel, d.gap_before, d.gap_after, d.noise_floor, d.gap_threshold
+    );
+    let _ = writeln!(
+        s,
+        "\nwhere the real log leaves the simulations' band (withheld part):"
+    );
+    if d.where_before.is_empty() {
+        let _ = writeln!(s, "  nowhere");
+    }
+    for r in d.where_before.iter().take(12) {
+        let _ = writeln!(
+            s,
+            "  {:<13} {:<30} {:>12.4e} .. {:<12.4e} {:<8} excess {:>7.1} sd",
+            r.statistic.as_str(),
+            r.feature,
+            r.lo,
+            r.hi,
+            r.unit,
+            r.excess
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\ncandidate effects, by shrink of the withheld-part gap:"
+    );
+    for e in &d.effects {
+        let _ = writeln!(
+            s,
+            "  {:<34} shrink {:>7.1} %  gap {:>9.3}  {}",
+            e.kind,
+            100.0 * e.shrink,
+            e.gap_after,
+            e.params
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nadded: {}",
+        if d.added.is_empty() {
+            "nothing".to_string()
+        } else {
+            d.added
+                .iter()
+                .map(|e| e.kind.clone())
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    );
+    for n in &d.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    s
+}

@@ -1,0 +1,632 @@
+//! The statistics that localise a sim-to-real gap: one vector of features per series,
+//! computed on one part (training or withheld blocks) of a log.
+//!
+//! Every feature is computed inside blocks (never across a block boundary) and belongs
+//! to one statistic family of contracts.md section 3:
+//! - `adev`: ln of the overlapping Allan variance at octave averaging factors
+//!   m = 1, 2, 4, ... up to a quarter of the shortest block, pooled over the blocks as
+//!   sum_b (N_b - 2m + 1) AVAR_b(m) / sum_b (N_b - 2m + 1) (each AVAR_b from
+//!   [`crate::stats::adev::deviations`], SP 1065 eq. (10));
+//! - `psd`: ln of the mean Welch PSD (Hann window, 50 % overlap, one-sided, u^2/Hz;
+//!   P. D. Welch, IEEE Trans. Audio Electroacoust. 15 (1967) 70-73) in log-spaced bands,
+//!   five per decade, from the lowest resolved frequency to Nyquist;
+//! - `time`: mean and ln variance in windows of a quarter block, in time order;
+//! - `distribution`: of the first differences d_t = x_t - x_{t-1} (which remove the
+//!   slow drift): ln standard deviation, ln kurtosis, ln of the 0.999 and 0.9999
+//!   quantiles of |d| over its median (tails: outliers), and ln of the share of
+//!   distinct values of x (discreteness: quantization);
+//! - `temperature` (with a temperature channel): least-squares coefficients of x on
+//!   (1, T - Tm, (T - Tm)^2, dT/dt), the mean of x in five temperature bins and in five
+//!   dT/dt bins (bin edges: quintiles of the real temperature over the part, the same
+//!   for every series), and ln variance of d in the five temperature bins;
+//! - `state`: state-dependent dynamics: the least-squares slope of x_t on x_{t-1} in
+//!   the five quintile bins of x_{t-1} (a linear model has one slope; a FARMA model's
+//!   f_1(x_{t-1}) shows as slopes that vary across bins);
+//! - `cross_axis` (with other channels): correlation of the differences and of the
+//!   window means of x with each other channel.
+//!
+//! Log-scale features compare as ratios, the others as differences; both are scored
+//! by [`super::distance`] against the spread of a simulation ensemble.
+
+use std::ops::Range;
+
+use realfft::RealFftPlanner;
+use serde::Serialize;
+
+use super::blocks::Blocks;
+use crate::stats::adev;
+
+/// A statistic family: the `statistic` of a region in contracts.md section 3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Statistic {
+    Adev,
+    Psd,
+    Time,
+    Distribution,
+    Temperature,
+    State,
+    CrossAxis,
+}
+
+impl Statistic {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Statistic::Adev => "adev",
+            Statistic::Psd => "psd",
+            Statistic::Time => "time",
+            Statistic::Distribution => "distribution",
+            Statistic::Temperature => "temperature",
+            Statistic::State => "state",
+            Statistic::CrossAxis => "cross_axis",
+        }
+    }
+}
+
+/// What one feature measures, and where it sits (its `lo`..`hi` in `unit`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FeatureDef {
+    pub statistic: Statistic,
+    /// What is measured: `ln_avar`, `ln_psd`, `mean`, `ln_var`, `ln_sd_diff`, ...
+    pub name: String,
+    pub lo: f64,
+    pub hi: f64,
+    pub unit: String,
+    /// Natural logarithm of a positive quantity (compared as a ratio).
+    pub log_scale: bool,
+}
+
+/// The temperature of the log as the features use it (the same for the real log and
+/// every simulation: the simulator is driven by the real temperature).
+#[derive(Clone, Debug)]
+pub struct Temperature {
+    /// degC, one per sample.
+    pub t_c: Vec<f64>,
+    /// dT/dt in degC/s, a central difference over `DTDT_HALF_WINDOW_S` on each side.
+    pub dtdt_c_per_s: Vec<f64>,
+}
+
+/// Half-width of the central difference behind dT/dt, seconds.
+pub const DTDT_HALF_WINDOW_S: f64 = 30.0;
+
+impl Temperature {
+    /// Temperature `t_c` sampled at `rate_hz`, with its smoothed rate of change.
+    pub fn new(t_c: Vec<f64>, rate_hz: f64) -> Temperature {
+        let n = t_c.len();
+        let w = ((DTDT_HALF_WINDOW_S * rate_hz).round() as usize).max(1);
+        let dtdt = (0..n)
+            .map(|i| {
+                let a = i.saturating_sub(w);
+                let b = (i + w).min(n - 1);
+                if b > a {
+                    (t_c[b] - t_c[a]) * rate_hz / (b - a) as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Temperature {
+            t_c,
+            dtdt_c_per_s: dtdt,
+        }
+    }
+}
+
+/// The fixed layout of the features of one part of a log.
+#[derive(Clone, Debug)]
+pub struct Layout {
+    pub defs: Vec<FeatureDef>,
+    ranges: Vec<Range<usize>>,
+    ms: Vec<usize>,
+    seg_len: usize,
+    bands: Vec<Range<usize>>,
+    windows: Vec<Range<usize>>,
+    temp: Option<TempLayout>,
+    n_other: usize,
+}
+
+#[derive(Clone, Debug)]
+struct TempLayout {
+    t_mean: f64,
+    t_edges: Vec<f64>,
+    r_edges: Vec<f64>,
+}
+
+const N_BINS: usize = 5;
+const WINDOWS_PER_BLOCK: usize = 4;
+const BANDS_PER_DECADE: f64 = 5.0;
+
+fn quantile_edges(mut v: Vec<f64>) -> Vec<f64> {
+    v.sort_by(f64::total_cmp);
+    (1..N_BINS)
+        .map(|k| v[(k * (v.len() - 1)) / N_BINS])
+        .collect()
+}
+
+fn bin_of(edges: &[f64], v: f64) -> usize {
+    edges.partition_point(|e| *e < v)
+}
+
+impl Layout {
+    /// The layout for the training (`training = true`) or withheld part of `blocks`, at
+    /// `rate_hz`, with the log's temperature and `others` (names of the other channels
+    /// compared for cross-axis coupling).
+    pub fn new(
+        blocks: &Blocks,
+        training: bool,
+        rate_hz: f64,
+        temperature: Option<&Temperature>,
+        others: &[String],
+    ) -> Layout {
+        let ranges = blocks.part(training);
+        let min_len = ranges.iter().map(|r| r.len()).min().unwrap_or(0);
+        let mut defs = Vec::new();
+        let dt = 1.0 / rate_hz;
+
+        let mut ms = Vec::new();
+        let mut m = 1;
+        while 4 * m <= min_len {
+            ms.push(m);
+            m *= 2;
+        }
+        for &m in &ms {
+            let tau = m as f64 * dt;
+            defs.push(FeatureDef {
+                statistic: Statistic::Adev,
+                name: "ln_avar".into(),
+                lo: tau,
+                hi: tau,
+                unit: "s".into(),
+                log_scale: true,
+            });
+        }
+
+        let mut seg_len = 64;
+        while seg_len * 2 * 4 <= min_len {
+            seg_len *= 2;
+        }
+        let df = rate_hz / seg_len as f64;
+        let n_bins = seg_len / 2; // bins 1..=n_bins (0 is the mean)
+        let mut bands = Vec::new();
+        let mut lo = 1usize;
+        while lo <= n_bins {
+            let hi_f = (lo as f64 * 10f64.powf(1.0 / BANDS_PER_DECADE)).ceil() as usize;
+            let hi = hi_f.max(lo + 1).min(n_bins + 1);
+            bands.push(lo..hi);
+            lo = hi;
+        }
+        for b in &bands {
+            defs.push(FeatureDef {
+                statistic: Statistic::Psd,
+                name: "ln_psd".into(),
+                lo: b.start as f64 * df,
+                hi: (b.end - 1) as f64 * df,
+                unit: "Hz".into(),
+                log_scale: true,
+            });
+        }
+
+        let mut windows = Vec::new();
+        for r in &ranges {
+            for k in 0..WINDOWS_PER_BLOCK {
+                let a = r.start + k * r.len() / WINDOWS_PER_BLOCK;
+                let b = r.start + (k + 1) * r.len() / WINDOWS_PER_BLOCK;
+                windows.push(a..b);
+            }
+        }
+        for (name, log_scale) in [("mean", false), ("ln_var", true)] {
+            for w in &windows {
+                defs.push(FeatureDef {
+                    statistic: Statistic::Time,
+                    name: name.into(),
+                    lo: w.start as f64 * dt,
+                    hi: w.end as f64 * dt,
+                    unit: "s".into(),
+                    log_scale,
+                });
+            }
+        }
+
+        for name in [
+            "ln_sd_diff",
+            "ln_kurtosis_diff",
+            "ln_q999_over_median_abs_diff",
+            "ln_q9999_over_median_abs_diff",
+            "ln_distinct_share",
+        ] {
+            defs.push(FeatureDef {
+                statistic: Statistic::Distribution,
+                name: name.into(),
+                lo: f64::NAN,
+                hi: f64::NAN,
+                unit: "u".into(),
+                log_scale: true,
+            });
+        }
+
+        let temp = temperature.map(|tp| {
+            let t: Vec<f64> = ranges
+                .iter()
+                .flat_map(|r| tp.t_c[r.clone()].iter().copied())
+                .collect();
+            let rr: Vec<f64> = ranges
+                .iter()
+                .flat_map(|r| tp.dtdt_c_per_s[r.clone()].iter().copied())
+                .collect();
+            let t_mean = t.iter().sum::<f64>() / t.len() as f64;
+            let (tmin, tmax) = t
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
+            let (rmin, rmax) = rr
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
+            let t_edges = quantile_edges(t);
+            let r_edges = quantile_edges(rr);
+            for (name, unit) in [
+                ("coef_t", "degC"),
+                ("coef_t2", "degC"),
+                ("coef_dtdt", "degC/s"),
+            ] {
+                let (lo, hi) = if unit == "degC" {
+                    (tmin, tmax)
+                } else {
+                    (rmin, rmax)
+                };
+                defs.push(FeatureDef {
+                    statistic: Statistic::Temperature,
+                    name: name.into(),
+                    lo,
+                    hi,
+                    unit: unit.into(),
+                    log_scale: false,
+                });
+            }
+            let bins = |edges: &[f64], min: f64, max: f64| -> Vec<(f64, f64)> {
+                (0..N_BINS)
+                    .map(|k| {
+                        (
+                            if k == 0 { min } else { edges[k - 1] },
+                            if k == N_BINS - 1 { max } else { edges[k] },
+                        )
+                    })
+                    .collect()
+            };
+            for (lo, hi) in bins(&t_edges, tmin, tmax) {
+                defs.push(FeatureDef {
+                    statistic: Statistic::Temperature,
+                    name: "mean_by_t".into(),
+                    lo,
+                    hi,
+                    unit: "degC".into(),
+                    log_scale: false,
+                });
+            }
+            for (lo, hi) in bins(&r_edges, rmin, rmax) {
+                defs.push(FeatureDef {
+                    statistic: Statistic::Temperature,
+                    name: "mean_by_dtdt".into(),
+                    lo,
+                    hi,
+                    unit: "degC/s".into(),
+                    log_scale: false,
+                });
+            }
+            for (lo, hi) in bins(&t_edges, tmin, tmax) {
+                defs.push(FeatureDef {
+                    statistic: Statistic::Temperature,
+                    name: "ln_var_diff_by_t".into(),
+                    lo,
+                    hi,
+                    unit: "degC".into(),
+                    log_scale: true,
+                });
+            }
+            TempLayout {
+                t_mean,
+                t_edges,
+                r_edges,
+            }
+        });
+
+        for k in 0..N_BINS {
+            defs.push(FeatureDef {
+                statistic: Statistic::State,
+                name: "lag1_slope_by_state".into(),
+                lo: k as f64 / N_BINS as f64,
+                hi: (k + 1) as f64 / N_BINS as f64,
+                unit: "quantile".into(),
+                log_scale: false,
+            });
+        }
+
+        for (j, name) in others.iter().enumerate() {
+            for what in ["corr_diff", "corr_window_mean"] {
+                defs.push(FeatureDef {
+                    statistic: Statistic::CrossAxis,
+                    name: format!("{what}:{name}"),
+                    lo: j as f64,
+                    hi: j as f64,
+                    unit: "channel".into(),
+                    log_scale: false,
+                });
+            }
+        }
+
+        Layout {
+            defs,
+            ranges,
+            ms,
+            seg_len,
+            bands,
+            windows,
+            temp,
+            n_other: others.len(),
+        }
+    }
+
+    /// The blocks this layout covers.
+    pub fn ranges(&self) -> &[Range<usize>] {
+        &self.ranges
+    }
+
+    /// Averaging factors of the `adev` features.
+    pub fn adev_factors(&self) -> &[usize] {
+        &self.ms
+    }
+
+    /// The features of series `x` (a whole log's length), with the log's temperature and
+    /// the other channels (same order as the names given to [`Layout::new`]).
+    pub fn compute(
+        &self,
+        x: &[f64],
+        temperature: Option<&Temperature>,
+        others: &[&[f64]],
+    ) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.defs.len());
+        out.extend(self.ln_avar(x));
+        out.extend(self.ln_psd(x));
+        let (means, lnvars): (Vec<f64>, Vec<f64>) = self
+            .windows
+            .iter()
+            .map(|w| {
+                let (m, v) = mean_var(&x[w.clone()]);
+                (m, v.max(f64::MIN_POSITIVE).ln())
+            })
+            .unzip();
+        out.extend(&means);
+        out.extend(lnvars);
+        out.extend(self.distribution(x));
+        if let (Some(tl), Some(tp)) = (&self.temp, temperature) {
+            out.extend(self.temperature(x, tl, tp));
+        }
+        out.extend(self.state(x));
+        debug_assert!(others.len() == self.n_other);
+        for o in others.iter().take(self.n_other) {
+            out.push(corr_pairs(self.ranges.iter().flat_map(|r| {
+                (r.start + 1..r.end).map(move |t| (x[t] - x[t - 1], o[t] - o[t - 1]))
+            })));
+            out.push(corr_pairs(
+                self.windows
+                    .iter()
+                    .map(|w| (mean_var(&x[w.clone()]).0, mean_var(&o[w.clone()]).0)),
+            ));
+        }
+        debug_assert_eq!(out.len(), self.defs.len());
+        out
+    }
+
+    /// ln of the pooled Allan variance at the layout's averaging factors.
+    pub fn ln_avar(&self, x: &[f64]) -> Vec<f64> {
+        let mut num = vec![0.0; self.ms.len()];
+        let mut den = vec![0.0; self.ms.len()];
+        for r in &self.ranges {
+            let y = &x[r.clone()];
+            let devs = adev::deviations(y, adev::Kind::Adev, &self.ms);
+            for (i, (&m, d)) in self.ms.iter().zip(devs).enumerate() {
+                let terms = (y.len() + 1 - 2 * m) as f64;
+                num[i] += terms * d * d;
+                den[i] += terms;
+            }
+        }
+        num.iter()
+            .zip(&den)
+            .map(|(a, b)| (a / b).max(f64::MIN_POSITIVE).ln())
+            .collect()
+    }
+
+    fn ln_psd(&self, x: &[f64]) -> Vec<f64> {
+        let l = self.seg_len;
+        let mut planner = RealFftPlanner::<f64>::new();
+        let fft = planner.plan_fft_forward(l);
+        let win: Vec<f64> = (0..l)
+            .map(|i| {
+                let s = (std::f64::consts::PI * i as f64 / l as f64).sin();
+                s * s
+            })
+            .collect();
+        let w2: f64 = win.iter().map(|w| w * w).sum();
+        let mut acc = vec![0.0; l / 2 + 1];
+        let mut count = 0usize;
+        let mut buf = fft.make_input_vec();
+        let mut spec = fft.make_output_vec();
+        for r in &self.ranges {
+            let y = &x[r.clone()];
+            let mut start = 0;
+            while start + l <= y.len() {
+                let seg = &y[start..start + l];
+                let mean = seg.iter().sum::<f64>() / l as f64;
+                for i in 0..l {
+                    buf[i] = (seg[i] - mean) * win[i];
+                }
+                fft.process(&mut buf, &mut spec)
+                    .expect("fft sizes are fixed");
+                for (a, c) in acc.iter_mut().zip(&spec) {
+                    *a += c.norm_sqr();
+                }
+                count += 1;
+                start += l / 2;
+            }
+        }
+        // One-sided PSD: 2 |X_k|^2 / (rate_hz sum w^2); the rate is folded into the
+        // band's constant, which cancels in every comparison, so it is left out.
+        let scale = 2.0 / (w2 * count.max(1) as f64);
+        self.bands
+            .iter()
+            .map(|b| {
+                let s: f64 = acc[b.clone()].iter().sum::<f64>() * scale / b.len() as f64;
+                s.max(f64::MIN_POSITIVE).ln()
+            })
+            .collect()
+    }
+
+    fn distribution(&self, x: &[f64]) -> Vec<f64> {
+        let mut d: Vec<f64> = self
+            .ranges
+            .iter()
+            .flat_map(|r| (r.start + 1..r.end).map(move |t| x[t] - x[t - 1]))
+            .collect();
+        let (m, v) = mean_var(&d);
+        let m4 = d.iter().map(|e| (e - m).powi(4)).sum::<f64>() / d.len() as f64;
+        let kurt = if v > 0.0 { m4 / (v * v) } else { 1.0 };
+        for e in d.iter_mut() {
+            *e = e.abs();
+        }
+        d.sort_by(f64::total_cmp);
+        let q = |p: f64| d[((p * (d.len() - 1) as f64).round() as usize).min(d.len() - 1)];
+        let med = q(0.5).max(f64::MIN_POSITIVE * 1e10);
+        let ratio = |p: f64| (q(p) / med).max(f64::MIN_POSITIVE).ln();
+        let mut vals: Vec<f64> = self
+            .ranges
+            .iter()
+            .flat_map(|r| x[r.clone()].iter().copied())
+            .collect();
+        vals.sort_by(f64::total_cmp);
+        vals.dedup();
+        let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
+        vec![
+            v.max(f64::MIN_POSITIVE).sqrt().ln(),
+            kurt.max(f64::MIN_POSITIVE).ln(),
+            ratio(0.999),
+            ratio(0.9999),
+            (vals.len() as f64 / n_part as f64).ln(),
+        ]
+    }
+
+    fn temperature(&self, x: &[f64], tl: &TempLayout, tp: &Temperature) -> Vec<f64> {
+        // normal equations of x on (1, dT, dT^2, dT/dt)
+        let mut ata = [0.0; 16];
+        let mut aty = [0.0; 4];
+        let mut sum_t = [0.0; N_BINS];
+        let mut cnt_t = [0.0; N_BINS];
+        let mut sum_r = [0.0; N_BINS];
+        let mut cnt_r = [0.0; N_BINS];
+        let mut d_sum = [0.0; N_BINS];
+        let mut d_sq = [0.0; N_BINS];
+        for r in &self.ranges {
+            for t in r.clone() {
+                let dtc = tp.t_c[t] - tl.t_mean;
+                let row = [1.0, dtc, dtc * dtc, tp.dtdt_c_per_s[t]];
+                for i in 0..4 {
+                    aty[i] += row[i] * x[t];
+                    for j in 0..4 {
+                        ata[i * 4 + j] += row[i] * row[j];
+                    }
+                }
+                let bt = bin_of(&tl.t_edges, tp.t_c[t]);
+                sum_t[bt] += x[t];
+                cnt_t[bt] += 1.0;
+                let br = bin_of(&tl.r_edges, tp.dtdt_c_per_s[t]);
+                sum_r[br] += x[t];
+                cnt_r[br] += 1.0;
+                if t > r.start {
+                    let d = x[t] - x[t - 1];
+                    d_sum[bt] += d;
+                    d_sq[bt] += d * d;
+                }
+            }
+        }
+        let coef = crate::estimator::linalg::normal_equations(&ata, &aty, 4)
+            .unwrap_or_else(|| vec![0.0; 4]);
+        let mut out = vec![coef[1], coef[2], coef[3]];
+        let mean_or_nan = |s: f64, c: f64| if c > 0.0 { s / c } else { 0.0 };
+        out.extend((0..N_BINS).map(|k| mean_or_nan(sum_t[k], cnt_t[k])));
+        out.extend((0..N_BINS).map(|k| mean_or_nan(sum_r[k], cnt_r[k])));
+        out.extend((0..N_BINS).map(|k| {
+            let c = cnt_t[k].max(2.0);
+            let m = d_sum[k] / c;
+            (d_sq[k] / c - m * m).max(f64::MIN_POSITIVE).ln()
+        }));
+        out
+    }
+
+    fn state(&self, x: &[f64]) -> Vec<f64> {
+        let mut u: Vec<f64> = self
+            .ranges
+            .iter()
+            .flat_map(|r| x[r.start..r.end - 1].iter().copied())
+            .collect();
+        let edges = {
+            u.sort_by(f64::total_cmp);
+            (1..N_BINS)
+                .map(|k| u[(k * (u.len() - 1)) / N_BINS])
+                .collect::<Vec<f64>>()
+        };
+        // per bin: sums for the slope of x_t on x_{t-1}
+        let mut s = [[0.0f64; 5]; N_BINS]; // n, su, sy, suu, suy
+        for r in &self.ranges {
+            for t in r.start + 1..r.end {
+                let (a, y) = (x[t - 1], x[t]);
+                let k = bin_of(&edges, a).min(N_BINS - 1);
+                let b = &mut s[k];
+                b[0] += 1.0;
+                b[1] += a;
+                b[2] += y;
+                b[3] += a * a;
+                b[4] += a * y;
+            }
+        }
+        s.iter()
+            .map(|b| {
+                let n = b[0].max(1.0);
+                let suu = b[3] - b[1] * b[1] / n;
+                let suy = b[4] - b[1] * b[2] / n;
+                if suu > 0.0 { suy / suu } else { 0.0 }
+            })
+            .collect()
+    }
+}
+
+/// Mean and (population) variance.
+pub fn mean_var(x: &[f64]) -> (f64, f64) {
+    if x.is_empty() {
+        return (0.0, 0.0);
+    }
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    let v = x.iter().map(|e| (e - m) * (e - m)).sum::<f64>() / n;
+    (m, v)
+}
+
+/// Pearson correlation of the pairs (0 when either side is constant).
+fn corr_pairs(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
+    let v: Vec<(f64, f64)> = pairs.collect();
+    let n = v.len().max(1) as f64;
+    let (ma, mb) = v
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (a, b) in &v {
+        sab += (a - ma) * (b - mb);
+        saa += (a - ma) * (a - ma);
+        sbb += (b - mb) * (b - mb);
+    }
+    if saa > 0.0 && sbb > 0.0 {
+        sab / (saa * sbb).sqrt()
+    } else {
+        0.0
+    }
+}

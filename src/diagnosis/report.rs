@@ -1,0 +1,381 @@
+//! What a diagnosis leaves behind: the JSON object of contracts.md section 3, Parquet
+//! tables for analytics tools, the amended spec, and an SVG report a person can read.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::Arc;
+
+use arrow_array::{ArrayRef, BooleanArray, Float64Array, Int64Array, StringArray};
+use serde_json::{Value, json};
+
+use super::{Diagnosis, Region, Statistic};
+use crate::error::Result;
+use crate::output::{batch, write_parquet, write_text};
+
+/// The JSON object of contracts.md section 3 (with extra keys).
+pub fn to_json(d: &Diagnosis) -> Value {
+    let region = |r: &Region| {
+        json!({
+            "statistic": r.statistic.as_str(),
+            "feature": r.feature,
+            "lo": finite(r.lo),
+            "hi": finite(r.hi),
+            "unit": r.unit,
+            "excess": r.excess,
+            "ratio_or_delta": finite(r.ratio_or_delta),
+        })
+    };
+    let fam = |f: &[(Statistic, f64)]| -> Value {
+        f.iter()
+            .map(|(s, g)| (s.as_str().to_string(), json!(g)))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    };
+    json!({
+        "channel": d.channel,
+        "gap_before": d.gap_before,
+        "gap_after": d.gap_after,
+        "noise_floor": d.noise_floor,
+        "gap_threshold": d.gap_threshold,
+        "significant": d.gap_before > d.gap_threshold,
+        "where": d.where_before.iter().map(region).collect::<Vec<_>>(),
+        "where_after": d.where_after.iter().map(region).collect::<Vec<_>>(),
+        "effects": d.effects.iter().map(|e| json!({
+            "kind": e.kind,
+            "shrink": e.shrink,
+            "gap_after": e.gap_after,
+            "params": e.params,
+            "note": e.note,
+        })).collect::<Vec<_>>(),
+        "added": d.added.iter().map(|e| e.kind.clone()).collect::<Vec<_>>(),
+        "added_effects": d.added.iter().map(|e| json!({
+            "kind": e.kind, "shrink": e.shrink, "gap_after": e.gap_after, "params": e.params,
+        })).collect::<Vec<_>>(),
+        "not_tried": d.not_tried,
+        "families_before": fam(&d.family_before),
+        "families_after": fam(&d.family_after),
+        "replicas": d.replicas,
+        "seed": d.seed,
+        "blocks": d.blocks.ranges.len(),
+        "train_blocks": d.blocks.train.iter().filter(|t| **t).count(),
+        "notes": d.notes,
+    })
+}
+
+fn finite(v: f64) -> Value {
+    if v.is_finite() { json!(v) } else { Value::Null }
+}
+
+fn f64s(v: Vec<f64>) -> ArrayRef {
+    Arc::new(Float64Array::from(v))
+}
+fn strs(v: Vec<String>) -> ArrayRef {
+    Arc::new(StringArray::from(v))
+}
+
+/// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
+/// `spec_after.toml` and `report.svg` into `dir` (each atomically).
+pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
+    crate::output::ensure_dir(dir)?;
+    let ch = |n: usize| strs(vec![d.channel.clone(); n]);
+    let k = d.defs.len();
+    let zb = d.ens_before.z(&d.real);
+    let za = d.ens_after.z(&d.real);
+    let feats = batch(vec![
+        ("channel", ch(k)),
+        (
+            "statistic",
+            strs(d.defs.iter().map(|f| f.statistic.as_str().into()).collect()),
+        ),
+        (
+            "feature",
+            strs(d.defs.iter().map(|f| f.name.clone()).collect()),
+        ),
+        ("lo", f64s(d.defs.iter().map(|f| f.lo).collect())),
+        ("hi", f64s(d.defs.iter().map(|f| f.hi).collect())),
+        (
+            "unit",
+            strs(d.defs.iter().map(|f| f.unit.clone()).collect()),
+        ),
+        ("real", f64s(d.real.clone())),
+        ("sim_mean_before", f64s(d.ens_before.mean.clone())),
+        ("sim_sd_before", f64s(d.ens_before.sd.clone())),
+        ("z_before", f64s(zb)),
+        ("sim_mean_after", f64s(d.ens_after.mean.clone())),
+        ("sim_sd_after", f64s(d.ens_after.sd.clone())),
+        ("z_after", f64s(za)),
+    ])?;
+    let regions: Vec<(&str, &Region)> = d
+        .where_before
+        .iter()
+        .map(|r| ("before", r))
+        .chain(d.where_after.iter().map(|r| ("after", r)))
+        .collect();
+    let nr = regions.len();
+    let reg = batch(vec![
+        ("channel", ch(nr)),
+        ("phase", strs(regions.iter().map(|r| r.0.into()).collect())),
+        (
+            "statistic",
+            strs(
+                regions
+                    .iter()
+                    .map(|r| r.1.statistic.as_str().into())
+                    .collect(),
+            ),
+        ),
+        (
+            "feature",
+            strs(regions.iter().map(|r| r.1.feature.clone()).collect()),
+        ),
+        ("lo", f64s(regions.iter().map(|r| r.1.lo).collect())),
+        ("hi", f64s(regions.iter().map(|r| r.1.hi).collect())),
+        (
+            "unit",
+            strs(regions.iter().map(|r| r.1.unit.clone()).collect()),
+        ),
+        ("excess", f64s(regions.iter().map(|r| r.1.excess).collect())),
+        (
+            "ratio_or_delta",
+            f64s(regions.iter().map(|r| r.1.ratio_or_delta).collect()),
+        ),
+    ])?;
+    let ne = d.effects.len() + d.added.len();
+    let rows: Vec<(&str, i64, &super::Effect)> = d
+        .effects
+        .iter()
+        .enumerate()
+        .map(|(i, e)| ("ranked", i as i64 + 1, e))
+        .chain(
+            d.added
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ("added", i as i64 + 1, e)),
+        )
+        .collect();
+    let eff = batch(vec![
+        ("channel", ch(ne)),
+        ("list", strs(rows.iter().map(|r| r.0.into()).collect())),
+        (
+            "rank",
+            Arc::new(Int64Array::from(
+                rows.iter().map(|r| r.1).collect::<Vec<_>>(),
+            )) as ArrayRef,
+        ),
+        (
+            "kind",
+            strs(rows.iter().map(|r| r.2.kind.clone()).collect()),
+        ),
+        (
+            "gap_after",
+            f64s(rows.iter().map(|r| r.2.gap_after).collect()),
+        ),
+        ("shrink", f64s(rows.iter().map(|r| r.2.shrink).collect())),
+        (
+            "params",
+            strs(rows.iter().map(|r| r.2.params.to_string()).collect()),
+        ),
+        (
+            "note",
+            strs(rows.iter().map(|r| r.2.note.clone()).collect()),
+        ),
+        (
+            "added",
+            Arc::new(BooleanArray::from(
+                rows.iter()
+                    .map(|r| {
+                        r.0 == "added"
+                            || d.added
+                                .iter()
+                                .any(|a| a.kind == r.2.kind && a.params == r.2.params)
+                    })
+                    .collect::<Vec<_>>(),
+            )) as ArrayRef,
+        ),
+    ])?;
+    let mut meta: Vec<(&str, String)> = meta.to_vec();
+    meta.push(("gap_before", d.gap_before.to_string()));
+    meta.push(("gap_after", d.gap_after.to_string()));
+    meta.push(("noise_floor", d.noise_floor.to_string()));
+    let mut written = Vec::new();
+    for (name, b) in [
+        ("gap_features.parquet", &feats),
+        ("gap_regions.parquet", &reg),
+        ("gap_effects.parquet", &eff),
+    ] {
+        let p = dir.join(name);
+        write_parquet(&p, b, &meta)?;
+        written.push(p.display().to_string());
+    }
+    let spec_path = dir.join("spec_after.toml");
+    write_text(&spec_path, &d.spec_after.to_toml()?)?;
+    written.push(spec_path.display().to_string());
+    let svg_path = dir.join("report.svg");
+    write_text(&svg_path, &svg(d))?;
+    written.push(svg_path.display().to_string());
+    Ok(written)
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// A self-contained SVG: the Allan deviation of the real log's withheld part against
+/// the simulation band (mean +- 2 sd of ln AVAR) before and after the added effects,
+/// the out-of-band Allan regions shaded, and the ranked effects with their shrink.
+pub fn svg(d: &Diagnosis) -> String {
+    let (w, h) = (900.0, 760.0);
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">
+<rect width="100%" height="100%" fill="white"/>
+<text x="20" y="24" font-size="16">farma gap: channel {} (gap {:.2} before, {:.2} after, noise floor {:.2})</text>
+"#,
+        esc(&d.channel),
+        d.gap_before,
+        d.gap_after,
+        d.noise_floor
+    );
+    let idx: Vec<usize> = (0..d.defs.len())
+        .filter(|&i| d.defs[i].statistic == Statistic::Adev)
+        .collect();
+    if idx.len() >= 2 {
+        let tau: Vec<f64> = idx.iter().map(|&i| d.defs[i].lo.log10()).collect();
+        // ADEV = sqrt(AVAR): half the ln AVAR, in log10
+        let to_l = |v: f64| 0.5 * v / std::f64::consts::LN_10;
+        let mut all: Vec<f64> = Vec::new();
+        for &i in &idx {
+            for e in [&d.ens_before, &d.ens_after] {
+                all.push(to_l(e.mean[i] - 2.0 * e.sd[i]));
+                all.push(to_l(e.mean[i] + 2.0 * e.sd[i]));
+            }
+            all.push(to_l(d.real[i]));
+        }
+        let (ymin, ymax) = all
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let (ymin, ymax) = (ymin - 0.1, ymax + 0.1);
+        let (x0, x1) = (tau[0], tau[tau.len() - 1]);
+        let panel = |s: &mut String,
+                     top: f64,
+                     title: &str,
+                     e: &super::EnsembleStats,
+                     regions: &[Region]| {
+            let (px, py, pw, ph) = (80.0, top, 780.0, 220.0);
+            let fx = |v: f64| px + (v - x0) / (x1 - x0).max(1e-12) * pw;
+            let fy = |v: f64| py + ph - (v - ymin) / (ymax - ymin).max(1e-12) * ph;
+            let _ = writeln!(
+                s,
+                r##"<rect x="{px}" y="{py}" width="{pw}" height="{ph}" fill="none" stroke="#888"/><text x="{px}" y="{}">{}</text>"##,
+                py - 6.0,
+                esc(title)
+            );
+            for r in regions.iter().filter(|r| r.statistic == Statistic::Adev) {
+                let (a, b) = (fx(r.lo.log10()) - 4.0, fx(r.hi.log10()) + 4.0);
+                let _ = writeln!(
+                    s,
+                    r##"<rect x="{a:.1}" y="{py}" width="{:.1}" height="{ph}" fill="#f4c7c3" opacity="0.6"/>"##,
+                    (b - a).max(8.0)
+                );
+            }
+            let mut band = String::new();
+            for (j, &i) in idx.iter().enumerate() {
+                let _ = write!(
+                    band,
+                    "{:.1},{:.1} ",
+                    fx(tau[j]),
+                    fy(to_l(e.mean[i] + 2.0 * e.sd[i]))
+                );
+            }
+            for (j, &i) in idx.iter().enumerate().rev() {
+                let _ = write!(
+                    band,
+                    "{:.1},{:.1} ",
+                    fx(tau[j]),
+                    fy(to_l(e.mean[i] - 2.0 * e.sd[i]))
+                );
+            }
+            let _ = writeln!(
+                s,
+                r##"<polygon points="{band}" fill="#9ecae1" opacity="0.6"/>"##
+            );
+            let mut line = String::new();
+            for (j, &i) in idx.iter().enumerate() {
+                let _ = write!(line, "{:.1},{:.1} ", fx(tau[j]), fy(to_l(d.real[i])));
+            }
+            let _ = writeln!(
+                s,
+                r##"<polyline points="{line}" fill="none" stroke="#d62728" stroke-width="2"/>"##
+            );
+            // axes: decades
+            let mut dec = x0.floor();
+            while dec <= x1 {
+                if dec >= x0 {
+                    let _ = writeln!(
+                        s,
+                        r##"<text x="{:.1}" y="{}" text-anchor="middle">1e{dec}</text>"##,
+                        fx(dec),
+                        py + ph + 14.0
+                    );
+                }
+                dec += 1.0;
+            }
+            let mut dy = ymin.ceil();
+            while dy <= ymax {
+                let _ = writeln!(
+                    s,
+                    r##"<text x="{}" y="{:.1}" text-anchor="end">1e{dy}</text>"##,
+                    px - 4.0,
+                    fy(dy) + 4.0
+                );
+                dy += 1.0;
+            }
+        };
+        panel(
+            &mut s,
+            60.0,
+            "Allan deviation, withheld part: real (red) vs simulations of the spec (blue, +-2 sd); out-of-band taus shaded. tau [s]",
+            &d.ens_before,
+            &d.where_before,
+        );
+        panel(
+            &mut s,
+            330.0,
+            "... after adding the effects",
+            &d.ens_after,
+            &d.where_after,
+        );
+    }
+    let top = 590.0;
+    let _ = writeln!(
+        s,
+        r#"<text x="80" y="{top}">Candidate effects, ranked by shrink of the withheld-part gap (added effects in bold)</text>"#
+    );
+    for (i, e) in d.effects.iter().take(8).enumerate() {
+        let y = top + 14.0 + i as f64 * 18.0;
+        let bw = (e.shrink.clamp(0.0, 1.0)) * 400.0;
+        let bold = if d.added.iter().any(|a| a.kind == e.kind) {
+            "bold"
+        } else {
+            "normal"
+        };
+        let _ = writeln!(
+            s,
+            r##"<text x="250" y="{:.1}" text-anchor="end" font-weight="{bold}">{}</text><rect x="260" y="{:.1}" width="{bw:.1}" height="12" fill="#2ca02c"/><text x="{:.1}" y="{:.1}">{:.1} %</text>"##,
+            y + 10.0,
+            esc(&e.kind),
+            y,
+            265.0 + bw,
+            y + 10.0,
+            100.0 * e.shrink
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}

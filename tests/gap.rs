@@ -1,0 +1,226 @@
+//! The diagnosis on the project's own bank (src/diagnosis/bank.rs): each effect hidden
+//! in turn must be ranked first and, once added, bring the withheld-part gap within
+//! twice the noise floor; a spec that matches its log must report nothing.
+
+use farma::diagnosis::bank::{self, CHANNEL, Case};
+use farma::diagnosis::{Diagnosis, GapParams, RealLog, diagnose};
+
+fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
+    let (x, temp) = bank::real_log(case, n, seed).unwrap();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz: case.spec.sample_rate_hz,
+        temperature_c: temp.as_deref(),
+        others: vec![],
+        spec_dir: None,
+    };
+    let prm = GapParams {
+        replicas,
+        ..GapParams::default()
+    };
+    diagnose(&real, &case.spec, &prm).unwrap()
+}
+
+#[test]
+fn bank_ranks_the_hidden_effect_first_and_closes_the_gap() {
+    let rate_hz = 10.0;
+    let n = 36_000; // one hour
+    let cases = bank::cases(rate_hz);
+    let mut top1 = 0;
+    let mut closed = 0;
+    let mut lines = Vec::new();
+    for (i, case) in cases.iter().enumerate() {
+        let d = run(case, n, 1000 + i as u64, 12);
+        let first = d
+            .effects
+            .first()
+            .map(|e| e.kind.clone())
+            .unwrap_or_default();
+        let after_first = d.effects.first().map(|e| e.gap_after).unwrap_or(f64::NAN);
+        let ok = first == case.expect;
+        let near = after_first <= 2.0 * d.noise_floor;
+        top1 += usize::from(ok);
+        closed += usize::from(ok && near);
+        lines.push(format!(
+            "{:<26} first {:<26} gap {:>8.2} -> {:>6.2} (floor {:.2}) added {:?} families {}",
+            case.expect,
+            first,
+            d.gap_before,
+            after_first,
+            d.noise_floor,
+            d.added.iter().map(|e| e.kind.as_str()).collect::<Vec<_>>(),
+            d.family_before
+                .iter()
+                .map(|(s, g)| format!("{}={g:.1}", s.as_str()))
+                .collect::<Vec<_>>()
+                .join(" ")
+        ));
+    }
+    let report = lines.join("\n");
+    eprintln!("{report}");
+    let n_cases = cases.len();
+    assert!(
+        top1 * 10 >= 9 * n_cases,
+        "top-1 attribution {top1}/{n_cases}:\n{report}"
+    );
+    assert!(
+        closed * 10 >= 9 * n_cases,
+        "gap within 2x the floor after the right effect in {closed}/{n_cases}:\n{report}"
+    );
+}
+
+#[test]
+fn a_matching_spec_reports_nothing_and_adds_nothing() {
+    for (seed, temp) in [(77, false), (78, true)] {
+        let spec = bank::base_spec(10.0, temp);
+        let case = Case {
+            expect: String::new(),
+            spec: spec.clone(),
+            truth: spec,
+        };
+        let d = run(&case, 36_000, seed, 12);
+        assert!(
+            d.added.is_empty(),
+            "added {:?}",
+            d.added.iter().map(|e| &e.kind).collect::<Vec<_>>()
+        );
+        assert!(d.where_before.is_empty(), "regions {:?}", d.where_before);
+        assert!(
+            d.gap_before <= d.gap_threshold,
+            "{} > {}",
+            d.gap_before,
+            d.gap_threshold
+        );
+        assert!(!d.effects.is_empty(), "candidates are still listed");
+    }
+}
+
+fn farma(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_farma"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn cli_writes_the_contract_json_tables_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec_path = dir.path().join("spec.toml");
+    let mut spec = bank::base_spec(10.0, false);
+    std::fs::write(&spec_path, spec.to_toml().unwrap()).unwrap();
+    // the "real" log: the spec plus a sinusoid
+    spec.channels[0]
+        .components
+        .push(farma::simulator::Component::Sinusoid {
+            amplitude: 0.02,
+            freq_hz: 0.1,
+            phase_rad: 0.0,
+        });
+    let truth_path = dir.path().join("truth.toml");
+    std::fs::write(&truth_path, spec.to_toml().unwrap()).unwrap();
+    let log = dir.path().join("real.parquet");
+    let log_s = log.to_str().unwrap();
+    let out = farma(&[
+        "simulate",
+        truth_path.to_str().unwrap(),
+        "--duration",
+        "1800",
+        "--seed",
+        "3",
+        "-o",
+        log_s,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let outdir = dir.path().join("gap");
+    let cache = dir.path().join("cache");
+    let out = farma(&[
+        "gap",
+        "--real",
+        log_s,
+        "--sim",
+        spec_path.to_str().unwrap(),
+        "--channel",
+        "rate",
+        "--replicas",
+        "8",
+        "--json",
+        "--cache-dir",
+        cache.to_str().unwrap(),
+        "-o",
+        outdir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "channel",
+        "gap_before",
+        "gap_after",
+        "noise_floor",
+        "where",
+        "effects",
+        "added",
+    ] {
+        assert!(v.get(key).is_some(), "missing key {key}: {v}");
+    }
+    assert_eq!(v["channel"], "rate");
+    assert_eq!(v["effects"][0]["kind"], "sinusoid", "{v}");
+    assert_eq!(v["added"][0], "sinusoid", "{v}");
+    let f = v["effects"][0]["params"]["freq_hz"].as_f64().unwrap();
+    assert!((f - 0.1).abs() < 1e-3, "frequency {f}");
+    let w = &v["where"][0];
+    for key in ["statistic", "lo", "hi", "unit", "excess"] {
+        assert!(w.get(key).is_some(), "region lacks {key}: {w}");
+    }
+    assert!(v["gap_after"].as_f64().unwrap() < v["gap_before"].as_f64().unwrap());
+    for f in [
+        "gap_features.parquet",
+        "gap_regions.parquet",
+        "gap_effects.parquet",
+        "spec_after.toml",
+        "report.svg",
+    ] {
+        assert!(outdir.join(f).is_file(), "{f} missing");
+    }
+    // the amended spec is a valid spec with the sinusoid in it
+    let after = farma::simulator::load_spec(&outdir.join("spec_after.toml")).unwrap();
+    assert_eq!(after.channels[0].components.len(), 3);
+    let svg = std::fs::read_to_string(outdir.join("report.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("sinusoid"));
+
+    // bad input: unknown channel, spec without the channel, bad fraction: exit 2, nothing written
+    for (args, what) in [
+        (vec!["--channel", "nope"], "nope"),
+        (
+            vec!["--channel", "rate", "--train-fraction", "1.5"],
+            "train-fraction",
+        ),
+    ] {
+        let bad_dir = dir.path().join("bad");
+        let mut full = vec![
+            "gap",
+            "--real",
+            log_s,
+            "--sim",
+            spec_path.to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+            "-o",
+            bad_dir.to_str().unwrap(),
+        ];
+        full.extend(args);
+        let out = farma(&full);
+        assert_eq!(out.status.code(), Some(2), "{what}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(what), "{err}");
+        assert!(!bad_dir.exists());
+    }
+}
