@@ -9,6 +9,7 @@
 //! - [`stats`]: channel statistics;
 //! - [`simulator`]: the gyro drift simulator (the simulation spec; the generator next);
 //! - [`output`]: Parquet tables written atomically, JSON helpers;
+//! - [`workflow`]: the paper's workflow (prep, select, check, analyze);
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
 //! - [`error`]: the error enum and exit codes.
 
@@ -20,5 +21,6 @@ pub mod output;
 pub mod simulator;
 pub mod stats;
 pub mod store;
+pub mod workflow;
 
 pub use error::{Error, Result};

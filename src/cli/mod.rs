@@ -8,6 +8,7 @@ mod adev;
 mod fit;
 mod info;
 mod ingest;
+mod prep;
 
 use std::path::PathBuf;
 
@@ -40,6 +41,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// Overlapping Allan deviation (also modified Allan and Hadamard) with confidence intervals.
     Adev(adev::AdevArgs),
+    /// Prepare channels as the paper does: Pauta outliers, stationarity test, trend or differencing, mean.
+    Prep(prep::PrepArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -134,5 +137,6 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::run(a, &progress),
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
+        Command::Prep(a) => prep::run(a, &progress),
     }
 }
