@@ -5,10 +5,12 @@
 //! 2 bad input or usage (see [`crate::error`]).
 
 mod adev;
+mod analyze;
 mod fit;
 mod info;
 mod ingest;
 mod prep;
+mod select;
 
 use std::path::PathBuf;
 
@@ -43,6 +45,10 @@ pub enum Command {
     Adev(adev::AdevArgs),
     /// Prepare channels as the paper does: Pauta outliers, stationarity test, trend or differencing, mean.
     Prep(prep::PrepArgs),
+    /// Compare FARMA orders (RSS, GCV, AICc, F-tests, ARMA baseline, constancy test) and pick one.
+    Select(select::SelectArgs),
+    /// The paper's workflow for every channel: prep, select, fit, check; all tables in one folder.
+    Analyze(analyze::AnalyzeArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -138,5 +144,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a, &progress),
         Command::Adev(a) => adev::run(a, &progress),
         Command::Prep(a) => prep::run(a, &progress),
+        Command::Select(a) => select::run(a, &progress),
+        Command::Analyze(a) => analyze::run(a, &progress),
     }
 }

@@ -67,3 +67,23 @@ pub fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(&str, String
         .map_err(|e| Error::output_io(path, e.error))?;
     Ok(())
 }
+
+/// Writes `text` to `path` atomically (temporary file beside it, then rename).
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    use std::io::Write;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".farma-")
+        .suffix(".tmp")
+        .permissions(crate::store::output_permissions())
+        .tempfile_in(&dir)
+        .map_err(|e| Error::output_io(path, e))?;
+    tmp.write_all(text.as_bytes())
+        .map_err(|e| Error::output_io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| Error::output_io(path, e.error))?;
+    Ok(())
+}

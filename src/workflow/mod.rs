@@ -10,8 +10,13 @@
 
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
+pub mod analyze;
+pub mod check;
+pub mod constancy;
 pub mod dist;
+pub mod ljung_box;
 pub mod pauta;
 pub mod prep;
+pub mod select;
 pub mod stationarity;
 pub mod tables;

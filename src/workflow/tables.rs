@@ -154,3 +154,223 @@ pub fn write_prepared_store(
     }
     w.finish(&meta)
 }
+
+/// select.parquet: channel, p, q, d, m, rss, sigma2, trace, df, gcv, aicc, bandwidth,
+/// converged, arma_rss, arma_sigma2, arma_aicc, f_vs_arma, p_vs_arma, selected.
+pub fn select_table(sels: &[(String, &super::select::Selection)]) -> Result<RecordBatch> {
+    let mut ch = vec![];
+    let (mut p, mut q, mut d, mut m) = (vec![], vec![], vec![], vec![]);
+    let (mut rss, mut s2, mut tr, mut df, mut gcv, mut aicc, mut h) =
+        (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut conv, mut arss, mut as2, mut aaicc, mut fv, mut pv, mut sel) =
+        (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+    for (name, s) in sels {
+        for (k, r) in s.rows.iter().enumerate() {
+            ch.push(name.clone());
+            p.push(r.order.0 as i64);
+            q.push(r.order.1 as i64);
+            d.push(r.order.2 as i64);
+            m.push(r.m as i64);
+            rss.push(r.rss);
+            s2.push(r.sigma2);
+            tr.push(r.trace);
+            df.push(r.df);
+            gcv.push(r.gcv);
+            aicc.push(r.aicc);
+            h.push(r.bandwidth);
+            conv.push(r.converged);
+            arss.push(r.arma_rss);
+            as2.push(r.arma_sigma2);
+            aaicc.push(r.arma_aicc);
+            fv.push(r.f_vs_arma);
+            pv.push(r.p_vs_arma);
+            sel.push(k == s.selected);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("p", i(p)),
+        ("q", i(q)),
+        ("d", i(d)),
+        ("m", i(m)),
+        ("rss", f(rss)),
+        ("sigma2", f(s2)),
+        ("trace", f(tr)),
+        ("df", f(df)),
+        ("gcv", f(gcv)),
+        ("aicc", f(aicc)),
+        ("bandwidth", f(h)),
+        ("converged", Arc::new(arrow_array::BooleanArray::from(conv))),
+        ("arma_rss", f(arss)),
+        ("arma_sigma2", f(as2)),
+        ("arma_aicc", f(aaicc)),
+        ("f_vs_arma", f(fv)),
+        ("p_vs_arma", f(pv)),
+        ("selected", Arc::new(arrow_array::BooleanArray::from(sel))),
+    ])
+}
+
+/// ftests.parquet: channel, small, large, f, df1, df2, p_value.
+pub fn ftest_table(sels: &[(String, &super::select::Selection)]) -> Result<RecordBatch> {
+    let (mut ch, mut a, mut b, mut fv, mut d1, mut d2, mut pv) =
+        (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+    for (name, sl) in sels {
+        for t in &sl.ftests {
+            ch.push(name.clone());
+            a.push(t.small.clone());
+            b.push(t.large.clone());
+            fv.push(t.f);
+            d1.push(t.df1);
+            d2.push(t.df2);
+            pv.push(t.p_value);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("small", s(a)),
+        ("large", s(b)),
+        ("f", f(fv)),
+        ("df1", f(d1)),
+        ("df2", f(d2)),
+        ("p_value", f(pv)),
+    ])
+}
+
+/// constancy.parquet: channel, p, q, d, statistic, p_value, bootstrap, bandwidth,
+/// rss0, rss1.
+pub fn constancy_table(
+    rows: &[(String, (usize, usize, usize), &super::constancy::Constancy)],
+) -> Result<RecordBatch> {
+    let mut ch = vec![];
+    let (mut p, mut q, mut d, mut t, mut pv, mut b, mut h, mut r0, mut r1) = (
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+    );
+    for (name, o, c) in rows {
+        ch.push(name.clone());
+        p.push(o.0 as i64);
+        q.push(o.1 as i64);
+        d.push(o.2 as i64);
+        t.push(c.statistic);
+        pv.push(c.p_value);
+        b.push(c.bootstrap as i64);
+        h.push(c.bandwidth);
+        r0.push(c.rss0);
+        r1.push(c.rss1);
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("p", i(p)),
+        ("q", i(q)),
+        ("d", i(d)),
+        ("statistic", f(t)),
+        ("p_value", f(pv)),
+        ("bootstrap", i(b)),
+        ("bandwidth", f(h)),
+        ("rss0", f(r0)),
+        ("rss1", f(r1)),
+    ])
+}
+
+/// acf.parquet: channel, lag, acf, band.
+pub fn acf_table(rows: &[(String, &super::ljung_box::Whiteness)]) -> Result<RecordBatch> {
+    let (mut ch, mut lag, mut r, mut band) = (vec![], vec![], vec![], vec![]);
+    for (name, w) in rows {
+        for (k, v) in w.acf.iter().enumerate() {
+            ch.push(name.clone());
+            lag.push(k as i64 + 1);
+            r.push(*v);
+            band.push(w.band);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("lag", i(lag)),
+        ("acf", f(r)),
+        ("band", f(band)),
+    ])
+}
+
+/// ljung_box.parquet: channel, lag, q, df, p_value.
+pub fn ljung_box_table(rows: &[(String, &super::ljung_box::Whiteness)]) -> Result<RecordBatch> {
+    let (mut ch, mut lag, mut q, mut df, mut p) = (vec![], vec![], vec![], vec![], vec![]);
+    for (name, w) in rows {
+        for b in &w.ljung_box {
+            ch.push(name.clone());
+            lag.push(b.lag as i64);
+            q.push(b.q);
+            df.push(b.df as i64);
+            p.push(b.p_value);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("lag", i(lag)),
+        ("q", f(q)),
+        ("df", i(df)),
+        ("p_value", f(p)),
+    ])
+}
+
+/// prediction.parquet: channel, k (steps ahead), n, rmse_farma, rmse_arma,
+/// holdout_std, holdout.
+pub fn prediction_table(rows: &[(String, &super::check::Prediction)]) -> Result<RecordBatch> {
+    let (mut ch, mut k, mut n, mut rf, mut ra, mut sd, mut ho) =
+        (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+    for (name, pr) in rows {
+        for h in &pr.horizons {
+            ch.push(name.clone());
+            k.push(h.k as i64);
+            n.push(h.n as i64);
+            rf.push(h.rmse_farma);
+            ra.push(h.rmse_arma);
+            sd.push(pr.holdout_std);
+            ho.push(pr.holdout as i64);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("k", i(k)),
+        ("n", i(n)),
+        ("rmse_farma", f(rf)),
+        ("rmse_arma", f(ra)),
+        ("holdout_std", f(sd)),
+        ("holdout", i(ho)),
+    ])
+}
+
+/// poly.parquet: channel, m, degree, coef (list: 1, u, u^2, ...), wrms, criterion
+/// (list by degree).
+pub fn poly_table(rows: &[(String, &[super::check::PolyFit])]) -> Result<RecordBatch> {
+    use arrow_array::builder::{Float64Builder, ListBuilder};
+    let (mut ch, mut m, mut deg, mut w) = (vec![], vec![], vec![], vec![]);
+    let mut coef = ListBuilder::new(Float64Builder::new());
+    let mut bic = ListBuilder::new(Float64Builder::new());
+    for (name, fits) in rows {
+        for pf in fits.iter() {
+            ch.push(name.clone());
+            m.push(pf.m as i64);
+            deg.push(pf.degree as i64);
+            w.push(pf.wrms);
+            coef.values().append_slice(&pf.coef);
+            coef.append(true);
+            bic.values().append_slice(&pf.criterion);
+            bic.append(true);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("m", i(m)),
+        ("degree", i(deg)),
+        ("coef", Arc::new(coef.finish())),
+        ("wrms", f(w)),
+        ("criterion", Arc::new(bic.finish())),
+    ])
+}
