@@ -160,7 +160,7 @@ fn check_of_a_fitted_farma_model() {
         ar: &arma.ar,
         ma: &arma.ma,
     };
-    let pr = predict_holdout(&m, &lin, m.mean, &x, 500, &[1, 2, 5, 10, 1000]);
+    let pr = predict_holdout(&m, m.mean, &lin, m.mean, &x, 500, &[1, 2, 5, 10, 1000]);
     assert_eq!(pr.horizons.len(), 4); // k = 1000 exceeds the hold-out
     let one = &pr.horizons[0];
     eprintln!("{:?}", pr.horizons);

@@ -6,11 +6,13 @@
 
 mod adev;
 mod analyze;
+mod check;
 mod fit;
 mod info;
 mod ingest;
 mod prep;
 mod select;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -49,6 +51,10 @@ pub enum Command {
     Select(select::SelectArgs),
     /// The paper's workflow for every channel: prep, select, fit, check; all tables in one folder.
     Analyze(analyze::AnalyzeArgs),
+    /// Check a fitted model on a log: residual whiteness, hold-out prediction vs ARMA, polynomial f_m.
+    Check(check::CheckArgs),
+    /// Simulate a gyro log from a simulation spec (TOML).
+    Simulate(simulate::SimulateArgs),
 }
 
 /// How to read the input log (shared by every command that reads one).
@@ -146,5 +152,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Prep(a) => prep::run(a, &progress),
         Command::Select(a) => select::run(a, &progress),
         Command::Analyze(a) => analyze::run(a, &progress),
+        Command::Check(a) => check::run(a, &progress),
+        Command::Simulate(a) => simulate::run(a, &progress),
     }
 }

@@ -17,6 +17,7 @@ pub mod kernel;
 pub mod linalg;
 pub mod moments;
 pub mod problem;
+pub mod saved;
 pub mod tables;
 
 pub use fit::{FarmaParams, FitPath, FittedFarma, Init, ValidParams, fit};

@@ -3,7 +3,13 @@
 //!
 //! - [`spec`]: the simulation spec of `../shared/design/contracts.md` section 2 (TOML):
 //!   parsing, validation with errors that name the key, and writing a spec back out.
+//! - [`generate`]: the generator, every component kind, deterministic per seed and
+//!   independent of the thread count.
+//! - [`write`]: writing a simulated log (Parquet, farma store, CSV) atomically.
 
+pub mod generate;
 pub mod spec;
+pub mod write;
 
+pub use generate::{SimRequest, Simulated, Simulator, component_signal, simulate};
 pub use spec::{ChannelSpec, Component, FarmaModel, Kind, Spec, load_spec, parse_spec};

@@ -89,6 +89,7 @@ pub fn analyze_channel(prep: ChannelPrep, prm: &AnalyzeParams) -> Result<Channel
     let prediction = (prm.holdout > 0).then(|| {
         predict_holdout(
             model,
+            model.mean,
             &Linear {
                 ar: &row.arma_ar,
                 ma: &row.arma_ma,

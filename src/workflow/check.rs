@@ -102,7 +102,8 @@ impl Predictor for Linear<'_> {
     }
 }
 
-fn residuals_of(m: &dyn Predictor, y: &[f64]) -> Vec<f64> {
+/// Residuals of a model on centred values `y` by its recursion (zeros before the start).
+pub fn residuals_of(m: &dyn Predictor, y: &[f64]) -> Vec<f64> {
     let (p, d, b) = (m.p(), m.d(), m.b());
     let mut f = vec![0.0; p];
     let mut e = vec![0.0; y.len()];
@@ -171,10 +172,11 @@ pub fn kstep(m: &dyn Predictor, y: &[f64], holdout: usize, kmax: usize) -> (Vec<
 }
 
 /// Hold-out prediction of the last `holdout` samples of `x` (channel units) by the
-/// FARMA model and the linear baseline (fitted with mean `arma_mean`), at horizons
+/// FARMA model (fitted to x - `model_mean`) and the linear baseline (fitted with mean `arma_mean`), at horizons
 /// `ks` (those up to the hold-out length).
 pub fn predict_holdout(
-    model: &FittedFarma,
+    model: &dyn Predictor,
+    model_mean: f64,
     lin: &Linear,
     arma_mean: f64,
     x: &[f64],
@@ -187,7 +189,7 @@ pub fn predict_holdout(
         .filter(|k| *k <= holdout)
         .max()
         .unwrap_or(1);
-    let y: Vec<f64> = x.iter().map(|v| v - model.mean).collect();
+    let y: Vec<f64> = x.iter().map(|v| v - model_mean).collect();
     let ya: Vec<f64> = x.iter().map(|v| v - arma_mean).collect();
     let (sf, cf) = kstep(model, &y, holdout, kmax);
     let (sa, ca) = kstep(lin, &ya, holdout, kmax);
@@ -215,82 +217,102 @@ pub fn poly_fits(model: &FittedFarma, max_degree: usize) -> Vec<PolyFit> {
     let p = model.p;
     (0..p)
         .map(|m| {
-            let pts: Vec<usize> = (0..model.grid.len())
-                .filter(|&g| {
-                    let se = model.se[g * p + m];
-                    !model.filled[g] && se.is_finite() && se > 0.0
-                })
+            let keep: Vec<usize> = (0..model.grid.len())
+                .filter(|&g| !model.filled[g])
                 .collect();
-            let gn = pts.len();
-            let none = PolyFit {
-                m: m + 1,
-                degree: 0,
-                coef: vec![f64::NAN],
-                wrms: f64::NAN,
-                criterion: vec![],
-            };
-            if gn < 3 {
-                return none;
-            }
-            let scale = pts
-                .iter()
-                .map(|&g| model.grid[g].abs())
-                .fold(0.0f64, f64::max)
-                .max(f64::MIN_POSITIVE);
-            let span = model.grid[pts[gn - 1]] - model.grid[pts[0]];
-            let g_eff = (span / model.bandwidth).clamp(2.0, gn as f64);
-            let w: Vec<f64> = pts.iter().map(|&g| model.se[g * p + m].powi(-2)).collect();
-            let wsum: f64 = w.iter().sum();
-            let maxdeg = max_degree.min(gn - 2);
-            let mut best: Option<(f64, usize, Vec<f64>, f64)> = None;
-            let mut crit = Vec::new();
-            for deg in 0..=maxdeg {
-                let k = deg + 1;
-                let mut ata = vec![0.0; k * k];
-                let mut aty = vec![0.0; k];
-                for (&g, wg) in pts.iter().zip(&w) {
-                    let z = model.grid[g] / scale;
-                    let fv = model.coef.f[g * p + m];
-                    let pw: Vec<f64> = (0..k).map(|i| z.powi(i as i32)).collect();
-                    for i in 0..k {
-                        for j in 0..k {
-                            ata[i * k + j] += wg * pw[i] * pw[j];
-                        }
-                        aty[i] += wg * pw[i] * fv;
-                    }
-                }
-                let Some(c) = normal_equations(&ata, &aty, k) else {
-                    crit.push(f64::NAN);
-                    continue;
-                };
-                let chi2: f64 = pts
-                    .iter()
-                    .zip(&w)
-                    .map(|(&g, wg)| {
-                        let z = model.grid[g] / scale;
-                        let fit: f64 = (0..k).map(|i| c[i] * z.powi(i as i32)).sum();
-                        wg * (model.coef.f[g * p + m] - fit).powi(2)
-                    })
-                    .sum();
-                let cr = chi2 + k as f64 * g_eff.ln();
-                crit.push(cr);
-                if best.as_ref().is_none_or(|bb| cr < bb.0) {
-                    let coef: Vec<f64> = (0..k).map(|i| c[i] / scale.powi(i as i32)).collect();
-                    best = Some((cr, deg, coef, (chi2 / wsum).sqrt()));
-                }
-            }
-            match best {
-                Some((_, degree, coef, wrms)) => PolyFit {
-                    m: m + 1,
-                    degree,
-                    coef,
-                    wrms,
-                    criterion: crit,
-                },
-                None => none,
-            }
+            let grid: Vec<f64> = keep.iter().map(|&g| model.grid[g]).collect();
+            let f: Vec<f64> = keep.iter().map(|&g| model.coef.f[g * p + m]).collect();
+            let se: Vec<f64> = keep.iter().map(|&g| model.se[g * p + m]).collect();
+            poly_fit_curve(m + 1, &grid, &f, &se, model.bandwidth, max_degree)
         })
         .collect()
+}
+
+/// The polynomial fit of one curve: values `f` at ascending centred `grid` points with
+/// standard errors `se` (points with a non-finite or zero se are left out), for a
+/// model of bandwidth `h`.
+pub fn poly_fit_curve(
+    m: usize,
+    grid: &[f64],
+    f: &[f64],
+    se: &[f64],
+    h: f64,
+    max_degree: usize,
+) -> PolyFit {
+    let pts: Vec<usize> = (0..grid.len())
+        .filter(|&g| se[g].is_finite() && se[g] > 0.0 && f[g].is_finite())
+        .collect();
+    let gn = pts.len();
+    let none = PolyFit {
+        m,
+        degree: 0,
+        coef: vec![f64::NAN],
+        wrms: f64::NAN,
+        criterion: vec![],
+    };
+    if gn < 3 {
+        return none;
+    }
+    let scale = pts
+        .iter()
+        .map(|&g| grid[g].abs())
+        .fold(0.0f64, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let span = grid[pts[gn - 1]] - grid[pts[0]];
+    let g_eff = if h > 0.0 {
+        (span / h).clamp(2.0, gn as f64)
+    } else {
+        gn as f64
+    };
+    let w: Vec<f64> = pts.iter().map(|&g| se[g].powi(-2)).collect();
+    let wsum: f64 = w.iter().sum();
+    let maxdeg = max_degree.min(gn - 2);
+    let mut best: Option<(f64, usize, Vec<f64>, f64)> = None;
+    let mut crit = Vec::new();
+    for deg in 0..=maxdeg {
+        let k = deg + 1;
+        let mut ata = vec![0.0; k * k];
+        let mut aty = vec![0.0; k];
+        for (&g, wg) in pts.iter().zip(&w) {
+            let z = grid[g] / scale;
+            let pw: Vec<f64> = (0..k).map(|i| z.powi(i as i32)).collect();
+            for i in 0..k {
+                for j in 0..k {
+                    ata[i * k + j] += wg * pw[i] * pw[j];
+                }
+                aty[i] += wg * pw[i] * f[g];
+            }
+        }
+        let Some(c) = normal_equations(&ata, &aty, k) else {
+            crit.push(f64::NAN);
+            continue;
+        };
+        let chi2: f64 = pts
+            .iter()
+            .zip(&w)
+            .map(|(&g, wg)| {
+                let z = grid[g] / scale;
+                let fit: f64 = (0..k).map(|i| c[i] * z.powi(i as i32)).sum();
+                wg * (f[g] - fit).powi(2)
+            })
+            .sum();
+        let cr = chi2 + k as f64 * g_eff.ln();
+        crit.push(cr);
+        if best.as_ref().is_none_or(|bb| cr < bb.0) {
+            let coef: Vec<f64> = (0..k).map(|i| c[i] / scale.powi(i as i32)).collect();
+            best = Some((cr, deg, coef, (chi2 / wsum).sqrt()));
+        }
+    }
+    match best {
+        Some((_, degree, coef, wrms)) => PolyFit {
+            m,
+            degree,
+            coef,
+            wrms,
+            criterion: crit,
+        },
+        None => none,
+    }
 }
 
 /// Everything `check` reports for one channel.

@@ -1,0 +1,75 @@
+//! White-type noise: angle random walk (white rate noise), angle quantization noise,
+//! outliers. Draws come by fixed chunks from the component's streams (see
+//! [`super::streams`]), so the output does not depend on the thread count.
+
+use rand::Rng;
+use rand_distr::{Distribution, Geometric, StandardNormal};
+use rayon::prelude::*;
+
+use super::streams::{CHUNK, StreamKey, for_chunks};
+
+/// white_noise: white rate noise with IEEE Std 952 angle random walk coefficient `n`
+/// [u sqrt(s)]: one-sided PSD n^2, so each sample (an average over dt = 1/rate_hz) has
+/// standard deviation n / sqrt(dt) = n sqrt(rate_hz), and ADEV(tau) = n / sqrt(tau)
+/// exactly at every tau = m dt (IEEE Std 952-1997 Annex C, eq. C.13 with the rate
+/// sample being the average rate over dt).
+pub fn white_noise(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey) {
+    let sd = n * rate_hz.sqrt();
+    for_chunks(out, |c, s| {
+        let mut rng = key.rng(0, c);
+        for v in s.iter_mut() {
+            let w: f64 = StandardNormal.sample(&mut rng);
+            *v += sd * w;
+        }
+    });
+}
+
+/// quantization: the rate read from a quantized angle. The angle error e_k is white,
+/// uniform on [-Q/2, Q/2) with the angle quantum Q = sqrt(12) q (variance q^2), and
+/// the rate sample is (e_k - e_{k-1}) / dt [u]. Then the angle error is white with
+/// variance q^2, its second difference over m samples has variance 6 q^2, and the
+/// Allan variance is 6 q^2 / (2 tau^2): ADEV(tau) = sqrt(3) q / tau exactly at every
+/// tau = m dt (IEEE Std 952-1997 Annex C, quantization noise). The integrated angle
+/// sum_k rate_k dt = e_k - e_{-1} stays within one quantum. e_{-1} is drawn from the
+/// initial-state stream.
+pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
+    let quantum = 12f64.sqrt() * q;
+    let mut e = vec![0.0; out.len()];
+    for_chunks(&mut e, |c, s| {
+        let mut rng = key.rng(0, c);
+        for v in s.iter_mut() {
+            *v = quantum * (rng.random::<f64>() - 0.5);
+        }
+    });
+    let e_init = quantum * (key.init_rng(0).random::<f64>() - 0.5);
+    let e = &e;
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, s)| {
+        let base = c * CHUNK;
+        for (j, v) in s.iter_mut().enumerate() {
+            let k = base + j;
+            let prev = if k == 0 { e_init } else { e[k - 1] };
+            *v += (e[k] - prev) * rate_hz;
+        }
+    });
+}
+
+/// outliers: at each sample, with probability rate_hz / sample_rate_hz independently
+/// (a Bernoulli process, `rate_hz` outliers per second on average), a spike
+/// scale * N(0, 1) [u] is added. Positions come from geometric gaps drawn per chunk
+/// (memoryless, so restarting at each chunk start is exact).
+pub fn outliers(out: &mut [f64], rate_hz: f64, scale: f64, sample_rate_hz: f64, key: &StreamKey) {
+    let p = (rate_hz / sample_rate_hz).min(1.0);
+    if p <= 0.0 {
+        return;
+    }
+    let gaps = Geometric::new(p).expect("0 < p <= 1");
+    for_chunks(out, |c, s| {
+        let mut rng = key.rng(0, c);
+        let mut pos = gaps.sample(&mut rng);
+        while (pos as usize) < s.len() {
+            let w: f64 = StandardNormal.sample(&mut rng);
+            s[pos as usize] += scale * w;
+            pos = pos.saturating_add(1).saturating_add(gaps.sample(&mut rng));
+        }
+    });
+}

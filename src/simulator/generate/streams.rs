@@ -1,0 +1,161 @@
+//! Random streams and chunked generation: what makes a simulation deterministic for a
+//! seed and independent of the thread count.
+//!
+//! Every random draw comes from a ChaCha8 stream keyed by (seed, replica) and numbered
+//! by (channel index, component index, sub-process, chunk index):
+//! - the 256-bit ChaCha key is four 64-bit words `mix64(seed)`, `mix64(seed ^ C1)`,
+//!   `mix64(replica)`, `mix64(replica ^ C2)`, where `mix64` is the SplitMix64 finaliser
+//!   (a bijection of u64, Steele, Lea and Flood 2014), so distinct (seed, replica) pairs
+//!   give distinct keys;
+//! - the 64-bit ChaCha stream number is `channel << 48 | component << 32 | sub << 24 |
+//!   chunk` (16, 16, 8 and 24 bits), so every (channel, component, sub-process, chunk)
+//!   draws from its own stream of 2^64 words;
+//! - the chunk `INIT_CHUNK` (all 24 bits set) is reserved for initial states and
+//!   burn-ins.
+//!
+//! Samples are generated in fixed chunks of [`CHUNK`] samples: chunk c of a component
+//! always covers samples c*CHUNK .. (c+1)*CHUNK and draws from its own stream, whoever
+//! computes it, so rayon may run the chunks in any order on any number of threads and
+//! the output is bit-identical. Linear first-order recursions (Gauss-Markov, random
+//! walk, the Gauss-Markov bank of bias instability) run by chunks from a zero state
+//! and are then fixed up with the carried state ([`ar1_bank`]); the carry scan is a
+//! sequential pass over chunk ends in a fixed order.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// Samples per chunk (fixed: changing it changes every simulated value).
+pub const CHUNK: usize = 1 << 16;
+/// The chunk index reserved for initial states and burn-ins.
+pub const INIT_CHUNK: u64 = (1 << 24) - 1;
+/// Most samples one component can simulate (chunk indices below `INIT_CHUNK`).
+pub const MAX_SAMPLES: usize = (INIT_CHUNK as usize) * CHUNK;
+
+/// SplitMix64's finaliser (Steele, Lea, Flood, "Fast splittable pseudorandom number
+/// generators", OOPSLA 2014): a bijection of u64 with good avalanche.
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Where a component's draws come from: (seed, replica, channel, component).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamKey {
+    pub seed: u64,
+    pub replica: u64,
+    pub channel: usize,
+    pub component: usize,
+}
+
+impl StreamKey {
+    /// The generator of sub-process `sub` (0 for components with one) for `chunk`.
+    pub fn rng(&self, sub: usize, chunk: u64) -> ChaCha8Rng {
+        debug_assert!(self.channel < 1 << 16 && self.component < 1 << 16 && sub < 1 << 8);
+        debug_assert!(chunk <= INIT_CHUNK);
+        let words = [
+            mix64(self.seed),
+            mix64(self.seed ^ 0x5851_F42D_4C95_7F2D),
+            mix64(self.replica),
+            mix64(self.replica ^ 0x1405_7B7E_F767_814F),
+        ];
+        let mut key = [0u8; 32];
+        for (i, w) in words.iter().enumerate() {
+            key[8 * i..8 * i + 8].copy_from_slice(&w.to_le_bytes());
+        }
+        let mut rng = ChaCha8Rng::from_seed(key);
+        rng.set_stream(
+            (self.channel as u64) << 48
+                | (self.component as u64) << 32
+                | (sub as u64) << 24
+                | chunk,
+        );
+        rng
+    }
+
+    /// The generator for initial states and burn-ins of sub-process `sub`.
+    pub fn init_rng(&self, sub: usize) -> ChaCha8Rng {
+        self.rng(sub, INIT_CHUNK)
+    }
+}
+
+/// Calls `f(chunk_index, chunk)` for every fixed-size chunk of `out`, in parallel.
+pub fn for_chunks(out: &mut [f64], f: impl Fn(u64, &mut [f64]) + Sync) {
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, s)| f(c as u64, s));
+}
+
+/// One first-order recursion x_t = phi x_{t-1} + gain w_t (w_t standard normal) of a
+/// bank, started from x_{-1} = `x_init`.
+#[derive(Debug, Clone, Copy)]
+pub struct Ar1 {
+    pub phi: f64,
+    pub gain: f64,
+    pub x_init: f64,
+}
+
+/// Adds the sum of the bank's recursions to `out`; recursion k draws w from
+/// sub-stream k of `key`.
+///
+/// By chunks: each chunk runs every recursion from a zero state (in parallel), the
+/// true state at each chunk start is carried by one sequential pass over the chunk
+/// ends (x_end(c) = y_end(c) + phi^L x_end(c-1)), and each chunk then adds
+/// phi^(j+1) x_start for its j-th sample (in parallel). Linearity makes the sum
+/// exactly the sequential recursion up to rounding, and the fixed chunking makes the
+/// rounding independent of the thread count.
+pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
+    use rand_distr::{Distribution, StandardNormal};
+    let n_chunks = out.len().div_ceil(CHUNK);
+    let k = bank.len();
+    // Phase 1: zero-state runs; ends[c * k + i] = y_i at the end of chunk c.
+    let mut ends = vec![0.0; n_chunks * k];
+    out.par_chunks_mut(CHUNK)
+        .zip(ends.par_chunks_mut(k.max(1)))
+        .enumerate()
+        .for_each(|(c, (s, end))| {
+            for (i, ar) in bank.iter().enumerate() {
+                let mut rng = key.rng(i, c as u64);
+                let mut y = 0.0;
+                for v in s.iter_mut() {
+                    let w: f64 = StandardNormal.sample(&mut rng);
+                    y = ar.phi * y + ar.gain * w;
+                    *v += y;
+                }
+                end[i] = y;
+            }
+        });
+    // Phase 2: the state before each chunk, sequentially.
+    let mut starts = vec![0.0; n_chunks * k];
+    for (i, ar) in bank.iter().enumerate() {
+        let mut x = ar.x_init;
+        for c in 0..n_chunks {
+            starts[c * k + i] = x;
+            let len = CHUNK.min(out.len() - c * CHUNK);
+            x = ar.phi.powi(len as i32) * x + ends[c * k + i];
+        }
+    }
+    // Phase 3: add the homogeneous part phi^(j+1) x_start.
+    out.par_chunks_mut(CHUNK)
+        .zip(starts.par_chunks(k.max(1)))
+        .for_each(|(s, start)| {
+            for (i, ar) in bank.iter().enumerate() {
+                let mut h = start[i];
+                if h == 0.0 {
+                    continue;
+                }
+                for v in s.iter_mut() {
+                    h *= ar.phi;
+                    *v += h;
+                }
+            }
+        });
+}
+
+/// `n` standard normal draws from `rng` (burn-ins and initial states).
+pub fn normals(rng: &mut ChaCha8Rng, n: usize) -> Vec<f64> {
+    use rand_distr::{Distribution, StandardNormal};
+    (0..n).map(|_| StandardNormal.sample(rng)).collect()
+}

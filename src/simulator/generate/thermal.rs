@@ -1,0 +1,90 @@
+//! Temperature-driven components: temperature_bias, thermal_rate, and the scale of
+//! heteroskedastic noise. The temperature series (degC, one value per sample) comes
+//! with the request.
+
+use rayon::prelude::*;
+
+/// Mean of the temperature series (the default reference temperature), by a
+/// sequential sum (deterministic).
+pub fn mean_c(temp_c: &[f64]) -> f64 {
+    temp_c.iter().sum::<f64>() / temp_c.len() as f64
+}
+
+/// temperature_bias: sum_j coeffs[j-1] (T_k - reference_c)^j [u], by Horner's rule.
+pub fn temperature_bias(out: &mut [f64], coeffs: &[f64], reference_c: f64, temp_c: &[f64]) {
+    out.par_iter_mut()
+        .zip(temp_c.par_iter())
+        .for_each(|(o, t)| {
+            let u = t - reference_c;
+            *o += coeffs.iter().rev().fold(0.0, |acc, c| acc * u + c) * u;
+        });
+}
+
+/// Half-width h (samples) of the centred moving average used by thermal_rate:
+/// h = round(smoothing_s * rate_hz / 2), window 2h + 1 samples.
+pub fn smoothing_half_width(smoothing_s: f64, rate_hz: f64) -> usize {
+    (smoothing_s * rate_hz / 2.0).round() as usize
+}
+
+/// The temperature smoothed by a centred moving average over samples k-h ..= k+h,
+/// truncated at the ends of the series (prefix sums, compensated).
+pub fn smooth(temp_c: &[f64], h: usize) -> Vec<f64> {
+    let n = temp_c.len();
+    if h == 0 {
+        return temp_c.to_vec();
+    }
+    // Prefix sums with Neumaier compensation (sum and correction kept apart).
+    let mut s = vec![0.0; n + 1];
+    let mut c = vec![0.0; n + 1];
+    let (mut sum, mut comp) = (0.0f64, 0.0f64);
+    for (i, &x) in temp_c.iter().enumerate() {
+        let t = sum + x;
+        if sum.abs() >= x.abs() {
+            comp += (sum - t) + x;
+        } else {
+            comp += (x - t) + sum;
+        }
+        sum = t;
+        s[i + 1] = sum;
+        c[i + 1] = comp;
+    }
+    (0..n)
+        .map(|k| {
+            let lo = k.saturating_sub(h);
+            let hi = (k + h + 1).min(n);
+            ((s[hi] - s[lo]) + (c[hi] - c[lo])) / (hi - lo) as f64
+        })
+        .collect()
+}
+
+/// thermal_rate: coeff * dS/dt [u], S the temperature smoothed over `smoothing_s`
+/// ([`smooth`], half-width [`smoothing_half_width`]), dS/dt by the central difference
+/// (S_{k+1} - S_{k-1}) rate_hz / 2, one-sided at the two ends (0 for one sample). The
+/// Shupe effect of a fibre-optic gyro: a bias proportional to the rate of change of
+/// temperature (Shupe, Appl. Opt. 19(5), 1980).
+pub fn thermal_rate(out: &mut [f64], coeff: f64, smoothing_s: f64, rate_hz: f64, temp_c: &[f64]) {
+    let n = temp_c.len();
+    if n < 2 {
+        return;
+    }
+    let s = smooth(temp_c, smoothing_half_width(smoothing_s, rate_hz));
+    for (k, o) in out.iter_mut().enumerate() {
+        let d = if k == 0 {
+            (s[1] - s[0]) * rate_hz
+        } else if k == n - 1 {
+            (s[n - 1] - s[n - 2]) * rate_hz
+        } else {
+            (s[k + 1] - s[k - 1]) * rate_hz / 2.0
+        };
+        *o += coeff * d;
+    }
+}
+
+/// heteroskedastic scale at each sample: max(0, 1 + slope (T_k - reference_c)), the
+/// reference being the mean temperature. Clamped at 0: a noise scale is not negative.
+pub fn scale(slope: f64, reference_c: f64, temp_c: &[f64]) -> Vec<f64> {
+    temp_c
+        .iter()
+        .map(|t| (1.0 + slope * (t - reference_c)).max(0.0))
+        .collect()
+}
