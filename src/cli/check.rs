@@ -98,7 +98,10 @@ fn col<'a, T: 'static>(b: &'a RecordBatch, name: &str, path: &Path) -> Result<&'
 }
 
 /// Channel names, bandwidths of params.parquet; (m, grid, se) of coef.parquet for `channel`.
-fn model_extras(dir: &Path, channel: &str) -> Result<(f64, Vec<(usize, f64, f64)>)> {
+/// (m, grid, se) of one coefficient row.
+type CoefRow = (usize, f64, f64);
+
+fn model_extras(dir: &Path, channel: &str) -> Result<(f64, Vec<CoefRow>)> {
     let pp = dir.join("params.parquet");
     let mut h = f64::NAN;
     for b in read(&pp)? {
@@ -198,7 +201,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let (h, rows) = model_extras(&a.model, name)?;
         let mut poly = Vec::new();
         for m in 1..=model.p {
-            let pts: Vec<&(usize, f64, f64)> = rows.iter().filter(|r| r.0 == m).collect();
+            let pts: Vec<&CoefRow> = rows.iter().filter(|r| r.0 == m).collect();
             let grid: Vec<f64> = pts.iter().map(|r| r.1 - model.mean).collect();
             let se: Vec<f64> = pts.iter().map(|r| r.2).collect();
             let f: Vec<f64> = pts

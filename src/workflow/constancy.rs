@@ -44,8 +44,19 @@ pub struct Constancy {
     pub t_boot: Vec<f64>,
 }
 
+/// The GLR statistic of one series and the null model behind it.
+struct Glr {
+    t: f64,
+    rss0: f64,
+    rss1: f64,
+    ar: Vec<f64>,
+    ma: Vec<f64>,
+    /// Residuals of the ARMA fit.
+    e: Vec<f64>,
+}
+
 /// T, RSS_0, RSS_1 and the ARMA fit of a (demeaned) series at fixed bandwidth.
-fn glr(x: &[f64], prm: &FarmaParams) -> Result<(f64, f64, f64, Vec<f64>, Vec<f64>, Vec<f64>)> {
+fn glr(x: &[f64], prm: &FarmaParams) -> Result<Glr> {
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = x.len();
     let start = p.max(q).max(d);
@@ -64,7 +75,14 @@ fn glr(x: &[f64], prm: &FarmaParams) -> Result<(f64, f64, f64, Vec<f64>, Vec<f64
     .validate(n)?;
     let m1 = fit(x, &valid)?;
     let t = 0.5 * (n - start) as f64 * (rss0 / m1.rss).ln();
-    Ok((t, rss0, m1.rss, arma.ar, arma.ma, e))
+    Ok(Glr {
+        t,
+        rss0,
+        rss1: m1.rss,
+        ar: arma.ar,
+        ma: arma.ma,
+        e,
+    })
 }
 
 /// The test on series `x` (its mean is removed first).
@@ -79,7 +97,14 @@ pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
     let n = x.len();
     let mean = x.iter().sum::<f64>() / n as f64;
     let xc: Vec<f64> = x.iter().map(|v| v - mean).collect();
-    let (t, rss0, rss1, ar, ma, e) = glr(&xc, &prm.farma)?;
+    let Glr {
+        t,
+        rss0,
+        rss1,
+        ar,
+        ma,
+        e,
+    } = glr(&xc, &prm.farma)?;
     let start = prm.farma.p.max(prm.farma.q).max(prm.farma.d);
     let pool: Vec<f64> = {
         let r = &e[start..];
@@ -113,7 +138,7 @@ pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
             let xb = &xs[burn..];
             let mb = xb.iter().sum::<f64>() / n as f64;
             let xb: Vec<f64> = xb.iter().map(|v| v - mb).collect();
-            glr(&xb, &prm.farma).map(|r| r.0).unwrap_or(f64::NAN)
+            glr(&xb, &prm.farma).map(|r| r.t).unwrap_or(f64::NAN)
         })
         .collect();
     let ok: Vec<f64> = t_boot.iter().copied().filter(|v| v.is_finite()).collect();
