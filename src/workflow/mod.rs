@@ -5,8 +5,10 @@
 //! chosen model (residual whiteness, hold-out prediction, polynomial fits of the f_m),
 //! and all of it for every channel of a log.
 //!
-//! One file per step: [`pauta`], [`stationarity`], [`prep`]; [`dist`] holds the
-//! distribution functions the tests need; [`tables`] the Parquet outputs.
+//! One file per step: [`pauta`], [`stationarity`], [`prep`], [`select`],
+//! [`constancy`], [`ljung_box`], [`check`], [`analyze`] (all of it for one channel);
+//! [`dist`] holds the distribution functions the tests need; [`tables`] the Parquet
+//! outputs.
 
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
