@@ -6,9 +6,11 @@
 //! - [`log`]: reading logs (CSV, Parquet, Arrow IPC) with their time base and the
 //!   policies for bad values and irregular sampling;
 //! - [`store`]: the memory-mapped Arrow IPC store every command reads;
-//! - [`stats`]: channel statistics;
-//! - [`simulator`]: the gyro drift simulator (the simulation spec; the generator next);
+//! - [`stats`]: channel statistics (Allan deviations, noise terms, PSD, ACF);
+//! - [`simulator`]: the gyro drift simulator (the simulation spec and the generator);
+//! - [`diagnosis`]: the sim-to-real gap diagnosis (`farma gap`);
 //! - [`output`]: Parquet tables written atomically, JSON helpers;
+//! - [`workflow`]: the paper's workflow (prep, select, check, analyze);
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
 //! - [`error`]: the error enum and exit codes.
 
@@ -21,5 +23,6 @@ pub mod output;
 pub mod simulator;
 pub mod stats;
 pub mod store;
+pub mod workflow;
 
 pub use error::{Error, Result};

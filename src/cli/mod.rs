@@ -6,6 +6,8 @@
 
 mod acf;
 mod adev;
+mod analyze;
+mod check;
 mod fit;
 mod fit_index2;
 mod gap;
@@ -13,6 +15,8 @@ mod info;
 mod ingest;
 mod update;
 mod psd;
+mod prep;
+mod select;
 mod simulate;
 
 use std::path::PathBuf;
@@ -52,6 +56,14 @@ pub enum Command {
     Psd(psd::PsdArgs),
     /// Autocorrelation of channels up to a maximum lag, with the +-1.96/sqrt(N) band.
     Acf(acf::AcfArgs),
+    /// Prepare channels as the paper does: Pauta outliers, stationarity test, trend or differencing, mean.
+    Prep(prep::PrepArgs),
+    /// Compare FARMA orders (RSS, GCV, AICc, F-tests, ARMA baseline, constancy test) and pick one.
+    Select(select::SelectArgs),
+    /// The paper's workflow for every channel: prep, select, fit, check; all tables in one folder.
+    Analyze(analyze::AnalyzeArgs),
+    /// Check a fitted model on a log: residual whiteness, hold-out prediction vs ARMA, polynomial f_m.
+    Check(check::CheckArgs),
     /// Simulate a gyro log from a simulation spec (TOML).
     Simulate(simulate::SimulateArgs),
     /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
@@ -153,6 +165,10 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Update(a) => update::run(a, &progress),
         Command::Psd(a) => psd::run(a, &progress),
         Command::Acf(a) => acf::run(a, &progress),
+        Command::Prep(a) => prep::run(a, &progress),
+        Command::Select(a) => select::run(a, &progress),
+        Command::Analyze(a) => analyze::run(a, &progress),
+        Command::Check(a) => check::run(a, &progress),
         Command::Simulate(a) => simulate::run(a, &progress),
         Command::Gap(a) => gap::run(a, &progress),
     }

@@ -1,0 +1,104 @@
+//! Level and power of the bootstrap constancy test over repeated simulations.
+//!
+//! Run: `cargo bench --bench constancy`. R series of N samples each from a linear
+//! ARMA(2,1) (a = 0.5, -0.3; b = 0.4) and from the FARMA(2,1,1) of
+//! tests/workflow_select.rs (f_1 = 0.2 + 0.6 exp(-z^2), f_2 = -0.25 + 0.15 tanh z,
+//! b = 0.4), unit Gaussian innovations; on each, FARMA(2,1,1) by GCV (grid 31), then
+//! the test with B bootstrap replicates at that bandwidth. Reports the rejection rate at
+//! 5 % with its binomial standard error. Environment: FARMA_BENCH_REPS (R, default
+//! 100), FARMA_BENCH_N (default 2000), FARMA_BENCH_B (default 99).
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::time::Instant;
+
+use farma::estimator::{FarmaParams, fit};
+use farma::workflow::constancy::{ConstancyParams, constancy_test};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+fn simulate(n: usize, seed: u64, nonlinear: bool) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let burn = 500;
+    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let mut s = e[t];
+        if t >= 2 {
+            let z = x[t - 1];
+            let (a1, a2) = if nonlinear {
+                (0.2 + 0.6 * f64::exp(-z * z), -0.25 + 0.15 * z.tanh())
+            } else {
+                (0.5, -0.3)
+            };
+            s += a1 * x[t - 1] + a2 * x[t - 2] + 0.4 * e[t - 1];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}
+
+fn env(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+fn main() {
+    let reps = env("FARMA_BENCH_REPS", 100);
+    let n = env("FARMA_BENCH_N", 2000);
+    let b = env("FARMA_BENCH_B", 99);
+    println!("machine: {}", common::machine());
+    println!("R = {reps}, N = {n}, B = {b}, FARMA(2,1,1), grid 31, level 5 %");
+    for (label, nonlinear) in [
+        ("ARMA(2,1) data (level)", false),
+        ("FARMA(2,1,1) data (power)", true),
+    ] {
+        let t0 = Instant::now();
+        let mut rejected = 0;
+        let mut ps = Vec::new();
+        for r in 0..reps {
+            let x = simulate(
+                n,
+                1000 + r as u64 + if nonlinear { 50_000 } else { 0 },
+                nonlinear,
+            );
+            let base = FarmaParams {
+                grid_size: 31,
+                ..FarmaParams::default()
+            };
+            let h = fit(&x, &base.clone().validate(n).unwrap())
+                .unwrap()
+                .bandwidth;
+            let c = constancy_test(
+                &x,
+                &ConstancyParams {
+                    bootstrap: b,
+                    seed: r as u64,
+                    farma: FarmaParams {
+                        bandwidth: Some(h),
+                        ..base
+                    },
+                },
+            )
+            .unwrap();
+            if c.p_value <= 0.05 {
+                rejected += 1;
+            }
+            ps.push(c.p_value);
+        }
+        let rate = rejected as f64 / reps as f64;
+        let se = (rate * (1.0 - rate) / reps as f64).sqrt();
+        ps.sort_by(f64::total_cmp);
+        println!(
+            "{label}: rejected {rejected}/{reps} = {:.3} (se {:.3}); median p {:.3}; {:.1} s",
+            rate,
+            se,
+            ps[reps / 2],
+            t0.elapsed().as_secs_f64()
+        );
+    }
+}

@@ -1,0 +1,88 @@
+//! The whole analysis of one 1e6-sample channel beside the estimator's single fit.
+//!
+//! Run: `cargo bench --bench workflow`. A FARMA(2,1,1) series (the model of
+//! tests/workflow_select.rs) of FARMA_BENCH_N samples (default 1e6): the estimator's
+//! single FARMA(2,1,1) fit with GCV (default parameters, grid 201), then the workflow
+//! of `farma analyze` on the same series: preparation (Pauta, reverse arrangements,
+//! mean), the eight orders of the paper with GCV and the ARMA baselines, F-tests, the
+//! constancy test with FARMA_BENCH_B bootstrap replicates (default 19), and the check
+//! (whiteness, prediction of the last 5000 samples, polynomial fits). Each once, in this
+//! process, all cores.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::time::Instant;
+
+use farma::estimator::{FarmaParams, fit};
+use farma::workflow::analyze::{AnalyzeParams, analyze_channel};
+use farma::workflow::prep::{PrepParams, prep_channel};
+use farma::workflow::select::PAPER_ORDERS;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+fn simulate(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let burn = 500;
+    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let mut s = e[t];
+        if t >= 2 {
+            let z = x[t - 1];
+            s += (0.2 + 0.6 * f64::exp(-z * z)) * x[t - 1]
+                + (-0.25 + 0.15 * z.tanh()) * x[t - 2]
+                + 0.4 * e[t - 1];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}
+
+fn main() {
+    let n: usize = std::env::var("FARMA_BENCH_N")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .map(|v| v as usize)
+        .unwrap_or(1_000_000);
+    let b: usize = std::env::var("FARMA_BENCH_B")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(19);
+    println!("machine: {}", common::machine());
+    let x = simulate(n, 77);
+    let t0 = Instant::now();
+    let m = fit(&x, &FarmaParams::default().validate(n).unwrap()).unwrap();
+    let single = t0.elapsed().as_secs_f64();
+    println!(
+        "single FARMA(2,1,1) fit (GCV, grid 201), N = {n}: {single:.2} s (h = {:.4}, {} iterations)",
+        m.bandwidth, m.iterations
+    );
+    let t0 = Instant::now();
+    let prep = prep_channel("x", &x, &PrepParams::default());
+    let tp = t0.elapsed().as_secs_f64();
+    let prm = AnalyzeParams {
+        orders: PAPER_ORDERS.to_vec(),
+        farma: FarmaParams::default(),
+        bootstrap: b,
+        seed: 1,
+        holdout: 5000,
+        maxlag: 40,
+        max_degree: 6,
+    };
+    let a = analyze_channel(prep, &prm).unwrap();
+    let total = t0.elapsed().as_secs_f64();
+    let r = &a.selection.rows[a.selection.selected];
+    println!(
+        "whole analysis (prep {tp:.2} s; 8 orders + ARMA baselines + F-tests + constancy B = {b} + check): {total:.2} s = {:.1} single fits",
+        total / single
+    );
+    println!(
+        "selected {:?}, constancy p = {:?}, one-step rmse FARMA {:.4} vs ARMA {:.4}",
+        r.order,
+        a.constancy.as_ref().map(|c| c.p_value),
+        a.check.prediction.as_ref().unwrap().horizons[0].rmse_farma,
+        a.check.prediction.as_ref().unwrap().horizons[0].rmse_arma
+    );
+}

@@ -1,0 +1,162 @@
+//! `farma prep LOG -o OUTDIR`: Pauta outlier rejection, the reverse-arrangement test,
+//! trend removal or differencing, mean removal; the cleaned log and a report.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use rayon::prelude::*;
+use serde_json::json;
+
+use super::LogArgs;
+use crate::error::{Error, Result};
+use crate::log::Progress;
+use crate::output::{ensure_dir, write_parquet};
+use crate::workflow::pauta::Replace;
+use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams, align, prep_channel};
+use crate::workflow::stationarity::SegmentStat;
+use crate::workflow::tables::{prep_table, replaced_table, write_prepared_store};
+
+/// The preparation flags (shared with `farma analyze`).
+#[derive(Args, Debug, Clone)]
+pub struct PrepFlags {
+    /// Pauta threshold in standard deviations.
+    #[arg(long = "sigma", default_value_t = 3.0, value_name = "C")]
+    pub sigma_c: f64,
+    /// Replacement of rejected samples (the time base is kept).
+    #[arg(long, value_enum, default_value_t = Replace::Interpolate)]
+    pub replace: Replace,
+    /// Segments of the reverse-arrangement test.
+    #[arg(long, default_value_t = 20, value_name = "K")]
+    pub segments: usize,
+    /// Statistic of each segment in the reverse-arrangement test.
+    #[arg(long, value_enum, default_value_t = SegmentStat::Mean)]
+    pub segment_stat: SegmentStat,
+    /// Level of the stationarity test.
+    #[arg(long, default_value_t = 0.05)]
+    pub alpha: f64,
+    /// What to do when stationarity is rejected.
+    #[arg(long, value_enum, default_value_t = Nonstationary::Trend)]
+    pub nonstationary: Nonstationary,
+    /// Keep the mean (default: subtract it).
+    #[arg(long)]
+    pub keep_mean: bool,
+}
+
+impl PrepFlags {
+    pub fn params(&self) -> PrepParams {
+        PrepParams {
+            sigma_c: self.sigma_c,
+            replace: self.replace,
+            segments: self.segments,
+            segment_stat: self.segment_stat,
+            alpha: self.alpha,
+            nonstationary: self.nonstationary,
+            keep_mean: self.keep_mean,
+            ..PrepParams::default()
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct PrepArgs {
+    /// The log: a store, CSV, Parquet or Arrow IPC.
+    pub log: PathBuf,
+    /// Channels to prepare (comma-separated, or all).
+    #[arg(long, default_value = "all")]
+    pub channel: String,
+    /// Output folder: clean.arrow (the prepared log, a store), prep.parquet (every
+    /// step), replaced.parquet (every replaced sample).
+    #[arg(short, long, value_name = "OUTDIR")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub prep: PrepFlags,
+    #[command(flatten)]
+    pub log_args: LogArgs,
+    /// One JSON object per channel on stdout (JSON Lines).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Prepares `names` of `store` in parallel, aligned to a common length.
+pub fn prep_store(
+    store: &crate::store::Store,
+    names: &[String],
+    prm: &PrepParams,
+) -> Result<(Vec<ChannelPrep>, usize)> {
+    let mut chans: Vec<ChannelPrep> = names
+        .par_iter()
+        .map(|n| {
+            let x = store.column(n)?;
+            prm.validate(x.len()).map_err(|e| match e {
+                Error::TooShort { what, need, have } => Error::TooShort {
+                    what: format!("{}: channel {n}: {what}", store.label().display()),
+                    need,
+                    have,
+                },
+                o => o,
+            })?;
+            Ok(prep_channel(n, x, prm))
+        })
+        .collect::<Result<_>>()?;
+    let dropped = align(&mut chans);
+    Ok((chans, dropped))
+}
+
+pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
+    let store = a.log_args.open(&a.log, progress)?;
+    let names = store.select_channels(&a.channel)?;
+    let prm = a.prep.params();
+    let (chans, dropped) = prep_store(&store, &names, &prm)?;
+    ensure_dir(&a.output)?;
+    let (size, mtime) = crate::log::source_identity(&a.log)?;
+    let md = vec![
+        ("source", a.log.display().to_string()),
+        ("source_size", size.to_string()),
+        ("source_mtime_ns", mtime.to_string()),
+        ("sample_rate_hz", store.sample_rate_hz().to_string()),
+    ];
+    write_prepared_store(&a.output.join("clean.arrow"), &store, &chans, dropped)?;
+    write_parquet(&a.output.join("prep.parquet"), &prep_table(&chans)?, &md)?;
+    write_parquet(
+        &a.output.join("replaced.parquet"),
+        &replaced_table(&chans, store.sample_rate_hz())?,
+        &md,
+    )?;
+    for c in &chans {
+        if a.json {
+            println!("{}", prep_json(c, prm.alpha));
+        } else {
+            println!("channel {}", c.name);
+            for s in &c.steps {
+                println!("  {:<20} {}", s.step, s.detail);
+            }
+        }
+    }
+    eprintln!(
+        "farma: {} channel(s) prepared; clean.arrow, prep.parquet, replaced.parquet in {}",
+        chans.len(),
+        a.output.display()
+    );
+    Ok(())
+}
+
+/// The `--json` object of one prepared channel.
+pub fn prep_json(c: &ChannelPrep, alpha: f64) -> serde_json::Value {
+    let ra = |r: &crate::workflow::stationarity::ReverseArrangement| {
+        json!({"segments": r.segments, "statistic": r.statistic, "mean": r.mean,
+               "variance": r.variance, "z": r.z, "p_value": r.p_value})
+    };
+    json!({
+        "channel": c.name,
+        "n": c.values.len(),
+        "replaced": c.replaced.len(),
+        "replaced_index": c.replaced.iter().map(|r| r.index).collect::<Vec<_>>(),
+        "stationarity": ra(&c.before),
+        "stationarity_after": c.after.as_ref().map(ra),
+        "stationary": c.stationary(alpha),
+        "differenced": c.differenced,
+        "steps": c.steps.iter().map(|s| json!({"step": s.step, "count": s.count,
+            "statistic": s.statistic, "z": s.z, "p_value": s.p_value, "value": s.value,
+            "detail": s.detail})).collect::<Vec<_>>(),
+    })
+}

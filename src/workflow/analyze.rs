@@ -1,0 +1,116 @@
+//! The whole workflow for one prepared channel: select the order (with the ARMA
+//! baseline, F-tests and the constancy test) on the training part, then check the
+//! selected model: residual whiteness, prediction of the hold-out (the last samples,
+//! never seen by the fits), polynomial fits of the f_m.
+
+use super::check::{CheckReport, HORIZONS, Linear, check_whiteness, poly_fits, predict_holdout};
+use super::constancy::{Constancy, ConstancyParams, constancy_test};
+use super::prep::ChannelPrep;
+use super::select::{Selection, select};
+use crate::error::{Error, Result};
+use crate::estimator::FarmaParams;
+
+/// Parameters of the analysis after preparation.
+#[derive(Clone, Debug)]
+pub struct AnalyzeParams {
+    pub orders: Vec<(usize, usize, usize)>,
+    /// Grid, method and the rest of every FARMA fit.
+    pub farma: FarmaParams,
+    /// Bootstrap replicates of the constancy test (0: none).
+    pub bootstrap: usize,
+    pub seed: u64,
+    /// Samples held out at the end for prediction.
+    pub holdout: usize,
+    /// Largest lag of the residual ACF.
+    pub maxlag: usize,
+    /// Largest degree of the polynomial fits.
+    pub max_degree: usize,
+}
+
+/// Order selection and, when `bootstrap` > 0, the constancy test at the selected order
+/// (with the selected fit's bandwidth).
+pub fn select_with_constancy(
+    x: &[f64],
+    orders: &[(usize, usize, usize)],
+    base: &FarmaParams,
+    bootstrap: usize,
+    seed: u64,
+) -> Result<(Selection, Option<Constancy>)> {
+    let sel = select(x, orders, base)?;
+    let con = if bootstrap > 0 {
+        let r = &sel.rows[sel.selected];
+        let prm = ConstancyParams {
+            bootstrap,
+            seed,
+            farma: FarmaParams {
+                p: r.order.0,
+                q: r.order.1,
+                d: r.order.2,
+                bandwidth: Some(r.bandwidth),
+                ..base.clone()
+            },
+        };
+        Some(constancy_test(x, &prm)?)
+    } else {
+        None
+    };
+    Ok((sel, con))
+}
+
+/// The analysis of one channel.
+#[derive(Clone, Debug)]
+pub struct ChannelAnalysis {
+    pub name: String,
+    pub prep: ChannelPrep,
+    /// Samples the models were fitted on (the rest is the hold-out).
+    pub n_train: usize,
+    pub selection: Selection,
+    pub constancy: Option<Constancy>,
+    pub check: CheckReport,
+}
+
+/// Analyses one prepared channel.
+pub fn analyze_channel(prep: ChannelPrep, prm: &AnalyzeParams) -> Result<ChannelAnalysis> {
+    let x = &prep.values;
+    let n = x.len();
+    if prm.holdout >= n / 2 {
+        return Err(Error::Usage(format!(
+            "the hold-out ({} samples) must be less than half of the channel ({n} samples): lower --holdout-s",
+            prm.holdout
+        )));
+    }
+    let n_train = n - prm.holdout;
+    let train = &x[..n_train];
+    let (selection, constancy) =
+        select_with_constancy(train, &prm.orders, &prm.farma, prm.bootstrap, prm.seed)?;
+    let model = &selection.fits[selection.selected];
+    let row = &selection.rows[selection.selected];
+    let whiteness = check_whiteness(model, prm.maxlag);
+    let prediction = (prm.holdout > 0).then(|| {
+        predict_holdout(
+            model,
+            model.mean,
+            &Linear {
+                ar: &row.arma_ar,
+                ma: &row.arma_ma,
+            },
+            model.mean,
+            x,
+            prm.holdout,
+            &HORIZONS,
+        )
+    });
+    let poly = poly_fits(model, prm.max_degree);
+    Ok(ChannelAnalysis {
+        name: prep.name.clone(),
+        prep,
+        n_train,
+        selection,
+        constancy,
+        check: CheckReport {
+            whiteness,
+            prediction,
+            poly,
+        },
+    })
+}

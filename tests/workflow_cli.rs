@@ -1,0 +1,205 @@
+//! `farma select`, `farma analyze` and `farma check` on the bundled log: JSON keys of
+//! contracts.md section 4, the output folder, bad input.
+
+mod common;
+
+use common::{farma, fixture, stderr, stdout};
+
+#[test]
+fn select_json_has_the_contract_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let o = farma(
+        &[
+            "select",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--orders",
+            "1,1,1;2,1,1",
+            "--grid",
+            "21",
+            "--bootstrap",
+            "4",
+            "--json",
+            "-o",
+            dir.path().join("s").to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    assert_eq!(v["channel"], "gyro_x");
+    let sel = v["selected"].as_array().unwrap();
+    assert_eq!(sel.len(), 3);
+    let table = v["table"].as_array().unwrap();
+    assert_eq!(table.len(), 2);
+    for r in table {
+        for k in ["order", "rss", "sigma2", "trace", "arma_rss"] {
+            assert!(r.get(k).is_some(), "{k} missing in {r}");
+        }
+    }
+    // the selected order is the row of smallest AICc
+    let best = table
+        .iter()
+        .min_by(|a, b| {
+            a["aicc"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["aicc"].as_f64().unwrap())
+        })
+        .unwrap();
+    assert_eq!(&best["order"], &v["selected"]);
+    let p = v["constancy_p"].as_f64().unwrap();
+    assert!(p > 0.0 && p <= 1.0);
+    for f in ["select.parquet", "ftests.parquet", "constancy.parquet"] {
+        assert!(dir.path().join("s").join(f).exists(), "{f}");
+    }
+    // bad grid of orders: exit 2 naming the flag
+    let o = farma(
+        &[
+            "select",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--orders",
+            "2,1",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--orders"), "{}", stderr(&o));
+}
+
+#[test]
+fn analyze_writes_every_table_and_a_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let out = dir.path().join("a");
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x,gyro_z",
+            "--orders",
+            "2,1,1",
+            "--grid",
+            "21",
+            "--bootstrap",
+            "0",
+            "--json",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let lines: Vec<serde_json::Value> = stdout(&o)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    for v in &lines {
+        // 50 s at 10 Hz held out
+        assert_eq!(v["n_train"], 3500);
+        assert_eq!(v["prediction"][0]["k"], 1);
+        assert!(v["ljung_box"].as_array().unwrap().len() >= 2);
+    }
+    for f in [
+        "clean.arrow",
+        "prep.parquet",
+        "replaced.parquet",
+        "select.parquet",
+        "ftests.parquet",
+        "constancy.parquet",
+        "coef.parquet",
+        "params.parquet",
+        "gcv.parquet",
+        "acf.parquet",
+        "ljung_box.parquet",
+        "prediction.parquet",
+        "poly.parquet",
+        "summary.txt",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    assert!(summary.contains("######## gyro_z") && summary.contains("Ljung-Box"));
+    // a hold-out longer than half the log: exit 2, names the flag
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--holdout-s",
+            "300",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--holdout-s"), "{}", stderr(&o));
+}
+
+#[test]
+fn check_reads_a_fit_folder_and_scores_the_holdout() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "2,1,1",
+            "--grid",
+            "21",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = dir.path().join("c");
+    let o = farma(
+        &[
+            "check",
+            model.to_str().unwrap(),
+            log.to_str().unwrap(),
+            "--json",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    assert_eq!(v["channel"], "gyro_x");
+    assert_eq!(v["holdout"], 500);
+    let pred = v["prediction"].as_array().unwrap();
+    assert_eq!(pred[0]["k"], 1);
+    assert_eq!(pred[0]["n"], 500);
+    // one-step errors are near the channel's innovation scale, far below its spread
+    let r1 = pred[0]["rmse_farma"].as_f64().unwrap();
+    assert!(r1 > 0.0 && r1 < 0.0103, "{r1}");
+    assert_eq!(v["poly"].as_array().unwrap().len(), 2);
+    for f in [
+        "acf.parquet",
+        "ljung_box.parquet",
+        "prediction.parquet",
+        "poly.parquet",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    // a folder that is not a fit: exit 2
+    let o = farma(
+        &["check", dir.path().to_str().unwrap(), log.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -1,0 +1,185 @@
+//! Order selection, the constancy test and the check on simulated data: FARMA(2,1,1)
+//! data select (2,1,1) and reject constant coefficients; linear ARMA(2,1) data do not
+//! reject; k-step prediction against the closed form of an AR(1); polynomial fits
+//! recover a polynomial. The level and power over repeated simulations are measured in
+//! benches/constancy.rs (figures in BENCHMARKS.md).
+
+use farma::estimator::{FarmaParams, fit};
+use farma::workflow::analyze::select_with_constancy;
+use farma::workflow::check::{Linear, check_whiteness, kstep, poly_fits, predict_holdout};
+use farma::workflow::select::PAPER_ORDERS;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// FARMA(2,1,1): f_1(z) = 0.2 + 0.6 exp(-z^2), f_2(z) = -0.25 + 0.15 tanh(z), b = 0.4.
+fn farma211(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let burn = 500;
+    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let mut s = e[t];
+        if t >= 2 {
+            let z = x[t - 1];
+            s += (0.2 + 0.6 * f64::exp(-z * z)) * x[t - 1]
+                + (-0.25 + 0.15 * z.tanh()) * x[t - 2]
+                + 0.4 * e[t - 1];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}
+
+/// ARMA(2,1): a = (0.5, -0.3), b = 0.4.
+fn arma21(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let burn = 500;
+    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let mut s = e[t];
+        if t >= 2 {
+            s += 0.5 * x[t - 1] - 0.3 * x[t - 2] + 0.4 * e[t - 1];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}
+
+fn base() -> FarmaParams {
+    FarmaParams {
+        grid_size: 31,
+        ..FarmaParams::default()
+    }
+}
+
+#[test]
+fn farma211_data_select_211_and_reject_constancy() {
+    let x = farma211(3000, 21);
+    let (sel, con) = select_with_constancy(&x, &PAPER_ORDERS, &base(), 39, 5).unwrap();
+    for r in &sel.rows {
+        eprintln!(
+            "{:?} rss {:.2} df {:.2} aicc {:.5} arma_rss {:.2}",
+            r.order, r.rss, r.df, r.aicc, r.arma_rss
+        );
+    }
+    eprintln!("{}", sel.reason);
+    assert_eq!(sel.rows[sel.selected].order, (2, 1, 1), "{}", sel.reason);
+    let con = con.unwrap();
+    eprintln!("constancy T = {}, p = {}", con.statistic, con.p_value);
+    assert!(con.p_value <= 0.05, "constancy p = {}", con.p_value);
+    // the FARMA(2,1,1) fits better than its ARMA(2,1), significantly
+    let r = &sel.rows[sel.selected];
+    assert!(r.rss < r.arma_rss && r.p_vs_arma < 0.01);
+}
+
+#[test]
+fn arma21_data_do_not_reject_constancy_and_results_ignore_thread_count() {
+    let x = arma21(3000, 22);
+    let b = FarmaParams {
+        p: 2,
+        q: 1,
+        d: 1,
+        ..base()
+    };
+    let run = || select_with_constancy(&x, &[(2, 1, 1)], &b, 39, 6).unwrap();
+    let (_, con) = run();
+    let con = con.unwrap();
+    eprintln!("constancy T = {}, p = {}", con.statistic, con.p_value);
+    assert!(con.p_value > 0.05, "constancy p = {}", con.p_value);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(run);
+    assert_eq!(one.1.unwrap().t_boot, con.t_boot);
+}
+
+#[test]
+fn kstep_prediction_of_an_ar1_is_the_closed_form() {
+    // AR(1) with a = 0.7: the k-step prediction from origin s is a^k y_s.
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let n = 600;
+    let mut y = vec![0.0; n];
+    for t in 1..n {
+        let v: f64 = StandardNormal.sample(&mut rng);
+        y[t] = 0.7 * y[t - 1] + v;
+    }
+    let lin = Linear {
+        ar: &[0.7],
+        ma: &[],
+    };
+    let holdout = 100;
+    let (sse, cnt) = kstep(&lin, &y, holdout, 10);
+    for k in 1..=10 {
+        let mut s = 0.0;
+        let mut c = 0;
+        for t in n - holdout..n {
+            if t >= k {
+                s += (y[t] - 0.7f64.powi(k as i32) * y[t - k]).powi(2);
+                c += 1;
+            }
+        }
+        assert_eq!(cnt[k - 1], c, "k = {k}");
+        assert!(
+            (sse[k - 1] - s).abs() < 1e-9 * s,
+            "k = {k}: {} vs {s}",
+            sse[k - 1]
+        );
+    }
+}
+
+#[test]
+fn check_of_a_fitted_farma_model() {
+    let x = farma211(3000, 23);
+    let (train, _) = x.split_at(2500);
+    let prm = FarmaParams {
+        p: 2,
+        q: 1,
+        d: 1,
+        ..base()
+    }
+    .validate(train.len())
+    .unwrap();
+    let mut m = fit(train, &prm).unwrap();
+    let w = check_whiteness(&m, 20);
+    eprintln!("{:?}", w.ljung_box);
+    assert!(
+        w.ljung_box.iter().all(|b| b.p_value > 0.01),
+        "{:?}",
+        w.ljung_box
+    );
+    let arma = farma::estimator::arma::fit_arma(
+        &train.iter().map(|v| v - m.mean).collect::<Vec<_>>(),
+        2,
+        1,
+    )
+    .unwrap();
+    let lin = Linear {
+        ar: &arma.ar,
+        ma: &arma.ma,
+    };
+    let pr = predict_holdout(&m, m.mean, &lin, m.mean, &x, 500, &[1, 2, 5, 10, 1000]);
+    assert_eq!(pr.horizons.len(), 4); // k = 1000 exceeds the hold-out
+    let one = &pr.horizons[0];
+    eprintln!("{:?}", pr.horizons);
+    // one-step errors are the innovations (sd 1) up to estimation error
+    assert!((one.rmse_farma - 1.0).abs() < 0.1, "{one:?}");
+    assert!(one.rmse_farma < one.rmse_arma, "{one:?}");
+    // far horizons approach the series' spread
+    assert!(pr.horizons[3].rmse_farma > one.rmse_farma);
+    // polynomial fits: overwrite f with exact polynomials; they are recovered
+    let p = m.p;
+    for g in 0..m.grid.len() {
+        let u = m.grid[g];
+        m.coef.f[g * p] = 0.5 - 0.2 * u + 0.1 * u * u;
+        m.coef.f[g * p + 1] = -0.3;
+    }
+    let pf = poly_fits(&m, 6);
+    assert_eq!((pf[0].degree, pf[1].degree), (2, 0), "{pf:?}");
+    for (c, want) in pf[0].coef.iter().zip([0.5, -0.2, 0.1]) {
+        assert!((c - want).abs() < 1e-9, "{pf:?}");
+    }
+    assert!((pf[1].coef[0] + 0.3).abs() < 1e-12);
+}
