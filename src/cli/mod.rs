@@ -13,11 +13,11 @@ mod fit_index2;
 mod gap;
 mod info;
 mod ingest;
-mod update;
-mod psd;
 mod prep;
+mod psd;
 mod select;
 mod simulate;
+mod update;
 
 use std::path::PathBuf;
 

@@ -88,4 +88,3 @@ pub fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(&str, String
         .map_err(|e| Error::output_io(path, e.error))?;
     Ok(())
 }
-
