@@ -698,8 +698,8 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
 
 fn diff(x: &[f64]) -> Vec<f64> {
     let mut d = vec![0.0; x.len()];
-    for t in 1..x.len() {
-        d[t] = x[t] - x[t - 1];
+    for (t, v) in d.iter_mut().enumerate().skip(1) {
+        *v = x[t] - x[t - 1];
     }
     d
 }
@@ -896,8 +896,8 @@ fn heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<Option<Pro
     let phi = (v / total.max(f64::MIN_POSITIVE)).clamp(1e-6, 1.0);
     let d2: Vec<f64> = {
         let mut d = vec![0.0; cx.real.len()];
-        for t in 1..d.len() {
-            d[t] = (cx.real[t] - cx.real[t - 1]).powi(2);
+        for (t, v) in d.iter_mut().enumerate().skip(1) {
+            *v = (cx.real[t] - cx.real[t - 1]).powi(2);
         }
         d
     };

@@ -199,7 +199,7 @@ pub fn regions(
     let mut k = 0;
     while k < z.len() {
         let thr = cal.threshold(defs[k].statistic);
-        if !(z[k].abs() > thr) {
+        if z[k].is_nan() || z[k].abs() <= thr {
             k += 1;
             continue;
         }
