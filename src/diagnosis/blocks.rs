@@ -1,8 +1,8 @@
 //! The training and withheld parts of a log: interleaved time blocks.
 //!
 //! The log's N samples are cut into `n_blocks` contiguous blocks of (nearly) equal
-//! length. Block i goes to the training part when floor((i+1) f + 1/2) > floor(i f + 1/2)
-//! for the training fraction f, so the two parts alternate as evenly as f allows and
+//! length. Block i goes to the training part when floor((i+1) f + c) > floor(i f + c)
+//! for the training fraction f and c = 1 - f/2, so the two parts alternate as evenly as f allows and
 //! block 0 (the start of the log, where a warm-up is strongest) is training. Effects
 //! localised in time and every temperature condition of a long run thus appear in both
 //! parts (contracts.md section 3), while each block stays long enough for the Allan
@@ -50,7 +50,10 @@ impl Blocks {
             .collect();
         let f = train_fraction;
         let train: Vec<bool> = (0..n_blocks)
-            .map(|i| ((i + 1) as f64 * f + 0.5).floor() > (i as f64 * f + 0.5).floor())
+            .map(|i| {
+                let c = 1.0 - 0.5 * f;
+                ((i + 1) as f64 * f + c).floor() > (i as f64 * f + c).floor()
+            })
             .collect();
         if train.iter().all(|t| *t) || !train.iter().any(|t| *t) {
             return Err(Error::Usage(format!(
@@ -113,6 +116,6 @@ mod tests {
         assert!(Blocks::interleaved(1000, 8, 0.0).is_err());
         assert!(Blocks::interleaved(1000, 1, 0.5).is_err());
         assert!(Blocks::interleaved(100, 8, 0.5).is_err());
-        assert!(Blocks::interleaved(1000, 2, 0.01).is_err());
+        assert!(Blocks::interleaved(1000, 2, 0.9).is_err());
     }
 }
