@@ -552,9 +552,9 @@ impl Layout {
         let coef = crate::estimator::linalg::normal_equations(&ata, &aty, 4)
             .unwrap_or_else(|| vec![0.0; 4]);
         let mut out = vec![coef[1], coef[2], coef[3]];
-        let mean_or_nan = |s: f64, c: f64| if c > 0.0 { s / c } else { 0.0 };
-        out.extend((0..N_BINS).map(|k| mean_or_nan(sum_t[k], cnt_t[k])));
-        out.extend((0..N_BINS).map(|k| mean_or_nan(sum_r[k], cnt_r[k])));
+        let mean_or_zero = |s: f64, c: f64| if c > 0.0 { s / c } else { 0.0 };
+        out.extend((0..N_BINS).map(|k| mean_or_zero(sum_t[k], cnt_t[k])));
+        out.extend((0..N_BINS).map(|k| mean_or_zero(sum_r[k], cnt_r[k])));
         out.extend((0..N_BINS).map(|k| {
             let c = cnt_t[k].max(2.0);
             let m = d_sum[k] / c;

@@ -137,7 +137,6 @@ struct State {
     spec: Spec,
     target: Vec<Vec<f64>>,
     parts: Vec<Vec<Vec<f64>>>,
-    feats: Vec<Vec<f64>>,
     ens: EnsembleStats,
     gap: f64,
 }
@@ -238,7 +237,6 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         spec: spec.clone(),
         target,
         parts,
-        feats,
         ens,
         gap: gap_before,
     };
@@ -269,7 +267,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         if first.is_none() {
             not_tried = skipped;
         }
-        let mut scored: Vec<(Effect, Vec<Vec<f64>>, EnsembleStats, Proposal)> = props
+        let mut scored: Vec<(Effect, EnsembleStats, Proposal)> = props
             .into_iter()
             .map(|p| {
                 let f = feats_of(&st.target, Some(&p.delta));
@@ -286,7 +284,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                     component: p.component.clone(),
                     replaces: p.replaces,
                 };
-                (eff, f, e, p)
+                (eff, e, p)
             })
             .collect();
         scored.sort_by(|a, b| a.0.gap_after.total_cmp(&b.0.gap_after));
@@ -300,7 +298,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ));
             break;
         }
-        let Some((eff, f, e, p)) = scored.into_iter().next() else {
+        let Some((eff, e, p)) = scored.into_iter().next() else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };
@@ -337,7 +335,6 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 }
             }
         }
-        st.feats = f;
         st.ens = e;
         st.gap = eff.gap_after;
         added.push(eff);
@@ -349,7 +346,6 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             break;
         }
     }
-    let _ = &st.feats;
     let z1 = st.ens.z(&real_feats);
     let where_after = distance::regions(&z1, &real_feats, &st.ens, &defs, &cal);
     let family_after = distance::family_gaps(&z1, &defs);
