@@ -5,6 +5,10 @@
 //! withheld-part gap after the right effect against the noise floor.
 //!
 //!     cargo bench --bench gap               (FARMA_BENCH_SEEDS=3 by default)
+//!
+//! Knobs for a partial run: FARMA_BENCH_CASES=kind,kind (only those hidden effects),
+//! FARMA_BENCH_HOURS=1 or 4 (one size), FARMA_BENCH_TIMED=0 (skip the timed runs),
+//! FARMA_BENCH_VERBOSE=1 (the three best effects of each case with their family gaps).
 
 use std::time::Instant;
 
@@ -16,17 +20,23 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3);
+    let env = |k: &str| std::env::var(k).ok();
+    let only: Option<Vec<String>> =
+        env("FARMA_BENCH_CASES").map(|s| s.split(',').map(|x| x.trim().to_string()).collect());
+    let hours: Option<u32> = env("FARMA_BENCH_HOURS").and_then(|s| s.parse().ok());
+    let timed = env("FARMA_BENCH_TIMED").as_deref() != Some("0");
+    let verbose = env("FARMA_BENCH_VERBOSE").as_deref() == Some("1");
     let rate_hz = 10.0;
     let threads = rayon::current_num_threads();
     println!("farma gap benchmark: {threads} threads");
 
     // one timed diagnosis: 4 hours at 10 Hz, M = 20, every candidate (temperature case)
-    let cases = bank::cases(rate_hz);
-    let case = cases
+    let n4h = 144_000;
+    let cases4 = bank::cases(rate_hz, 14_400.0);
+    let case = cases4
         .iter()
         .find(|c| c.expect == "temperature_bias")
         .unwrap();
-    let n4h = 144_000;
     let (x, temp) = bank::real_log(case, n4h, 42).unwrap();
     let real = RealLog {
         channel: CHANNEL.into(),
@@ -40,7 +50,7 @@ fn main() {
         replicas: 20,
         ..GapParams::default()
     };
-    for run in 0..2 {
+    for run in 0..if timed { 2 } else { 0 } {
         let t0 = Instant::now();
         let d = diagnose(&real, &case.spec, &prm).unwrap();
         println!(
@@ -62,9 +72,13 @@ fn main() {
     let mut closed = 0;
     let mut by_size = Vec::new();
     for (label, n) in [("1 h", 36_000usize), ("4 h", 144_000)] {
+        if hours.is_some_and(|h| (h == 1) != (n == 36_000)) {
+            continue;
+        }
         let (mut t, mut ok, mut cl) = (0, 0, 0);
         // cases that do not need the temperature run both without and with it (then the
         // temperature candidates compete too)
+        let cases = bank::cases(rate_hz, n as f64 / rate_hz);
         let variants: Vec<bank::Case> = cases
             .iter()
             .flat_map(|c| {
@@ -79,6 +93,11 @@ fn main() {
             })
             .collect();
         for (i, case) in variants.iter().enumerate() {
+            // the seed follows the case's place in the whole bank, so that a partial run
+            // (FARMA_BENCH_CASES) reproduces the same logs
+            if only.as_ref().is_some_and(|o| !o.contains(&case.expect)) {
+                continue;
+            }
             for s in 0..seeds {
                 let seed = 10_000 + 100 * i as u64 + s;
                 let (x, temp) = bank::real_log(case, n, seed).unwrap();
@@ -120,6 +139,33 @@ fn main() {
                     d.noise_floor,
                     if hit { "" } else { "   <- miss" }
                 );
+                if verbose {
+                    for e in d.effects.iter().take(3) {
+                        let fam: Vec<String> = e
+                            .families
+                            .iter()
+                            .map(|(s, g)| format!("{s:?} {g:.2}"))
+                            .collect();
+                        println!(
+                            "      {:<28} {:>6.2}  {}  {}",
+                            e.kind,
+                            e.gap_after,
+                            fam.join(", "),
+                            e.params
+                        );
+                    }
+                    let fam: Vec<String> = d
+                        .family_before
+                        .iter()
+                        .map(|(s, g)| format!("{s:?} {g:.2}"))
+                        .collect();
+                    println!(
+                        "      {:<28} {:>6.2}  {}",
+                        "(before)",
+                        d.gap_before,
+                        fam.join(", ")
+                    );
+                }
             }
         }
         by_size.push((label, t, ok, cl));

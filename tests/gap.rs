@@ -26,7 +26,7 @@ fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
 fn bank_ranks_the_hidden_effect_first_and_closes_the_gap() {
     let rate_hz = 10.0;
     let n = 36_000; // one hour
-    let cases = bank::cases(rate_hz);
+    let cases = bank::cases(rate_hz, n as f64 / rate_hz);
     let mut top1 = 0;
     let mut closed = 0;
     let mut lines = Vec::new();

@@ -9,7 +9,8 @@
 //!   log minus the ensemble mean, which is the spec's deterministic part plus averaged
 //!   noise) on the effect's own signal, simulated with a unit parameter, plus an
 //!   intercept: constant_bias (mean of r), rate_ramp, warmup (amplitude for each of a
-//!   log grid of tau_s, the best by residual sum of squares), sinusoid (frequency of
+//!   log grid of tau_s, the best by residual sum of squares, refined by golden-section
+//!   search between its grid neighbours), sinusoid (frequency of
 //!   the largest peak of the training-masked periodogram of r, refined by a
 //!   golden-section search of the least-squares power; amplitude and phase by least
 //!   squares), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
@@ -34,9 +35,11 @@
 //!   channel o of the spec present in the log.
 //!
 //! Candidates that mimic each other are told apart by the scoring, not here: each is
-//! scored on every statistic family of the withheld part, so a slow temperature drift
-//! (which moves the temperature family as well as the long-tau Allan deviation) beats
-//! a rate random walk, which only matches the Allan curve; T beats dT/dt where the mean
+//! scored on every statistic family of the withheld part, and pays for widening the
+//! ensemble's band (the spread term of `distance`), so a slow temperature drift (which
+//! moves the temperature family as well as the long-tau Allan deviation) beats a rate
+//! random walk, which matches the Allan curve and the window means only by letting
+//! them wander from one simulation to the next; T beats dT/dt where the mean
 //! by temperature bin moves, and the other way round; a ramp and a warm-up differ in
 //! the time family's window means.
 
@@ -395,19 +398,39 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
         }
     }
     if !has(Kind::Warmup) {
-        let mut best: Option<(f64, f64, f64, Vec<f64>)> = None;
-        for tau in log_grid(5.0 / fs.min(1.0), duration_s / 2.0, 24) {
+        let rss_at = |tau: f64| -> Result<Option<(f64, f64, Vec<f64>)>> {
             let u = unit(Component::Warmup {
                 amplitude: 1.0,
                 tau_s: tau,
             })?;
-            if let Some((b, rss)) = ls(&res, &[&u], true, &ranges)
-                && best.as_ref().is_none_or(|x| rss < x.2)
+            Ok(ls(&res, &[&u], true, &ranges).map(|(b, rss)| (b[0], rss, u)))
+        };
+        let grid = log_grid(5.0 / fs.min(1.0), duration_s / 2.0, 24);
+        let mut best: Option<(usize, f64)> = None;
+        for (i, &tau) in grid.iter().enumerate() {
+            if let Some((_, rss, _)) = rss_at(tau)?
+                && best.is_none_or(|x| rss < x.1)
             {
-                best = Some((b[0], tau, rss, u));
+                best = Some((i, rss));
             }
         }
-        if let Some((a, tau, _, u)) = best {
+        // refine ln(tau) between the grid neighbours of the best point
+        let refined = match best {
+            Some((i, _)) => {
+                let lo = grid[i.saturating_sub(1)].ln();
+                let hi = grid[(i + 1).min(grid.len() - 1)].ln();
+                let ln_tau = golden_min(lo, hi, 30, |v| {
+                    rss_at(v.exp())
+                        .ok()
+                        .flatten()
+                        .map_or(f64::INFINITY, |x| x.1)
+                });
+                let tau = ln_tau.exp();
+                rss_at(tau)?.map(|(a, _, u)| (a, tau, u))
+            }
+            None => None,
+        };
+        if let Some((a, tau, u)) = refined {
             let sig: Vec<f64> = u.iter().map(|v| v * a).collect();
             det(
                 "warmup",
@@ -416,7 +439,8 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
                     tau_s: tau,
                 },
                 sig,
-                "least squares over a log grid of 24 time constants".into(),
+                "least squares over a log grid of 24 time constants, refined by golden section"
+                    .into(),
             );
         }
     }
@@ -709,6 +733,31 @@ fn shrink_ranges(r: &[Range<usize>]) -> Vec<Range<usize>> {
     r.iter().map(|r| (r.start + 1)..r.end).collect()
 }
 
+/// The minimiser of a unimodal `f` on [lo, hi] by golden-section search (`iters`
+/// steps, each shrinking the bracket by 0.618; Kiefer 1953).
+fn golden_min(mut lo: f64, mut hi: f64, iters: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let mut a = hi - g * (hi - lo);
+    let mut b = lo + g * (hi - lo);
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - g * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + g * (hi - lo);
+            fb = f(b);
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// The sinusoid that best explains `res` on `ranges`: (amplitude, freq_hz, phase_rad).
 fn find_sinusoid(res: &[f64], ranges: &[Range<usize>], fs: f64) -> Option<(f64, f64, f64)> {
     let n = res.len();
@@ -933,4 +982,18 @@ fn heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<Option<Pro
             100.0 * phi
         ),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_section_finds_the_minimum() {
+        let x = golden_min(0.0, 4.0, 60, |v| (v - 1.3).powi(2) + 2.0);
+        assert!((x - 1.3).abs() < 1e-9, "{x}");
+        // at an end of the bracket it converges to that end
+        let y = golden_min(0.0, 1.0, 60, |v| v);
+        assert!(y < 1e-9, "{y}");
+    }
 }

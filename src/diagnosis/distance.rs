@@ -7,16 +7,30 @@
 //! vary across the ensemble from dividing by zero: 0.01 for log-scale features (1 %),
 //! and 1e-3 of the ensemble's root mean square value for the others.
 //!
-//! The scalar gap is the root mean square of z, each statistic family weighted
-//! equally, each feature counting at most 30 standard deviations:
-//! gap^2 = (1/F) sum_f (1/n_f) sum_{k in f} min(z_k^2, 900). The cap keeps one feature
+//! Each feature scores d_k = min(z_k^2, 900) + max(0, ln(s_k^2 / r_k^2)), where r_k is
+//! the spread of the spec's own ensemble (the reference: every candidate is scored
+//! against the same one). The first term is the squared distance, counted up to 30
+//! standard deviations; the second is the spread term of the Dawid-Sebastiani score
+//! ((x - mu)^2 / s^2 + ln s^2, a proper scoring rule for a predictive mean and
+//! variance: Dawid and Sebastiani 1999, "Coherent dispersion criteria for optimal
+//! experimental design", Ann. Statist. 27; Gneiting and Raftery 2007, JASA 102, eq. 27)
+//! relative to the reference, so that a candidate cannot close the gap by widening the
+//! band until the real log falls inside it: a random walk added to a spec that lacks
+//! a temperature drift makes every long-window statistic vary so much across the
+//! replicas that the drift no longer stands out, and pays for it here. Only widening
+//! is charged: a candidate that narrows the band gets no credit for it beyond what
+//! its z values show. For the spec itself the second term is zero and d_k = z_k^2.
+//!
+//! The scalar gap is the root mean square of d, each statistic family weighted
+//! equally: gap^2 = (1/F) sum_f (1/n_f) sum_{k in f} d_k. The cap keeps one feature
 //! that no candidate can reproduce (say the discrete values of a real log quantised in
 //! rate, against a simulator with continuous values: z near 900 on the ADIS16405 runs)
 //! from hiding what every other statistic shows; a feature 30 sd away is far out of the
 //! band either way, and the regions still report its full excess. A simulation of
-//! the spec itself, scored against the ensemble of the others (leave one out), has a
-//! gap near 1: those M leave-one-out gaps give the noise floor (their mean) and the
-//! significance threshold (their largest value, times 1.1).
+//! the spec itself, scored against the ensemble of the others (leave one out, spread
+//! term against the whole ensemble), has a gap near 1: those M leave-one-out gaps give
+//! the noise floor (their mean) and the significance threshold (their largest value,
+//! times 1.1).
 //!
 //! A region is a run of neighbouring features of one family and one name whose |z|
 //! exceeds the family's threshold max(4, 1.25 max |z| seen over the leave-one-out
@@ -71,6 +85,15 @@ impl EnsembleStats {
         EnsembleStats { mean, sd }
     }
 
+    /// The spread term of each feature against `reference`: max(0, ln(s_k^2 / r_k^2)).
+    pub fn spread_penalty(&self, reference: &EnsembleStats) -> Vec<f64> {
+        self.sd
+            .iter()
+            .zip(&reference.sd)
+            .map(|(s, r)| (2.0 * (s / r).ln()).max(0.0))
+            .collect()
+    }
+
     /// Standardised distances of `v` from the ensemble.
     pub fn z(&self, v: &[f64]) -> Vec<f64> {
         v.iter()
@@ -80,15 +103,23 @@ impl EnsembleStats {
     }
 }
 
-/// The family-balanced root mean square of `z`.
-pub fn gap(z: &[f64], defs: &[FeatureDef]) -> f64 {
+/// Per-family sums of the feature scores d_k = min(z_k^2, 900) + penalty_k (a
+/// non-finite z counts 900), with the number of features of each family.
+fn family_sums(
+    z: &[f64],
+    penalty: Option<&[f64]>,
+    defs: &[FeatureDef],
+) -> Vec<(Statistic, f64, usize)> {
     let mut fams: Vec<(Statistic, f64, usize)> = Vec::new();
-    for (zk, d) in z.iter().zip(defs) {
-        let v = if zk.is_finite() {
+    for (k, (zk, d)) in z.iter().zip(defs).enumerate() {
+        let mut v = if zk.is_finite() {
             (zk * zk).min(Z2_CAP)
         } else {
             Z2_CAP
         };
+        if let Some(p) = penalty {
+            v += p[k];
+        }
         match fams.iter_mut().find(|f| f.0 == d.statistic) {
             Some(f) => {
                 f.1 += v;
@@ -97,6 +128,14 @@ pub fn gap(z: &[f64], defs: &[FeatureDef]) -> f64 {
             None => fams.push((d.statistic, v, 1)),
         }
     }
+    fams
+}
+
+/// The scalar gap: family-balanced root mean square of the feature scores
+/// (`penalty`: the spread terms of [`EnsembleStats::spread_penalty`], none for the
+/// reference ensemble itself).
+pub fn gap(z: &[f64], penalty: Option<&[f64]>, defs: &[FeatureDef]) -> f64 {
+    let fams = family_sums(z, penalty, defs);
     if fams.is_empty() {
         return 0.0;
     }
@@ -104,24 +143,14 @@ pub fn gap(z: &[f64], defs: &[FeatureDef]) -> f64 {
     (s / fams.len() as f64).sqrt()
 }
 
-/// Per-family gaps (for the report).
-pub fn family_gaps(z: &[f64], defs: &[FeatureDef]) -> Vec<(Statistic, f64)> {
-    let mut out: Vec<(Statistic, f64, usize)> = Vec::new();
-    for (zk, d) in z.iter().zip(defs) {
-        let v = if zk.is_finite() {
-            (zk * zk).min(Z2_CAP)
-        } else {
-            Z2_CAP
-        };
-        match out.iter_mut().find(|f| f.0 == d.statistic) {
-            Some(f) => {
-                f.1 += v;
-                f.2 += 1;
-            }
-            None => out.push((d.statistic, v, 1)),
-        }
-    }
-    out.into_iter()
+/// Per-family gaps (for the report): the root mean square of each family's scores.
+pub fn family_gaps(
+    z: &[f64],
+    penalty: Option<&[f64]>,
+    defs: &[FeatureDef],
+) -> Vec<(Statistic, f64)> {
+    family_sums(z, penalty, defs)
+        .into_iter()
         .map(|(s, v, n)| (s, (v / n as f64).sqrt()))
         .collect()
 }
@@ -144,10 +173,12 @@ impl Calibration {
     pub fn new(reps: &[Vec<f64>], defs: &[FeatureDef]) -> Calibration {
         let mut loo_gaps = Vec::with_capacity(reps.len());
         let mut zmax: Vec<(Statistic, f64)> = Vec::new();
+        let whole = EnsembleStats::new(reps, defs, None);
         for (i, r) in reps.iter().enumerate() {
             let st = EnsembleStats::new(reps, defs, Some(i));
             let z = st.z(r);
-            loo_gaps.push(gap(&z, defs));
+            let pen = st.spread_penalty(&whole);
+            loo_gaps.push(gap(&z, Some(&pen), defs));
             for (zk, d) in z.iter().zip(defs) {
                 let a = zk.abs();
                 match zmax.iter_mut().find(|f| f.0 == d.statistic) {
@@ -274,7 +305,7 @@ mod tests {
     fn gap_weights_families_equally() {
         let d = defs(4);
         // family adev: z = (3, 3) -> ms 9; time: (0, 0) -> 0; gap = sqrt(9/2)
-        let g = gap(&[3.0, 3.0, 0.0, 0.0], &d);
+        let g = gap(&[3.0, 3.0, 0.0, 0.0], None, &d);
         assert!((g - (4.5f64).sqrt()).abs() < 1e-12);
     }
 
@@ -289,6 +320,35 @@ mod tests {
         assert!((st.sd[1] - 0.01).abs() < 1e-12);
         let z = st.z(&[4.0, 10.02]);
         assert!((z[0] - 2.0).abs() < 1e-12 && (z[1] - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn widening_the_band_is_charged() {
+        let d = defs(2);
+        // reference: sd 1 on both features
+        let reference = EnsembleStats {
+            mean: vec![0.0, 0.0],
+            sd: vec![1.0, 1.0],
+        };
+        // a candidate that widens feature 0 tenfold and narrows feature 1
+        let wide = EnsembleStats {
+            mean: vec![0.0, 0.0],
+            sd: vec![10.0, 0.5],
+        };
+        let p = wide.spread_penalty(&reference);
+        assert!((p[0] - 100f64.ln()).abs() < 1e-12 && p[1] == 0.0, "{p:?}");
+        // the real log at (5, 0): the wide candidate's z is 0.5 but it pays ln 100; a
+        // candidate one reference sd off the real value keeps the reference spread
+        let real = [5.0, 0.0];
+        let g_wide = gap(&wide.z(&real), Some(&p), &d);
+        let right = EnsembleStats {
+            mean: vec![4.0, 0.0],
+            sd: vec![1.0, 1.0],
+        };
+        let g_right = gap(&right.z(&real), Some(&right.spread_penalty(&reference)), &d);
+        assert!(g_right < g_wide, "{g_right} vs {g_wide}");
+        // without the charge the widening would have won
+        assert!(gap(&wide.z(&real), None, &d) < gap(&right.z(&real), None, &d));
     }
 
     #[test]

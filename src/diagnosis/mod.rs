@@ -9,7 +9,8 @@
 //!   temperature and dT/dt, state-dependent dynamics, cross-axis coupling);
 //! - [`ensemble`]: M simulations of the spec on the log's time base and temperature,
 //!   kept per component so that a candidate is one more signal added to a cached sum;
-//! - [`distance`]: the scalar gap (family-balanced RMS of ensemble z-scores), the noise
+//! - [`distance`]: the scalar gap (family-balanced RMS of ensemble z-scores, with a
+//!   charge for widening the band), the noise
 //!   floor and significance from leave-one-out simulations, the regions out of band;
 //! - [`candidates`]: each candidate effect's parameters, estimated on the training part;
 //! - this file: scoring on the withheld part and the greedy loop ([`diagnose`]);
@@ -228,9 +229,9 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     let cal = Calibration::new(&feats, &defs);
     let ens = EnsembleStats::new(&feats, &defs, None);
     let z0 = ens.z(&real_feats);
-    let gap_before = distance::gap(&z0, &defs);
+    let gap_before = distance::gap(&z0, None, &defs);
     let where_before = distance::regions(&z0, &real_feats, &ens, &defs, &cal);
-    let family_before = distance::family_gaps(&z0, &defs);
+    let family_before = distance::family_gaps(&z0, None, &defs);
     let ens_before = ens.clone();
 
     let mut st = State {
@@ -273,14 +274,15 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 let f = feats_of(&st.target, Some(&p.delta));
                 let e = EnsembleStats::new(&f, &defs, None);
                 let z = e.z(&real_feats);
-                let g = distance::gap(&z, &defs);
+                let pen = e.spread_penalty(&ens_before);
+                let g = distance::gap(&z, Some(&pen), &defs);
                 let eff = Effect {
                     kind: p.kind.clone(),
                     gap_after: g,
                     shrink: 1.0 - g / st.gap,
                     params: p.params.clone(),
                     note: p.note.clone(),
-                    families: distance::family_gaps(&z, &defs),
+                    families: distance::family_gaps(&z, Some(&pen), &defs),
                     component: p.component.clone(),
                     replaces: p.replaces,
                 };
@@ -348,7 +350,8 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     }
     let z1 = st.ens.z(&real_feats);
     let where_after = distance::regions(&z1, &real_feats, &st.ens, &defs, &cal);
-    let family_after = distance::family_gaps(&z1, &defs);
+    let pen1 = st.ens.spread_penalty(&ens_before);
+    let family_after = distance::family_gaps(&z1, Some(&pen1), &defs);
     Ok(Diagnosis {
         channel: real.channel.clone(),
         gap_before,
