@@ -233,6 +233,12 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     let where_before = distance::regions(&z0, &real_feats, &ens, &defs, &cal);
     let family_before = distance::family_gaps(&z0, None, &defs);
     let ens_before = ens.clone();
+    // a real log on a value grid that the simulations do not have: say so, with the step
+    let resolution = where_before
+        .iter()
+        .any(|r| r.feature == "ln_distinct_share" && r.ratio_or_delta < 1.0)
+        .then(|| candidates::output_resolution(real.x))
+        .flatten();
 
     let mut st = State {
         spec: spec.clone(),
@@ -267,6 +273,14 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         let (props, skipped) = candidates::propose(&cx)?;
         if first.is_none() {
             not_tried = skipped;
+            if let Some(q) = resolution {
+                not_tried.push(NotTried {
+                    kind: "output_resolution".into(),
+                    reason: format!(
+                        "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate); the spec contract has no component that rounds the simulated rate, so the distribution statistics keep this difference"
+                    ),
+                });
+            }
         }
         let mut scored: Vec<(Effect, EnsembleStats, Proposal)> = props
             .into_iter()
