@@ -106,9 +106,9 @@ pub struct Ar1 {
 /// By chunks: each chunk runs every recursion from a zero state (in parallel), the
 /// true state at each chunk start is carried by one sequential pass over the chunk
 /// ends (x_end(c) = y_end(c) + phi^L x_end(c-1)), and each chunk then adds
-/// phi^(j+1) x_start + prev phi^j x_start for its j-th sample (in parallel). Linearity makes the sum
-/// exactly the sequential recursion up to rounding, and the fixed chunking makes the
-/// rounding independent of the thread count.
+/// phi^(j+1) x_start + prev phi^j x_start for its j-th sample (in parallel).
+/// Linearity makes the sum exactly the sequential recursion up to rounding, and the
+/// fixed chunking makes the rounding independent of the thread count.
 pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
     use rand_distr::{Distribution, StandardNormal};
     let n_chunks = out.len().div_ceil(CHUNK);
