@@ -239,9 +239,11 @@ impl<'a> Simulator<'a> {
                                 "{place}: the flicker bounds tau_min_s = {lo} s, tau_max_s = {hi} s are not 0 < min < max (the defaults are 1 / sample rate and the duration)"
                             )));
                         }
-                        if markov::bias_instability_bank(1.0, lo, hi).len() > 255 {
+                        let k = markov::bias_instability_bank(1.0, lo, hi).processes.len();
+                        if k >= markov::WHITE_SUB {
                             return Err(Error::Usage(format!(
-                                "{place}: tau_max_s / tau_min_s spans more than 80 decades"
+                                "{place}: the flicker bank would need {k} Gauss-Markov processes (2 per decade of correlation time from tau_min_s / 100 to 100 tau_max_s), more than the {} the simulator has streams for: tau_max_s / tau_min_s spans more than 123 decades",
+                                markov::WHITE_SUB - 1
                             )));
                         }
                     }

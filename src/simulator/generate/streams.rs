@@ -89,23 +89,26 @@ pub fn for_chunks(out: &mut [f64], f: impl Fn(u64, &mut [f64]) + Sync) {
 }
 
 /// One first-order recursion x_t = phi x_{t-1} + gain w_t (w_t standard normal) of a
-/// bank, started from x_{-1} = `x_init`.
+/// bank, started from x_{-1} = `x_init`; it adds x_t + prev x_{t-1} to sample t (prev
+/// 0: the process itself; prev 1: the sum of two neighbouring values, which the
+/// interval averages of [`super::markov`] need).
 #[derive(Debug, Clone, Copy)]
 pub struct Ar1 {
     pub phi: f64,
     pub gain: f64,
     pub x_init: f64,
+    pub prev: f64,
 }
 
-/// Adds the sum of the bank's recursions to `out`; recursion k draws w from
-/// sub-stream k of `key`.
+/// Adds the sum of the bank's outputs x_t + prev x_{t-1} to `out`; recursion k draws
+/// w from sub-stream k of `key`.
 ///
 /// By chunks: each chunk runs every recursion from a zero state (in parallel), the
 /// true state at each chunk start is carried by one sequential pass over the chunk
 /// ends (x_end(c) = y_end(c) + phi^L x_end(c-1)), and each chunk then adds
-/// phi^(j+1) x_start for its j-th sample (in parallel). Linearity makes the sum
-/// exactly the sequential recursion up to rounding, and the fixed chunking makes the
-/// rounding independent of the thread count.
+/// phi^(j+1) x_start + prev phi^j x_start for its j-th sample (in parallel).
+/// Linearity makes the sum exactly the sequential recursion up to rounding, and the
+/// fixed chunking makes the rounding independent of the thread count.
 pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
     use rand_distr::{Distribution, StandardNormal};
     let n_chunks = out.len().div_ceil(CHUNK);
@@ -124,8 +127,9 @@ pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
                 let mut acc = *v;
                 for ((ar, yi), rng) in bank.iter().zip(y.iter_mut()).zip(rngs.iter_mut()) {
                     let w: f64 = StandardNormal.sample(rng);
-                    *yi = ar.phi * *yi + ar.gain * w;
-                    acc += *yi;
+                    let before = *yi;
+                    *yi = ar.phi * before + ar.gain * w;
+                    acc += *yi + ar.prev * before;
                 }
                 *v = acc;
             }
@@ -140,25 +144,27 @@ pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
             x = ar.phi.powi(len as i32) * x + ends[c * k + i];
         }
     }
-    // Phase 3: add the homogeneous part phi^(j+1) x_start (bank order, zero starts skipped).
+    // Phase 3: add the homogeneous part phi^(j+1) x_start + prev phi^j x_start (bank
+    // order, zero starts skipped).
     out.par_chunks_mut(CHUNK)
         .zip(starts.par_chunks(k.max(1)))
         .for_each(|(s, start)| {
-            let live: Vec<(f64, f64)> = bank
+            let live: Vec<(f64, f64, f64)> = bank
                 .iter()
                 .zip(start)
                 .filter(|(_, x)| **x != 0.0)
-                .map(|(ar, x)| (ar.phi, *x))
+                .map(|(ar, x)| (ar.phi, ar.prev, *x))
                 .collect();
             if live.is_empty() {
                 return;
             }
-            let mut h: Vec<f64> = live.iter().map(|l| l.1).collect();
+            let mut h: Vec<f64> = live.iter().map(|l| l.2).collect();
             for v in s.iter_mut() {
                 let mut acc = *v;
                 for (hi, l) in h.iter_mut().zip(&live) {
+                    let before = *hi;
                     *hi *= l.0;
-                    acc += *hi;
+                    acc += *hi + l.1 * before;
                 }
                 *v = acc;
             }
@@ -188,8 +194,9 @@ mod tests {
                     rng = key.rng(i, (t / CHUNK) as u64);
                 }
                 let w: f64 = StandardNormal.sample(&mut rng);
+                let before = x;
                 x = ar.phi * x + ar.gain * w;
-                *o += x;
+                *o += x + ar.prev * before;
             }
         }
         out
@@ -208,16 +215,19 @@ mod tests {
                 phi: 0.999,
                 gain: 0.1,
                 x_init: 2.0,
+                prev: 1.0,
             },
             Ar1 {
                 phi: 1.0,
                 gain: 0.01,
                 x_init: 0.0,
+                prev: 0.0,
             },
             Ar1 {
                 phi: 0.5,
                 gain: 1.0,
                 x_init: -1.0,
+                prev: 0.7,
             },
         ];
         let n = 2 * CHUNK + 777;
