@@ -3,10 +3,13 @@
 //! Run: `cargo bench --bench constancy`. R series of N samples each from a linear
 //! ARMA(2,1) (a = 0.5, -0.3; b = 0.4) and from the FARMA(2,1,1) of
 //! tests/workflow_select.rs (f_1 = 0.2 + 0.6 exp(-z^2), f_2 = -0.25 + 0.15 tanh z,
-//! b = 0.4), unit Gaussian innovations; on each, FARMA(2,1,1) by GCV (grid 31), then
-//! the test with B bootstrap replicates at that bandwidth. Reports the rejection rate at
-//! 5 % with its binomial standard error. Environment: FARMA_BENCH_REPS (R, default
-//! 100), FARMA_BENCH_N (default 2000), FARMA_BENCH_B (default 99).
+//! b = 0.4), unit Gaussian innovations; on each, the test of FARMA(2,1,1) (grid 31)
+//! with B bootstrap replicates, the bandwidth by GCV on the series and on every
+//! replicate (`FARMA_BENCH_H=gcv`, default, what `farma select` does), or chosen by GCV
+//! on the series and held fixed in the replicates (`FARMA_BENCH_H=fixed`, the invalid
+//! use, for comparison). Reports the rejection rate at 5 % with its binomial standard
+//! error. Environment: FARMA_BENCH_REPS (R, default 100), FARMA_BENCH_N (default
+//! 2000), FARMA_BENCH_B (default 99), FARMA_BENCH_H.
 
 #[path = "common/mod.rs"]
 mod common;
@@ -52,7 +55,15 @@ fn main() {
     let n = env("FARMA_BENCH_N", 2000);
     let b = env("FARMA_BENCH_B", 99);
     println!("machine: {}", common::machine());
-    println!("R = {reps}, N = {n}, B = {b}, FARMA(2,1,1), grid 31, level 5 %");
+    let fixed = std::env::var("FARMA_BENCH_H").is_ok_and(|v| v == "fixed");
+    println!(
+        "R = {reps}, N = {n}, B = {b}, FARMA(2,1,1), grid 31, level 5 %, bandwidth {}",
+        if fixed {
+            "by GCV on the series, fixed in the replicates"
+        } else {
+            "by GCV on the series and on every replicate"
+        }
+    );
     for (label, nonlinear) in [
         ("ARMA(2,1) data (level)", false),
         ("FARMA(2,1,1) data (power)", true),
@@ -70,22 +81,24 @@ fn main() {
                 grid_size: 31,
                 ..FarmaParams::default()
             };
-            let h = fit(&x, &base.clone().validate(n).unwrap())
-                .unwrap()
-                .bandwidth;
+            let h = fixed.then(|| {
+                fit(&x, &base.clone().validate(n).unwrap())
+                    .unwrap()
+                    .bandwidth
+            });
             let c = constancy_test(
                 &x,
                 &ConstancyParams {
                     bootstrap: b,
                     seed: r as u64,
                     farma: FarmaParams {
-                        bandwidth: Some(h),
+                        bandwidth: h,
                         ..base
                     },
                 },
             )
             .unwrap();
-            if c.p_value <= 0.05 {
+            if farma::workflow::rejects(c.p_value, farma::workflow::ALPHA) {
                 rejected += 1;
             }
             ps.push(c.p_value);

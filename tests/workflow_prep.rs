@@ -8,6 +8,7 @@ use farma::workflow::pauta::{Replace, pauta};
 use farma::workflow::stationarity::{
     SegmentStat, reverse_arrangement_series, reverse_arrangement_test, reverse_arrangements,
 };
+use farma::workflow::{ALPHA, rejects};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -96,7 +97,10 @@ fn reverse_arrangements_have_the_null_mean_and_variance_on_white_noise() {
     let mut rej = 0;
     for _ in 0..400 {
         let x: Vec<f64> = (0..2000).map(|_| StandardNormal.sample(&mut rng)).collect();
-        if reverse_arrangement_series(&x, 20, SegmentStat::Mean).p_value < 0.05 {
+        if rejects(
+            reverse_arrangement_series(&x, 20, SegmentStat::Mean).p_value,
+            ALPHA,
+        ) {
             rej += 1;
         }
     }

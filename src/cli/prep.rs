@@ -31,8 +31,8 @@ pub struct PrepFlags {
     /// Statistic of each segment in the reverse-arrangement test.
     #[arg(long, value_enum, default_value_t = SegmentStat::Mean)]
     pub segment_stat: SegmentStat,
-    /// Level of the stationarity test.
-    #[arg(long, default_value_t = 0.05)]
+    /// Level of the stationarity test (rejected when p <= alpha).
+    #[arg(long, default_value_t = crate::workflow::ALPHA)]
     pub alpha: f64,
     /// What to do when stationarity is rejected.
     #[arg(long, value_enum, default_value_t = Nonstationary::Trend)]

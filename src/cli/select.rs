@@ -16,6 +16,7 @@ use crate::workflow::analyze::select_with_constancy;
 use crate::workflow::constancy::Constancy;
 use crate::workflow::select::{PAPER_ORDERS, Selection, order_name, parse_orders};
 use crate::workflow::tables::{constancy_table, ftest_table, select_table};
+use crate::workflow::{ALPHA, rejects};
 
 /// The selection flags (shared with `farma analyze`).
 #[derive(Args, Debug, Clone)]
@@ -138,7 +139,7 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
             c.bootstrap,
             c.statistic,
             c.p_value,
-            if c.p_value < 0.05 {
+            if rejects(c.p_value, ALPHA) {
                 "the coefficient functions vary: the nonlinearity is real"
             } else {
                 "constant coefficients not rejected: the linear ARMA is adequate"
@@ -194,4 +195,41 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn constancy(p_value: f64) -> Constancy {
+        Constancy {
+            statistic: 10.0,
+            p_value,
+            bootstrap: 19,
+            bandwidth: 1.0,
+            rss0: 2.0,
+            rss1: 1.0,
+            t_boot: vec![],
+        }
+    }
+
+    /// The text reads the constancy p-value with the workflow's one rule, p <= alpha:
+    /// at B = 19 the smallest p, 0.05, rejects.
+    #[test]
+    fn constancy_text_rejects_at_the_level() {
+        let s = Selection {
+            rows: vec![],
+            ftests: vec![],
+            selected: 0,
+            reason: "none".into(),
+            fits: vec![],
+        };
+        let at = select_text("x", &s, Some(&constancy(1.0 / 20.0)));
+        assert!(at.contains("the nonlinearity is real"), "{at}");
+        let above = select_text("x", &s, Some(&constancy(2.0 / 20.0)));
+        assert!(
+            above.contains("constant coefficients not rejected"),
+            "{above}"
+        );
+    }
 }

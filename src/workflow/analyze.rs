@@ -46,7 +46,9 @@ pub fn select_with_constancy(
                 p: r.order.0,
                 q: r.order.1,
                 d: r.order.2,
-                bandwidth: Some(r.bandwidth),
+                // GCV again on every replicate unless the user fixed h in advance
+                // (see constancy.rs: a GCV choice held fixed over-rejects)
+                bandwidth: base.bandwidth,
                 ..base.clone()
             },
         };

@@ -5,12 +5,20 @@
 //! Statistic (Fan, Zhang and Zhang 2001, Ann. Statist. 29, eq. 2.4; for functional-
 //! coefficient autoregressions Cai, Fan and Yao 2000, JASA 95, section 3.2):
 //! T = (m / 2) ln(RSS_0 / RSS_1), RSS_0 of the linear ARMA(p,q) by conditional least
-//! squares, RSS_1 of the FARMA(p,q,d) at a fixed bandwidth h, both over the rows
-//! t >= max(p,q,d), m their number. Null distribution by the residual bootstrap of
+//! squares (the FARMA fit's own linear start, [`linear_start`]), RSS_1 of the
+//! FARMA(p,q,d) at a fixed bandwidth h, both over the rows t >= max(p,q,d), m their
+//! number. Null distribution by the residual bootstrap of
 //! Cai, Fan and Yao: B series are simulated from the fitted ARMA(p,q) with innovations
 //! drawn with replacement from its centred residuals (200 samples of burn-in,
 //! discarded), T* is computed on each with the same h and grid, and
-//! p = (1 + #{T* >= T}) / (B + 1). Replicate i draws from its own ChaCha8 stream
+//! p = (1 + #{T* >= T}) / (B + 1). The bandwidth is either fixed in advance (the same h
+//! for T and every T*), or, with `farma.bandwidth` None, chosen by GCV on the series
+//! and chosen again by GCV on every replicate: the selection is then part of the
+//! statistic and the bootstrap reproduces it. A bandwidth chosen by GCV on the data and
+//! held fixed in the replicates is not a valid use: GCV picks a small h where the
+//! series happens to look nonlinear, T is large there and the replicates, without that
+//! chance structure, do not follow; measured, that rejected 16 of 100 linear ARMA(2,1)
+//! series at 5 % (BENCHMARKS.md, `benches/constancy.rs`). Replicate i draws from its own ChaCha8 stream
 //! (seed, i), so the result does not depend on the number of threads.
 
 use rand::{Rng, SeedableRng};
@@ -18,7 +26,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::estimator::arma::{arma_residuals, fit_arma};
+use crate::estimator::arma::arma_residuals;
+use crate::estimator::fit::linear_start;
 use crate::estimator::{FarmaParams, fit};
 
 /// Parameters of the constancy test.
@@ -27,7 +36,8 @@ pub struct ConstancyParams {
     /// Bootstrap replicates B.
     pub bootstrap: usize,
     pub seed: u64,
-    /// The FARMA fit's parameters (order, grid); the bandwidth must be fixed.
+    /// The FARMA fit's parameters (order, grid); a bandwidth fixed in advance, or None:
+    /// GCV on the series and on every replicate.
     pub farma: FarmaParams,
 }
 
@@ -37,6 +47,7 @@ pub struct Constancy {
     pub statistic: f64,
     pub p_value: f64,
     pub bootstrap: usize,
+    /// The bandwidth of T (fixed, or GCV's choice on the series).
     pub bandwidth: f64,
     pub rss0: f64,
     pub rss1: f64,
@@ -49,24 +60,27 @@ struct Glr {
     t: f64,
     rss0: f64,
     rss1: f64,
+    /// The FARMA fit's bandwidth.
+    h: f64,
     ar: Vec<f64>,
     ma: Vec<f64>,
     /// Residuals of the ARMA fit.
     e: Vec<f64>,
 }
 
-/// T, RSS_0, RSS_1 and the ARMA fit of a (demeaned) series at fixed bandwidth.
+/// T, RSS_0, RSS_1 and the ARMA fit of a (demeaned) series (at the fixed bandwidth,
+/// or by GCV).
 fn glr(x: &[f64], prm: &FarmaParams) -> Result<Glr> {
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = x.len();
     let start = p.max(q).max(d);
-    let arma = fit_arma(x, p, q).ok_or_else(|| {
+    let (ar, ma) = linear_start(x, p, q, start).ok_or_else(|| {
         Error::Usage(format!(
             "constancy test: the linear ARMA({p},{q}) fit failed (singular design)"
         ))
     })?;
     let mut e = vec![0.0; n];
-    arma_residuals(x, &arma.ar, &arma.ma, &mut e);
+    arma_residuals(x, &ar, &ma, &mut e);
     let rss0: f64 = e[start..].iter().map(|v| v * v).sum();
     let valid = FarmaParams {
         demean: false,
@@ -79,18 +93,15 @@ fn glr(x: &[f64], prm: &FarmaParams) -> Result<Glr> {
         t,
         rss0,
         rss1: m1.rss,
-        ar: arma.ar,
-        ma: arma.ma,
+        h: m1.bandwidth,
+        ar,
+        ma,
         e,
     })
 }
 
 /// The test on series `x` (its mean is removed first).
 pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
-    let h = prm
-        .farma
-        .bandwidth
-        .ok_or_else(|| Error::Internal("constancy test needs a fixed bandwidth".into()))?;
     if prm.bootstrap == 0 {
         return Err(Error::Usage("--bootstrap must be at least 1".into()));
     }
@@ -101,6 +112,7 @@ pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
         t,
         rss0,
         rss1,
+        h,
         ar,
         ma,
         e,

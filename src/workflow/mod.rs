@@ -22,3 +22,32 @@ pub mod prep;
 pub mod select;
 pub mod stationarity;
 pub mod tables;
+
+/// The level of the workflow's tests (5 %): the default of `--alpha` and the level the
+/// order table, the constancy test and the stationarity test are read at.
+pub const ALPHA: f64 = 0.05;
+
+/// The one rejection rule of every test of the workflow: H0 is rejected when
+/// p <= alpha. For a bootstrap p-value p = (1 + #{T* >= T}) / (B + 1) this is the Monte
+/// Carlo test of exact level alpha when alpha (B + 1) is an integer (Davison and
+/// Hinkley, Bootstrap Methods and their Application, 1997, section 4.2.5): with B = 19
+/// the one way to reject at 5 % is T above every T*, p = 0.05 exactly, which `<` would
+/// never reject. A NaN p-value rejects nothing.
+pub fn rejects(p_value: f64, alpha: f64) -> bool {
+    p_value <= alpha
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejection_rule_includes_the_level_itself() {
+        assert!(rejects(0.05, ALPHA));
+        assert!(rejects(1.0 / 20.0, ALPHA)); // B = 19, T above every T*
+        assert!(rejects(0.0, ALPHA));
+        assert!(!rejects(0.050_000_001, ALPHA));
+        assert!(!rejects(2.0 / 20.0, ALPHA)); // B = 19, one T* at least T
+        assert!(!rejects(f64::NAN, ALPHA));
+    }
+}

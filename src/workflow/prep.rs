@@ -5,9 +5,9 @@
 //! Order of the steps, per channel:
 //! 1. Pauta (3-sigma, iterated; [`super::pauta`]), rejected samples replaced;
 //! 2. reverse-arrangement test on the cleaned series ([`super::stationarity`]);
-//! 3. if p < alpha: `trend` removes the least-squares line a + b t (default; the
-//!    length stays), `diff` takes first differences (one sample shorter), `none`
-//!    only records the rejection; then the test again on the result;
+//! 3. if p <= alpha ([`super::rejects`]): `trend` removes the least-squares line
+//!    a + b t (default; the length stays), `diff` takes first differences (one sample
+//!    shorter), `none` only records the rejection; then the test again on the result;
 //! 4. the mean is subtracted (recorded, `keep_mean` skips it).
 
 use super::pauta::{Replace, Replacement, pauta};
@@ -49,7 +49,7 @@ impl Default for PrepParams {
             max_passes: 100,
             segments: 20,
             segment_stat: SegmentStat::Mean,
-            alpha: 0.05,
+            alpha: super::ALPHA,
             nonstationary: Nonstationary::Trend,
             keep_mean: false,
         }
@@ -129,12 +129,12 @@ pub struct ChannelPrep {
 impl ChannelPrep {
     /// Whether the series that leaves preparation passed the stationarity test.
     pub fn stationary(&self, alpha: f64) -> bool {
-        self.after.as_ref().unwrap_or(&self.before).p_value >= alpha
+        !super::rejects(self.after.as_ref().unwrap_or(&self.before).p_value, alpha)
     }
 }
 
 fn ra_step(step: &str, r: &ReverseArrangement, alpha: f64, stat: SegmentStat) -> Step {
-    let verdict = if r.p_value < alpha {
+    let verdict = if super::rejects(r.p_value, alpha) {
         "rejects stationarity"
     } else {
         "does not reject stationarity"
@@ -188,7 +188,7 @@ pub fn prep_channel(name: &str, x: &[f64], prm: &PrepParams) -> ChannelPrep {
     ));
     let mut after = None;
     let mut differenced = false;
-    if before.p_value < prm.alpha && prm.nonstationary != Nonstationary::None {
+    if super::rejects(before.p_value, prm.alpha) && prm.nonstationary != Nonstationary::None {
         match prm.nonstationary {
             Nonstationary::Trend => {
                 // least squares of v on (1, t), t centred
@@ -235,7 +235,7 @@ pub fn prep_channel(name: &str, x: &[f64], prm: &PrepParams) -> ChannelPrep {
             prm.segment_stat,
         ));
         after = Some(r);
-    } else if before.p_value < prm.alpha {
+    } else if super::rejects(before.p_value, prm.alpha) {
         steps.push(Step::new(
             "nonstationary_kept",
             "stationarity rejected; --nonstationary none: series kept as it is".into(),

@@ -2,7 +2,10 @@
 //!
 //! For every order (p,q,d) of the grid (default the paper's eight) the FARMA model is
 //! fitted (bandwidth by GCV) and the linear ARMA(p,q) by conditional least squares on
-//! the same series; both RSS are summed over the same rows t >= max(p,q,d).
+//! the same series; both RSS are summed over the same rows t >= max(p,q,d). The ARMA
+//! baseline is the FARMA fit's own linear start ([`linear_start`]), the model it nests,
+//! and the FARMA fit never ends above its start (beyond the convergence tolerance), so
+//! the F statistic against the ARMA is not negative.
 //! Per order: RSS, sigma^2 = RSS / m (m = N - max(p,q,d)), the effective degrees of
 //! freedom df = tr(S) + q (trace of the f-step smoother plus the MA coefficients),
 //! GCV, and the corrected AIC of Hurvich, Simonoff and Tsai (1998, JRSS B 60, eq. 3)
@@ -19,7 +22,8 @@ use rayon::prelude::*;
 
 use super::dist::f_sf;
 use crate::error::{Error, Result};
-use crate::estimator::arma::{arma_residuals, fit_arma};
+use crate::estimator::arma::arma_residuals;
+use crate::estimator::fit::linear_start;
 use crate::estimator::{FarmaParams, FittedFarma, fit};
 
 /// The paper's eight orders.
@@ -160,13 +164,13 @@ pub fn select(
             let m = fit(x, vp)?;
             let start = p.max(q).max(d);
             let rows = n - start;
-            let arma = fit_arma(&xc, p, q).ok_or_else(|| {
+            let (arma_ar, arma_ma) = linear_start(&xc, p, q, start).ok_or_else(|| {
                 Error::Usage(format!(
                     "the linear ARMA({p},{q}) fit failed (singular design)"
                 ))
             })?;
             let mut e = vec![0.0; n];
-            arma_residuals(&xc, &arma.ar, &arma.ma, &mut e);
+            arma_residuals(&xc, &arma_ar, &arma_ma, &mut e);
             let arma_rss: f64 = e[start..].iter().map(|v| v * v).sum();
             let df = m.trace + q as f64;
             let adf = (p + q) as f64;
@@ -186,8 +190,8 @@ pub fn select(
                     arma_rss,
                     arma_sigma2: arma_rss / rows as f64,
                     arma_aicc: aicc(arma_rss, rows, adf),
-                    arma_ar: arma.ar,
-                    arma_ma: arma.ma,
+                    arma_ar,
+                    arma_ma,
                     f_vs_arma: f,
                     p_vs_arma: pv,
                 },
