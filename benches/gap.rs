@@ -140,31 +140,23 @@ fn main() {
                     if hit { "" } else { "   <- miss" }
                 );
                 if verbose {
-                    for e in d.effects.iter().take(3) {
-                        let fam: Vec<String> = e
-                            .families
-                            .iter()
+                    let fams = |f: &[(farma::diagnosis::Statistic, f64)]| {
+                        f.iter()
                             .map(|(s, g)| format!("{s:?} {g:.2}"))
-                            .collect();
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    };
+                    for e in d.effects.iter().take(3) {
                         println!(
                             "      {:<28} {:>6.2}  {}  {}",
                             e.kind,
                             e.gap_after,
-                            fam.join(", "),
+                            fams(&e.families),
                             e.params
                         );
                     }
-                    let fam: Vec<String> = d
-                        .family_before
-                        .iter()
-                        .map(|(s, g)| format!("{s:?} {g:.2}"))
-                        .collect();
-                    println!(
-                        "      {:<28} {:>6.2}  {}",
-                        "(before)",
-                        d.gap_before,
-                        fam.join(", ")
-                    );
+                    let before = fams(&d.family_before);
+                    println!("      {:<28} {:>6.2}  {before}", "(before)", d.gap_before);
                 }
             }
         }

@@ -183,12 +183,7 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
             "added",
             Arc::new(BooleanArray::from(
                 rows.iter()
-                    .map(|r| {
-                        r.0 == "added"
-                            || d.added
-                                .iter()
-                                .any(|a| a.kind == r.2.kind && a.params == r.2.params)
-                    })
+                    .map(|r| r.0 == "added" || was_added(d, r.2))
                     .collect::<Vec<_>>(),
             )) as ArrayRef,
         ),
@@ -220,6 +215,14 @@ fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+}
+
+/// Whether a first-round candidate is one the greedy search added (same kind and the
+/// same estimated parameters: an effect added in a later round was re-estimated).
+fn was_added(d: &Diagnosis, e: &super::Effect) -> bool {
+    d.added
+        .iter()
+        .any(|a| a.kind == e.kind && a.params == e.params)
 }
 
 /// A self-contained SVG: the Allan deviation of the real log's withheld part against
@@ -360,11 +363,7 @@ pub fn svg(d: &Diagnosis) -> String {
     for (i, e) in d.effects.iter().take(8).enumerate() {
         let y = top + 14.0 + i as f64 * 18.0;
         let bw = (e.shrink.clamp(0.0, 1.0)) * 400.0;
-        let bold = if d.added.iter().any(|a| a.kind == e.kind) {
-            "bold"
-        } else {
-            "normal"
-        };
+        let bold = if was_added(d, e) { "bold" } else { "normal" };
         let _ = writeln!(
             s,
             r##"<text x="250" y="{:.1}" text-anchor="end" font-weight="{bold}">{}</text><rect x="260" y="{:.1}" width="{bw:.1}" height="12" fill="#2ca02c"/><text x="{:.1}" y="{:.1}">{:.1} %</text>"##,
