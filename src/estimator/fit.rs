@@ -28,7 +28,7 @@
 use super::arma::{fit_arma, ma_invertible};
 use super::direct::{self, DirectIndex};
 use super::linalg::normal_equations;
-use super::moments::{IntervalLookup, MomentTable, breakpoints};
+use super::moments::{Families, IntervalLookup, LocalSystems, MomentTable, breakpoints};
 use super::problem::{GridFit, PointStatus, VcProblem};
 use crate::error::{Error, Result};
 use std::time::Instant;
@@ -389,6 +389,34 @@ impl<'a> Smoother<'a> {
         }
     }
 
+    /// Local fits at one bandwidth, without RSS and trace. On the fast path the
+    /// left-hand sides of the local systems (which depend on X and U only) are kept in
+    /// `cache` and reused while h stays the same: then the pass sums only the
+    /// response's moments, X_a y, and the fits are the same numbers a full table gives.
+    fn fit_at(&self, h: f64, cache: &mut Option<LocalSystems>) -> GridFit {
+        match self.path {
+            FitPath::Fast => {
+                let breaks = breakpoints(self.grid, &[h]);
+                if let Some(sys) = cache.as_ref().filter(|s| s.h == h) {
+                    let families = Families::Response;
+                    let table = MomentTable::build_families(
+                        &self.prob, breaks, self.umin, self.umax, 6, families,
+                    );
+                    return table.fit_response(sys);
+                }
+                let table = MomentTable::build(&self.prob, breaks, self.umin, self.umax, 6);
+                let sys = table.local_systems(self.grid, h);
+                let fit = table.fit_response(&sys);
+                *cache = Some(sys);
+                fit
+            }
+            FitPath::Direct => {
+                let index = DirectIndex::build(&self.prob);
+                direct::fit_grid(&self.prob, &index, self.grid, h)
+            }
+        }
+    }
+
     /// Fits (and RSS, trace where every point is Ok) for each bandwidth.
     fn ladder(&self, hs: &[f64]) -> Vec<(GridFit, Option<(f64, f64)>)> {
         match self.path {
@@ -509,79 +537,179 @@ fn gcv_select(sm: &Smoother, range: f64) -> (Vec<GcvRow>, Vec<GridFit>, usize, b
     }
 }
 
+/// One streaming pass of the ARMA(p,q) recursion e_t = x_t - sum a_m x_{t-m} -
+/// sum b_m e_{t-m} (zeros before the first sample) with its derivatives
+/// d e_t / d a_j = -x_{t-j} - sum_k b_k d e_{t-k} / d a_j and
+/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
+/// 7.2): returns the RSS over t >= `start` and the Gauss-Newton normal equations J'J
+/// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
+/// values of e and of the derivatives: nothing N-long is allocated.
+fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    macro_rules! fixed {
+        ($(($p:literal, $q:literal)),*) => {
+            match (a.len(), b.len()) {
+                $(($p, $q) => return arma_pass_fixed::<$p, $q>(x, start, a, b),)*
+                _ => {}
+            }
+        };
+    }
+    fixed!(
+        (0, 1),
+        (0, 2),
+        (1, 1),
+        (2, 1),
+        (3, 1),
+        (1, 2),
+        (2, 2),
+        (3, 2)
+    );
+    arma_pass_any(x, start, a, b)
+}
+
+/// [`arma_pass`] for orders known at compile time: the last p values of x, q of e and
+/// of the derivatives kept in registers, zeros before the first sample (subtracting
+/// a zero term leaves every sum as the general version's, bit for bit).
+fn arma_pass_fixed<const P: usize, const Q: usize>(
+    x: &[f64],
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+) -> (f64, Vec<f64>, Vec<f64>) {
+    debug_assert!(start >= P.max(Q) && P + Q <= 8);
+    let k = P + Q;
+    let mut aa = [0.0f64; 8];
+    aa[..P].copy_from_slice(a);
+    let mut bb = [0.0f64; 8];
+    bb[..Q].copy_from_slice(b);
+    let mut xh = [0.0f64; 8];
+    let mut eh = [0.0f64; 8];
+    let mut dh = [[0.0f64; 8]; 8];
+    let mut jtj = [[0.0f64; 8]; 8];
+    let mut jte = [0.0f64; 8];
+    let mut rss = 0.0;
+    for (t, &xt) in x.iter().enumerate() {
+        let mut s = xt;
+        for m in 0..P {
+            s -= aa[m] * xh[m];
+        }
+        for m in 0..Q {
+            s -= bb[m] * eh[m];
+        }
+        let mut de = [0.0f64; 8];
+        for j in 0..k {
+            let mut v = if j < P { -xh[j] } else { -eh[j - P] };
+            for kk in 0..Q {
+                v -= bb[kk] * dh[kk][j];
+            }
+            de[j] = v;
+        }
+        if t >= start {
+            rss += s * s;
+            for i in 0..k {
+                for j in 0..k {
+                    jtj[i][j] += de[i] * de[j];
+                }
+                jte[i] -= de[i] * s;
+            }
+        }
+        for m in (1..P).rev() {
+            xh[m] = xh[m - 1];
+        }
+        if P > 0 {
+            xh[0] = xt;
+        }
+        for kk in (1..Q).rev() {
+            eh[kk] = eh[kk - 1];
+            dh[kk] = dh[kk - 1];
+        }
+        if Q > 0 {
+            eh[0] = s;
+            dh[0] = de;
+        }
+    }
+    let jtj: Vec<f64> = (0..k * k).map(|i| jtj[i / k][i % k]).collect();
+    (rss, jtj, jte[..k].to_vec())
+}
+
+/// [`arma_pass`] for any order.
+fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    let (p, q) = (a.len(), b.len());
+    let k = p + q;
+    let n = x.len();
+    let mut ehist = [0.0f64; 8];
+    // dhist[kk * k + j] = d e_{t-kk-1} / d theta_j, theta = (a, b)
+    let mut dhist = [0.0f64; 8 * 16];
+    let mut de = [0.0f64; 16];
+    let mut jtj = vec![0.0; k * k];
+    let mut jte = vec![0.0; k];
+    let mut rss = 0.0;
+    for t in 0..n {
+        let mut s = x[t];
+        for (m, am) in a.iter().enumerate() {
+            if t > m {
+                s -= am * x[t - m - 1];
+            }
+        }
+        for (m, bm) in b.iter().enumerate() {
+            if t > m {
+                s -= bm * ehist[m];
+            }
+        }
+        for j in 0..k {
+            let mut v = if j < p {
+                if t > j { -x[t - j - 1] } else { 0.0 }
+            } else if t > j - p {
+                -ehist[j - p]
+            } else {
+                0.0
+            };
+            for (kk, bk) in b.iter().enumerate() {
+                if t > kk {
+                    v -= bk * dhist[kk * k + j];
+                }
+            }
+            de[j] = v;
+        }
+        if t >= start {
+            rss += s * s;
+            for i in 0..k {
+                for j in 0..k {
+                    jtj[i * k + j] += de[i] * de[j];
+                }
+                jte[i] -= de[i] * s;
+            }
+        }
+        for kk in (1..q).rev() {
+            ehist[kk] = ehist[kk - 1];
+            for j in 0..k {
+                dhist[kk * k + j] = dhist[(kk - 1) * k + j];
+            }
+        }
+        ehist[0] = s;
+        dhist[..k].copy_from_slice(&de[..k]);
+    }
+    (rss, jtj, jte)
+}
+
+/// A Gauss-Newton step's predicted RSS decrease, step . (-J'e): with
+/// step = (J'J)^-1 (-J'e), ||e + J step||^2 = RSS - step . (-J'e).
+fn predicted_decrease(step: &[f64], neg_jte: &[f64]) -> f64 {
+    step.iter().zip(neg_jte).map(|(s, g)| s * g).sum()
+}
+
+/// Relative RSS decrease below which a Gauss-Newton step is taken without a line
+/// search: a sum of N squares is resolved to about 1e-16 sqrt(N) relative, so for
+/// N up to 1e8 a decrease below 1e-12 of the RSS cannot be told from rounding.
+const FLAT_RSS: f64 = 1e-12;
+
 /// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}
-/// (derivatives d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j), with step
-/// halving. Streaming: the recursions need only the last q values of e and of the
-/// derivatives, so each iteration is one pass over w for the normal equations and
-/// one per trial step, and nothing N-long is allocated. The arithmetic (and its
-/// order) is that of the stored-array version, so the result is the same to the bit.
+/// ([`arma_pass`] with p = 0), with step halving. Each trial point's pass also gives
+/// the normal equations there, so an accepted step costs one pass in all.
 pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     let q = b0.len();
-    let n = w.len();
     let mut b = b0.to_vec();
-    // RSS of the residuals of b; hist[k] = e_{t-k-1}
-    let resid = |b: &[f64]| -> f64 {
-        let mut hist = [0.0f64; 8];
-        let mut rss = 0.0;
-        for t in 0..n {
-            let mut s = w[t];
-            for (m, bm) in b.iter().enumerate() {
-                if t > m {
-                    s -= bm * hist[m];
-                }
-            }
-            if t >= start {
-                rss += s * s;
-            }
-            for k in (1..q).rev() {
-                hist[k] = hist[k - 1];
-            }
-            hist[0] = s;
-        }
-        rss
-    };
-    let mut rss = resid(&b);
+    let (mut rss, mut jtj, mut jte) = arma_pass(w, start, &[], &b);
     for _ in 0..30 {
-        // residuals and derivatives at b, with the normal equations, in one pass
-        let mut ehist = [0.0f64; 8];
-        // dhist[k * q + j] = d e_{t-k-1} / d b_j
-        let mut dhist = [0.0f64; 64];
-        let mut de = [0.0f64; 8];
-        let mut jtj = vec![0.0; q * q];
-        let mut jte = vec![0.0; q];
-        for t in 0..n {
-            let mut s = w[t];
-            for (m, bm) in b.iter().enumerate() {
-                if t > m {
-                    s -= bm * ehist[m];
-                }
-            }
-            for j in 0..q {
-                let mut v = if t > j { -ehist[j] } else { 0.0 };
-                for (k, bk) in b.iter().enumerate() {
-                    if t > k {
-                        v -= bk * dhist[k * q + j];
-                    }
-                }
-                de[j] = v;
-            }
-            if t >= start {
-                for i in 0..q {
-                    for j in 0..q {
-                        jtj[i * q + j] += de[i] * de[j];
-                    }
-                    jte[i] -= de[i] * s;
-                }
-            }
-            for k in (1..q).rev() {
-                ehist[k] = ehist[k - 1];
-                for j in 0..q {
-                    dhist[k * q + j] = dhist[(k - 1) * q + j];
-                }
-            }
-            ehist[0] = s;
-            dhist[..q].copy_from_slice(&de[..q]);
-        }
         let Some(step) = normal_equations(&jtj, &jte, q) else {
             break;
         };
@@ -591,13 +719,15 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
             break;
         }
         // A step this small is inside the quadratic basin: the RSS cannot tell the
-        // trial from b any more (their difference is below its rounding), so the line
+        // trial from b any more (the decrease the Gauss-Newton model predicts,
+        // step . (-J'e), is below the rounding of a sum of N squares), so the line
         // search would only halve the step 30 times, a pass each, and give up. Take
         // the Gauss-Newton step and stop.
-        if step
-            .iter()
-            .zip(&b)
-            .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
+        if predicted_decrease(&step, &jte) < FLAT_RSS * rss
+            || step
+                .iter()
+                .zip(&b)
+                .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
         {
             let bt: Vec<f64> = (0..q).map(|i| b[i] + step[i]).collect();
             if ma_invertible(&bt) {
@@ -610,11 +740,10 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
         for _ in 0..30 {
             let bt: Vec<f64> = (0..q).map(|i| b[i] + scale * step[i]).collect();
             if ma_invertible(&bt) {
-                let r = resid(&bt);
+                let (r, jt, je) = arma_pass(w, start, &[], &bt);
                 if r <= rss * (1.0 + 1e-14) {
                     moved = true;
-                    b = bt;
-                    rss = r;
+                    (b, rss, jtj, jte) = (bt, r, jt, je);
                     break;
                 }
             }
@@ -628,15 +757,11 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
 }
 
 /// Gauss-Newton for the linear ARMA(p,q) on every sample, from (a0, b0): (a, b)
-/// minimise sum_{t >= start} e_t^2, e_t = x_t - sum a_m x_{t-m} - sum b_m e_{t-m}
-/// (zeros before the first sample), the derivatives following
-/// d e_t / d a_j = -x_{t-j} - sum_k b_k d e_{t-k} / d a_j and
-/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
-/// 7.2), with step halving and the MA part kept invertible: the conditional least
-/// squares of [`super::arma::fit_arma`] from a given start. Streaming like [`ma_cls`]
-/// (the recursions need only the last q values of e and of the derivatives): one pass
-/// per iteration and per trial step, nothing N-long allocated, so it runs on series
-/// of any length. Returns (a, b, RSS).
+/// minimise sum_{t >= start} e_t^2 ([`arma_pass`]), with step halving and the MA part
+/// kept invertible: the conditional least squares of [`super::arma::fit_arma`] from a
+/// given start. Streaming (one pass per iteration, the trial's pass giving the next
+/// normal equations), nothing N-long allocated, so it runs on series of any length.
+/// Returns (a, b, RSS).
 pub fn arma_cls(
     x: &[f64],
     start: usize,
@@ -646,85 +771,9 @@ pub fn arma_cls(
 ) -> (Vec<f64>, Vec<f64>, f64) {
     let (p, q) = (a0.len(), b0.len());
     let k = p + q;
-    let n = x.len();
     let (mut a, mut b) = (a0.to_vec(), b0.to_vec());
-    let resid = |a: &[f64], b: &[f64]| -> f64 {
-        let mut hist = [0.0f64; 8];
-        let mut rss = 0.0;
-        for t in 0..n {
-            let mut s = x[t];
-            for (m, am) in a.iter().enumerate() {
-                if t > m {
-                    s -= am * x[t - m - 1];
-                }
-            }
-            for (m, bm) in b.iter().enumerate() {
-                if t > m {
-                    s -= bm * hist[m];
-                }
-            }
-            if t >= start {
-                rss += s * s;
-            }
-            for j in (1..q).rev() {
-                hist[j] = hist[j - 1];
-            }
-            hist[0] = s;
-        }
-        rss
-    };
-    let mut rss = resid(&a, &b);
+    let (mut rss, mut jtj, mut jte) = arma_pass(x, start, &a, &b);
     for _ in 0..max_iter {
-        let mut ehist = [0.0f64; 8];
-        // dhist[kk * k + j] = d e_{t-kk-1} / d theta_j, theta = (a, b)
-        let mut dhist = [0.0f64; 8 * 16];
-        let mut de = [0.0f64; 16];
-        let mut jtj = vec![0.0; k * k];
-        let mut jte = vec![0.0; k];
-        for t in 0..n {
-            let mut s = x[t];
-            for (m, am) in a.iter().enumerate() {
-                if t > m {
-                    s -= am * x[t - m - 1];
-                }
-            }
-            for (m, bm) in b.iter().enumerate() {
-                if t > m {
-                    s -= bm * ehist[m];
-                }
-            }
-            for j in 0..k {
-                let mut v = if j < p {
-                    if t > j { -x[t - j - 1] } else { 0.0 }
-                } else if t > j - p {
-                    -ehist[j - p]
-                } else {
-                    0.0
-                };
-                for (kk, bk) in b.iter().enumerate() {
-                    if t > kk {
-                        v -= bk * dhist[kk * k + j];
-                    }
-                }
-                de[j] = v;
-            }
-            if t >= start {
-                for i in 0..k {
-                    for j in 0..k {
-                        jtj[i * k + j] += de[i] * de[j];
-                    }
-                    jte[i] -= de[i] * s;
-                }
-            }
-            for kk in (1..q).rev() {
-                ehist[kk] = ehist[kk - 1];
-                for j in 0..k {
-                    dhist[kk * k + j] = dhist[(kk - 1) * k + j];
-                }
-            }
-            ehist[0] = s;
-            dhist[..k].copy_from_slice(&de[..k]);
-        }
         let Some(step) = normal_equations(&jtj, &jte, k) else {
             break;
         };
@@ -736,18 +785,26 @@ pub fn arma_cls(
         {
             break;
         }
+        // below the RSS's resolution (see ma_cls): take the step and stop
+        if predicted_decrease(&step, &jte) < FLAT_RSS * rss {
+            let bt: Vec<f64> = (0..q).map(|i| b[i] + step[p + i]).collect();
+            if ma_invertible(&bt) {
+                a = (0..p).map(|i| a[i] + step[i]).collect();
+                b = bt;
+                rss = arma_pass(x, start, &a, &b).0;
+            }
+            break;
+        }
         let mut scale = 1.0;
         let mut moved = false;
         for _ in 0..30 {
             let at: Vec<f64> = (0..p).map(|i| a[i] + scale * step[i]).collect();
             let bt: Vec<f64> = (0..q).map(|i| b[i] + scale * step[p + i]).collect();
             if ma_invertible(&bt) {
-                let r = resid(&at, &bt);
+                let (r, jt, je) = arma_pass(x, start, &at, &bt);
                 if r <= rss {
                     moved = rss - r > 1e-12 * rss;
-                    a = at;
-                    b = bt;
-                    rss = r;
+                    (a, b, rss, jtj, jte) = (at, bt, r, jt, je);
                     break;
                 }
             }
@@ -893,6 +950,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut converged = false;
     let mut reselections = 0;
     let mut need_gcv = prm.bandwidth.is_none();
+    // left-hand sides of the local systems at the current h (fast path)
+    let mut systems: Option<LocalSystems> = None;
     while iterations < prm.max_iter {
         iterations += 1;
         let mut at = AlternationTiming::default();
@@ -909,7 +968,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             gcv_table = rows;
             fits.swap_remove(best)
         } else {
-            sm.ladder(&[h]).remove(0).0
+            sm.fit_at(h, &mut systems)
         };
         filled = fill_failed(&mut fit_h, &grid).ok_or_else(|| {
             Error::Usage(format!(
@@ -1027,16 +1086,25 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // GCV, trace and standard errors at the final bandwidth
     let sm = Smoother::new(&x, &e, &b, (p, d, pp), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
-    let (final_fit, rt) = sm.ladder(&[h]).remove(0);
     let m = (n - pp) as f64;
+    let sigma2 = rss / (n - pp) as f64;
+    // one table of degree 10 gives the fit, its RSS and trace, and the standard errors
+    let (rt, factors) = match prm.path {
+        FitPath::Fast => {
+            let table = MomentTable::build(&prob, breakpoints(&grid, &[h]), xmin, xmax, 10);
+            let f = table.fit_ladder(&grid, &[h]).remove(0);
+            let rt = f.all_ok().then(|| table.rss_trace(&grid, &f));
+            let factors = table.se_factors(&grid, &f);
+            (rt, factors)
+        }
+        FitPath::Direct => {
+            let (f, rt) = sm.ladder(&[h]).remove(0);
+            let factors = direct::se_factors(&prob, &DirectIndex::build(&prob), &grid, &f);
+            (rt, factors)
+        }
+    };
     let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
     let gcv = (frss / m) / (1.0 - trace / m).powi(2);
-    let sigma2 = rss / (n - pp) as f64;
-    let factors = match prm.path {
-        FitPath::Fast => MomentTable::build(&prob, breakpoints(&grid, &[h]), xmin, xmax, 10)
-            .se_factors(&grid, &final_fit),
-        FitPath::Direct => direct::se_factors(&prob, &DirectIndex::build(&prob), &grid, &final_fit),
-    };
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {

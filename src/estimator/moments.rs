@@ -26,6 +26,16 @@ use rayon::prelude::*;
 use super::kernel::{BIWEIGHT, binomial_table, poly_mul};
 use super::problem::{GridFit, VcProblem};
 
+/// Which products of V = (X_1..X_p, y) a table holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Families {
+    /// Every pair V_a V_b (a <= b) and the constant 1: local systems, RSS, trace.
+    All,
+    /// X_a y only: the right-hand sides of the local systems, the only part that
+    /// changes between alternations (X and U do not).
+    Response,
+}
+
 /// Moment tables over the elementary intervals of `breaks`.
 pub struct MomentTable {
     /// Sorted, distinct breakpoints; interval e covers [breaks[e-1], breaks[e]).
@@ -36,56 +46,176 @@ pub struct MomentTable {
     /// Families: pairs a <= b of V = (X_1..X_p, y), then the constant 1.
     nfam: usize,
     fam_of: Vec<usize>,
+    /// The (a, b) of each family; index p + 1 is the constant 1.
+    pairs: Vec<(usize, usize)>,
     /// Highest power of v kept.
     pub deg: usize,
     /// E x nfam x (deg + 1).
     m: Vec<f64>,
     /// Samples per interval.
     count: Vec<u64>,
+    /// Lower and upper edge of each interval.
+    lo_edge: Vec<f64>,
+    hi_edge: Vec<f64>,
+    /// Cell sums for the last grid asked about (built on first use).
+    cells: std::sync::Mutex<Option<std::sync::Arc<Cells>>>,
+}
+
+/// A run of intervals summed into one moment block: its moments are powers of
+/// (U - anchor)/scale, `count` samples.
+#[derive(Clone, Copy)]
+struct Piece<'a> {
+    m: &'a [f64],
+    anchor: f64,
+    scale: f64,
+    count: u64,
+}
+
+/// The intervals grouped by the cells between grid points (cell c lies between grid
+/// points c-1 and c; cell 0 below the first, cell G above the last), with every run of
+/// intervals that starts or ends at a cell's edge summed once (Fan and Marron 1994
+/// group binned sums the same way for fast kernel estimates):
+/// `prefix[e]` = intervals first(c)..=e about the cell's lower edge, scaled by the
+/// run's length; `suffix[e]` = intervals e..=last(c) about the cell's upper edge.
+/// A window (g, h) is then the suffix that holds its left edge, the whole cells
+/// between, and the prefix that holds its right edge: O(cells in the window)
+/// recentrings instead of O(intervals in the window). Each run is anchored at the
+/// cell edge nearest the grid point it is shifted to, and lies inside the window, so
+/// the binomial shift has |a| + |b| <= 1 (no coefficient above 1 in the scaled powers,
+/// as with single intervals).
+struct Cells {
+    grid: Vec<f64>,
+    /// Cell of each interval; first and last interval of each cell.
+    cell_of: Vec<usize>,
+    first: Vec<usize>,
+    last: Vec<usize>,
+    prefix: Vec<f64>,
+    prefix_scale: Vec<f64>,
+    prefix_count: Vec<u64>,
+    suffix: Vec<f64>,
+    suffix_scale: Vec<f64>,
+    suffix_count: Vec<u64>,
+}
+
+/// The left-hand sides of the local systems at one bandwidth: S_g, the support's
+/// sample count and kernel mass for every grid point.
+pub struct LocalSystems {
+    grid: Vec<f64>,
+    pub h: f64,
+    p: usize,
+    points: Vec<(Vec<f64>, u64, f64)>,
+}
+
+/// A(f, r) = sum_k kappa_k acc[f][k + r] / h^(k + r): the Biweight-weighted moment
+/// sum_t K(w_t) V_a V_b w_t^r, w = (U - u_g)/h, from moments about u_g in unscaled
+/// powers (`acc`, rows of `d1`).
+fn kernel_contraction(acc: &[f64], d1: usize, h: f64) -> impl Fn(usize, usize) -> f64 + '_ {
+    let mut hp = [1.0f64; 7];
+    for k in 1..7 {
+        hp[k] = hp[k - 1] / h;
+    }
+    move |f: usize, r: usize| -> f64 {
+        BIWEIGHT
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(k, c)| c * acc[f * d1 + k + r] * hp[k + r])
+            .sum()
+    }
 }
 
 /// Adds moments `src` (nfam rows of deg + 1, powers of (U - c_src)/s_src) to `acc` as
 /// powers 0..=smax of (U - c_dst)/s_dst: with a = s_src/s_dst, b = (c_src - c_dst)/s_dst,
 /// ((U - c_dst)/s_dst)^s = sum_i C(s,i) a^i b^(s-i) ((U - c_src)/s_src)^i.
-/// With `s_dst = None` the powers are unscaled, (U - c_dst)^s.
+/// With `s_dst = 1` the powers are unscaled, (U - c_dst)^s.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn recentre_into(
     src: &[f64],
     (c_src, s_src): (f64, f64),
-    (c_dst, s_dst): (f64, Option<f64>),
+    (c_dst, s_dst): (f64, f64),
     nfam: usize,
     d1: usize,
     smax: usize,
     binom: &[[f64; 13]; 13],
     acc: &mut [f64],
 ) {
-    let (a, b) = match s_dst {
-        None => (s_src, c_src - c_dst),
-        Some(sd) => (s_src / sd, (c_src - c_dst) / sd),
-    };
-    let mut sp = [1.0f64; 13];
-    let mut dp = [1.0f64; 13];
-    for k in 1..=smax {
+    let (a, b) = (s_src / s_dst, (c_src - c_dst) / s_dst);
+    match smax {
+        2 => recentre_fixed::<3>(src, a, b, nfam, d1, binom, acc),
+        6 => recentre_fixed::<7>(src, a, b, nfam, d1, binom, acc),
+        10 => recentre_fixed::<11>(src, a, b, nfam, d1, binom, acc),
+        _ => {
+            let mut sp = [1.0f64; 13];
+            let mut dp = [1.0f64; 13];
+            for k in 1..=smax {
+                sp[k] = sp[k - 1] * a;
+                dp[k] = dp[k - 1] * b;
+            }
+            for f in 0..nfam {
+                let mrow = &src[f * d1..(f + 1) * d1];
+                let arow = &mut acc[f * d1..(f + 1) * d1];
+                for s in 0..=smax {
+                    let mut sum = 0.0;
+                    for i in 0..=s {
+                        sum += binom[s][i] * sp[i] * dp[s - i] * mrow[i];
+                    }
+                    arow[s] += sum;
+                }
+            }
+        }
+    }
+}
+
+/// [`recentre_into`] for powers 0..S-1: the coefficient table C(s,i) a^i b^(s-i) built
+/// once (same products in the same order as the general case) and shared by every
+/// family.
+#[inline]
+fn recentre_fixed<const S: usize>(
+    src: &[f64],
+    a: f64,
+    b: f64,
+    nfam: usize,
+    d1: usize,
+    binom: &[[f64; 13]; 13],
+    acc: &mut [f64],
+) {
+    let mut sp = [1.0f64; S];
+    let mut dp = [1.0f64; S];
+    for k in 1..S {
         sp[k] = sp[k - 1] * a;
         dp[k] = dp[k - 1] * b;
     }
-    // coefficient table C(s,i) a^i b^(s-i), shared by every family
-    let mut coef = [[0.0f64; 13]; 13];
-    for s in 0..=smax {
+    let mut coef = [[0.0f64; S]; S];
+    for s in 0..S {
         for i in 0..=s {
             coef[s][i] = binom[s][i] * sp[i] * dp[s - i];
         }
     }
     for f in 0..nfam {
-        let mrow = &src[f * d1..(f + 1) * d1];
-        let arow = &mut acc[f * d1..(f + 1) * d1];
-        for s in 0..=smax {
+        let mrow: &[f64; S] = src[f * d1..f * d1 + S].try_into().unwrap();
+        let arow: &mut [f64; S] = (&mut acc[f * d1..f * d1 + S]).try_into().unwrap();
+        for s in 0..S {
             let mut sum = 0.0;
             for i in 0..=s {
                 sum += coef[s][i] * mrow[i];
             }
             arow[s] += sum;
+        }
+    }
+}
+
+/// Adds `ratio^s` times moments `src` to `acc`: the same samples about the same anchor,
+/// powers of (U - c)/s_src rewritten as powers of (U - c)/s_dst, ratio = s_src/s_dst.
+#[inline]
+fn rescale_into(src: &[f64], ratio: f64, nfam: usize, d1: usize, acc: &mut [f64]) {
+    let mut rp = [1.0f64; 13];
+    for k in 1..d1 {
+        rp[k] = rp[k - 1] * ratio;
+    }
+    for f in 0..nfam {
+        for s in 0..d1 {
+            acc[f * d1 + s] += rp[s] * src[f * d1 + s];
         }
     }
 }
@@ -111,31 +241,57 @@ impl MomentTable {
             .unwrap_or_else(|_| panic!("{value} is not a breakpoint"))
     }
 
-    /// Builds the tables in one pass. `umin`, `umax` bound the index values (they
-    /// centre the two unbounded end intervals).
+    /// Builds the tables of every family in one pass. `umin`, `umax` bound the index
+    /// values (they centre the two unbounded end intervals).
     pub fn build(
+        prob: &VcProblem,
+        breaks: Vec<f64>,
+        umin: f64,
+        umax: f64,
+        deg: usize,
+    ) -> MomentTable {
+        Self::build_families(prob, breaks, umin, umax, deg, Families::All)
+    }
+
+    /// [`MomentTable::build`] for a chosen set of families.
+    pub fn build_families(
         prob: &VcProblem,
         mut breaks: Vec<f64>,
         umin: f64,
         umax: f64,
         deg: usize,
+        families: Families,
     ) -> MomentTable {
+        assert!(deg <= 12, "moments up to degree 12");
         breaks.sort_by(f64::total_cmp);
         breaks.dedup();
         let p = prob.p;
         let nv = p + 1;
         let mut fam_of = vec![usize::MAX; nv * nv];
-        let mut nfam = 0;
-        for a in 0..nv {
-            for b in a..nv {
-                fam_of[a * nv + b] = nfam;
-                nfam += 1;
+        let mut pairs = Vec::new();
+        match families {
+            Families::All => {
+                for a in 0..nv {
+                    for b in a..nv {
+                        fam_of[a * nv + b] = pairs.len();
+                        pairs.push((a, b));
+                    }
+                }
+                pairs.push((nv, nv)); // the constant
+            }
+            Families::Response => {
+                for a in 0..p {
+                    fam_of[a * nv + p] = pairs.len();
+                    pairs.push((a, p));
+                }
             }
         }
-        nfam += 1; // the constant
+        let nfam = pairs.len();
         let e_count = breaks.len() + 1;
         let mut centre = vec![0.0; e_count];
         let mut half = vec![0.0; e_count];
+        let mut lo_edge = vec![0.0; e_count];
+        let mut hi_edge = vec![0.0; e_count];
         for e in 0..e_count {
             let lo = if e == 0 {
                 umin.min(breaks[0])
@@ -149,6 +305,8 @@ impl MomentTable {
             };
             centre[e] = 0.5 * (lo + hi);
             half[e] = (0.5 * (hi - lo)).max(f64::MIN_POSITIVE);
+            lo_edge[e] = lo;
+            hi_edge[e] = hi;
         }
         let mut t = MomentTable {
             breaks,
@@ -157,102 +315,281 @@ impl MomentTable {
             p,
             nfam,
             fam_of,
+            pairs,
             deg,
             m: vec![0.0; e_count * nfam * (deg + 1)],
             count: vec![0; e_count],
+            lo_edge,
+            hi_edge,
+            cells: std::sync::Mutex::new(None),
         };
         t.accumulate(prob);
         t
     }
 
-    /// Adds the moments of intervals lo..=hi about `u` (unscaled powers 0..=smax) to
-    /// `acc` in ascending or descending order of the intervals, and returns their
-    /// sample count. (Summing from the intervals nearest u outwards keeps the small
-    /// terms first; the order is part of the result to the last bit.)
-    #[allow(clippy::too_many_arguments)]
-    fn add_range(
+    /// The cell sums for `grid` (every grid point must be a breakpoint), built on the
+    /// first call for a grid and kept for the next calls with the same grid.
+    fn cells(&self, grid: &[f64]) -> std::sync::Arc<Cells> {
+        let mut slot = self.cells.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = slot.as_ref()
+            && c.grid == grid
+        {
+            return c.clone();
+        }
+        let c = std::sync::Arc::new(self.build_cells(grid));
+        *slot = Some(c.clone());
+        c
+    }
+
+    fn build_cells(&self, grid: &[f64]) -> Cells {
+        let ne = self.n_intervals();
+        let width = self.nfam * (self.deg + 1);
+        let d1 = self.deg + 1;
+        let gidx: Vec<usize> = grid.iter().map(|g| self.break_index(*g)).collect();
+        let gl = grid.len();
+        let mut first = Vec::with_capacity(gl + 1);
+        let mut last = Vec::with_capacity(gl + 1);
+        first.push(0);
+        for k in 0..gl {
+            last.push(gidx[k]);
+            first.push(gidx[k] + 1);
+        }
+        last.push(ne - 1);
+        let mut cell_of = vec![0; ne];
+        for c in 0..=gl {
+            for e in first[c]..=last[c] {
+                cell_of[e] = c;
+            }
+        }
+        let binom = binomial_table();
+        // one cell's prefix and suffix runs, cells in parallel
+        type Runs = (Vec<f64>, Vec<f64>, Vec<u64>, Vec<f64>, Vec<f64>, Vec<u64>);
+        let per_cell: Vec<Runs> = (0..=gl)
+            .into_par_iter()
+            .map(|c| {
+                let (f, l) = (first[c], last[c]);
+                let len = l + 1 - f;
+                let (lo_c, hi_c) = (self.lo_edge[f], self.hi_edge[l]);
+                let mut pm = vec![0.0; len * width];
+                let mut ps = vec![0.0; len];
+                let mut pc = vec![0u64; len];
+                for (i, e) in (f..=l).enumerate() {
+                    let s = (self.hi_edge[e] - lo_c).max(f64::MIN_POSITIVE);
+                    ps[i] = s;
+                    let (done, rest) = pm.split_at_mut(i * width);
+                    let cur = &mut rest[..width];
+                    if i > 0 {
+                        let prev = &done[(i - 1) * width..];
+                        rescale_into(prev, ps[i - 1] / s, self.nfam, d1, cur);
+                        pc[i] = pc[i - 1];
+                    }
+                    recentre_into(
+                        &self.m[e * width..(e + 1) * width],
+                        (self.centre[e], self.half[e]),
+                        (lo_c, s),
+                        self.nfam,
+                        d1,
+                        self.deg,
+                        &binom,
+                        cur,
+                    );
+                    pc[i] += self.count[e];
+                }
+                let mut sm = vec![0.0; len * width];
+                let mut ss = vec![0.0; len];
+                let mut sc = vec![0u64; len];
+                for (i, e) in (f..l + 1).enumerate().rev() {
+                    let s = (hi_c - self.lo_edge[e]).max(f64::MIN_POSITIVE);
+                    ss[i] = s;
+                    let (head, done) = sm.split_at_mut((i + 1) * width);
+                    let cur = &mut head[i * width..];
+                    if i + 1 < len {
+                        rescale_into(&done[..width], ss[i + 1] / s, self.nfam, d1, cur);
+                        sc[i] = sc[i + 1];
+                    }
+                    recentre_into(
+                        &self.m[e * width..(e + 1) * width],
+                        (self.centre[e], self.half[e]),
+                        (hi_c, s),
+                        self.nfam,
+                        d1,
+                        self.deg,
+                        &binom,
+                        cur,
+                    );
+                    sc[i] += self.count[e];
+                }
+                (pm, ps, pc, sm, ss, sc)
+            })
+            .collect();
+        let mut cells = Cells {
+            grid: grid.to_vec(),
+            cell_of,
+            first,
+            last,
+            prefix: Vec::with_capacity(ne * width),
+            prefix_scale: Vec::with_capacity(ne),
+            prefix_count: Vec::with_capacity(ne),
+            suffix: Vec::with_capacity(ne * width),
+            suffix_scale: Vec::with_capacity(ne),
+            suffix_count: Vec::with_capacity(ne),
+        };
+        for (pm, ps, pc, sm, ss, sc) in per_cell {
+            cells.prefix.extend(pm);
+            cells.prefix_scale.extend(ps);
+            cells.prefix_count.extend(pc);
+            cells.suffix.extend(sm);
+            cells.suffix_scale.extend(ss);
+            cells.suffix_count.extend(sc);
+        }
+        cells
+    }
+
+    /// Intervals first(cell(e))..=e, about the cell's lower edge.
+    fn prefix<'c>(&self, cells: &'c Cells, e: usize) -> Piece<'c> {
+        let width = self.nfam * (self.deg + 1);
+        let c = cells.cell_of[e];
+        Piece {
+            m: &cells.prefix[e * width..(e + 1) * width],
+            anchor: self.lo_edge[cells.first[c]],
+            scale: cells.prefix_scale[e],
+            count: cells.prefix_count[e],
+        }
+    }
+
+    /// Intervals e..=last(cell(e)), about the cell's upper edge.
+    fn suffix<'c>(&self, cells: &'c Cells, e: usize) -> Piece<'c> {
+        let width = self.nfam * (self.deg + 1);
+        let c = cells.cell_of[e];
+        Piece {
+            m: &cells.suffix[e * width..(e + 1) * width],
+            anchor: self.hi_edge[cells.last[c]],
+            scale: cells.suffix_scale[e],
+            count: cells.suffix_count[e],
+        }
+    }
+
+    /// Adds a piece's moments about `u` (unscaled powers 0..=smax) to `acc`.
+    fn add_piece(
         &self,
-        lo: usize,
-        hi: usize,
+        piece: Piece,
         u: f64,
         smax: usize,
         binom: &[[f64; 13]; 13],
         acc: &mut [f64],
-        descending: bool,
     ) -> u64 {
-        let hi = hi.min(self.n_intervals() - 1);
-        if lo > hi {
-            return 0;
-        }
-        let d1 = self.deg + 1;
-        let width = self.nfam * d1;
-        let mut count = 0;
-        let mut one = |e: usize| {
-            recentre_into(
-                &self.m[e * width..(e + 1) * width],
-                (self.centre[e], self.half[e]),
-                (u, None),
-                self.nfam,
-                d1,
-                smax,
-                binom,
-                acc,
-            );
-            count += self.count[e];
-        };
-        if descending {
-            (lo..=hi).rev().for_each(&mut one);
-        } else {
-            (lo..=hi).for_each(&mut one);
-        }
-        count
+        recentre_into(
+            piece.m,
+            (piece.anchor, piece.scale),
+            (u, 1.0),
+            self.nfam,
+            self.deg + 1,
+            smax,
+            binom,
+            acc,
+        );
+        piece.count
     }
 
+    /// Moments of window (g, h) about u_g, unscaled powers 0..=smax, and its sample
+    /// count: the suffix holding its left edge, the whole cells between (nearest
+    /// first), the prefix holding its right edge.
+    fn window(
+        &self,
+        cells: &Cells,
+        g: usize,
+        h: f64,
+        smax: usize,
+        binom: &[[f64; 13]; 13],
+    ) -> (Vec<f64>, u64) {
+        let ug = cells.grid[g];
+        let lo = self.break_index(ug - h) + 1;
+        let hi = self.break_index(ug + h);
+        let (cl, ch) = (cells.cell_of[lo], cells.cell_of[hi]);
+        let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
+        let mut count = 0;
+        for c in (cl + 1..=g).rev() {
+            count += self.add_piece(
+                self.suffix(cells, cells.first[c]),
+                ug,
+                smax,
+                binom,
+                &mut acc,
+            );
+        }
+        for c in g + 1..ch {
+            count += self.add_piece(self.prefix(cells, cells.last[c]), ug, smax, binom, &mut acc);
+        }
+        count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
+        count += self.add_piece(self.prefix(cells, hi), ug, smax, binom, &mut acc);
+        (acc, count)
+    }
+
+    /// The pass: blocks of rows of a size set by N alone, `threads` blocks at a time,
+    /// block tables added in block order (the same bits for any number of threads).
     fn accumulate(&mut self, prob: &VcProblem) {
+        match self.deg + 1 {
+            3 => self.accumulate_with::<3>(prob),
+            4 => self.accumulate_with::<4>(prob),
+            5 => self.accumulate_with::<5>(prob),
+            6 => self.accumulate_with::<6>(prob),
+            7 => self.accumulate_with::<7>(prob),
+            8 => self.accumulate_with::<8>(prob),
+            9 => self.accumulate_with::<9>(prob),
+            10 => self.accumulate_with::<10>(prob),
+            11 => self.accumulate_with::<11>(prob),
+            12 => self.accumulate_with::<12>(prob),
+            _ => self.accumulate_with::<13>(prob),
+        }
+    }
+
+    fn accumulate_with<const D1: usize>(&mut self, prob: &VcProblem) {
+        assert_eq!(self.deg + 1, D1, "tables of degree 2..=12");
         let n_rows = prob.n_rows();
-        let block = (n_rows / 64).clamp(1 << 16, 1 << 22);
+        let block = (n_rows / 16).clamp(1 << 17, 1 << 22);
         let starts: Vec<usize> = (prob.start..prob.x.len()).step_by(block).collect();
         let wave = rayon::current_num_threads().max(1);
-        let width = self.nfam * (self.deg + 1);
+        let width = self.nfam * D1;
         let lookup = IntervalLookup::new(&self.breaks);
+        let (p, d) = (prob.p, prob.d);
+        let (x, ee, bb) = (prob.x, prob.e, prob.b);
+        let (centre, half, pairs) = (&self.centre[..], &self.half[..], &self.pairs[..]);
+        let (table_len, ne) = (self.m.len(), self.count.len());
         for group in starts.chunks(wave) {
             let parts: Vec<(Vec<f64>, Vec<u64>)> = group
                 .par_iter()
                 .map(|&s| {
-                    let end = (s + block).min(prob.x.len());
-                    let mut m = vec![0.0; self.m.len()];
-                    let mut count = vec![0u64; self.count.len()];
-                    let mut v = vec![0.0; self.p + 2];
-                    let mut pw = vec![0.0; self.deg + 1];
-                    let nv = self.p + 1;
+                    let end = (s + block).min(x.len());
+                    let mut m = vec![0.0; table_len];
+                    let mut count = vec![0u64; ne];
+                    // V = (X_1..X_p, y, 1)
+                    let mut v = [0.0f64; 8];
+                    v[p + 1] = 1.0;
                     for t in s..end {
-                        let u = prob.u(t);
+                        let u = x[t - d];
                         let e = lookup.find(u);
                         count[e] += 1;
-                        let z = (u - self.centre[e]) / self.half[e];
-                        pw[0] = 1.0;
-                        for k in 1..=self.deg {
+                        let z = (u - centre[e]) / half[e];
+                        let mut pw = [1.0f64; D1];
+                        for k in 1..D1 {
                             pw[k] = pw[k - 1] * z;
                         }
-                        prob.row(t, &mut v[..nv]);
-                        v[nv] = 1.0;
-                        let base = e * width;
-                        let mut f = 0;
-                        for a in 0..nv {
-                            for b in a..nv {
-                                let val = v[a] * v[b];
-                                let row = &mut m
-                                    [base + f * (self.deg + 1)..base + (f + 1) * (self.deg + 1)];
-                                for (r, pk) in row.iter_mut().zip(&pw) {
-                                    *r += val * pk;
-                                }
-                                f += 1;
-                            }
+                        for (mm, vm) in v[..p].iter_mut().enumerate() {
+                            *vm = x[t - 1 - mm];
                         }
-                        let row =
-                            &mut m[base + f * (self.deg + 1)..base + (f + 1) * (self.deg + 1)];
-                        for (r, pk) in row.iter_mut().zip(&pw) {
-                            *r += pk;
+                        // y_t = x_t - sum b_m e_{t-m} (as VcProblem::y)
+                        let mut y = x[t];
+                        for (mm, bm) in bb.iter().enumerate() {
+                            y -= bm * ee[t - mm - 1];
+                        }
+                        v[p] = y;
+                        let row = &mut m[e * width..(e + 1) * width];
+                        for (chunk, &(a, b)) in row.chunks_exact_mut(D1).zip(pairs) {
+                            let val = v[a] * v[b];
+                            let chunk: &mut [f64; D1] = chunk.try_into().unwrap();
+                            for k in 0..D1 {
+                                chunk[k] += val * pw[k];
+                            }
                         }
                     }
                     (m, count)
@@ -269,52 +606,118 @@ impl MomentTable {
         }
     }
 
+    /// The left-hand sides of the local systems at bandwidth `h` (they depend on X and
+    /// U only), for [`MomentTable::fit_response`] to reuse while the response changes.
+    pub fn local_systems(&self, grid: &[f64], h: f64) -> LocalSystems {
+        assert!(self.deg >= 6 && self.pairs.last() == Some(&(self.p + 1, self.p + 1)));
+        let p = self.p;
+        let n = 2 * p;
+        let d1 = self.deg + 1;
+        let binom = binomial_table();
+        let cells = self.cells(grid);
+        let per_g: Vec<(Vec<f64>, u64, f64)> = (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let (acc, count) = self.window(&cells, g, h, 6, &binom);
+                let a_of = kernel_contraction(&acc, d1, h);
+                let mut s = vec![0.0; n * n];
+                for a in 0..p {
+                    for b in 0..p {
+                        let f = self.fam(a, b);
+                        let (m0, m1, m2) = (a_of(f, 0), a_of(f, 1), a_of(f, 2));
+                        s[a * n + b] = m0;
+                        s[a * n + p + b] = m1;
+                        s[(p + a) * n + b] = m1;
+                        s[(p + a) * n + p + b] = m2;
+                    }
+                }
+                (s, count, a_of(self.one_fam(), 0))
+            })
+            .collect();
+        LocalSystems {
+            grid: grid.to_vec(),
+            h,
+            p,
+            points: per_g,
+        }
+    }
+
+    /// Local fits at `sys.h` from the right-hand sides of this table (a
+    /// [`Families::Response`] or full table of the same breakpoints) and the reused
+    /// left-hand sides: the same numbers as [`MomentTable::fit_ladder`] at that h.
+    pub fn fit_response(&self, sys: &LocalSystems) -> GridFit {
+        let p = self.p;
+        assert_eq!(p, sys.p);
+        let n = 2 * p;
+        let d1 = self.deg + 1;
+        let h = sys.h;
+        let binom = binomial_table();
+        let cells = self.cells(&sys.grid);
+        let rhs: Vec<Vec<f64>> = (0..sys.grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let (acc, _) = self.window(&cells, g, h, 6, &binom);
+                let a_of = kernel_contraction(&acc, d1, h);
+                let mut rhs = vec![0.0; n];
+                for a in 0..p {
+                    let fy = self.fam(a, p);
+                    rhs[a] = a_of(fy, 0);
+                    rhs[p + a] = a_of(fy, 1);
+                }
+                rhs
+            })
+            .collect();
+        let mut fit = GridFit::new(sys.grid.len(), p, h);
+        for (g, (s, count, mass)) in sys.points.iter().enumerate() {
+            fit.set_point(g, s, &rhs[g], *count, *mass);
+        }
+        fit
+    }
+
     /// Local-linear fits at every grid point for every bandwidth in `hs`. Every
-    /// `u_g`, `u_g - h` and `u_g + h` must be a breakpoint.
+    /// `u_g`, `u_g - h` and `u_g + h` must be a breakpoint. For one grid point the
+    /// windows of all bandwidths are nested: the whole cells inside them are summed
+    /// once, from the nearest outwards, and each window adds its two edge runs.
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
         assert!(self.deg >= 6, "local fits need moments up to degree 6");
         let p = self.p;
         let n = 2 * p;
         let d1 = self.deg + 1;
         let binom = binomial_table();
+        let cells = self.cells(grid);
         let mut order: Vec<usize> = (0..hs.len()).collect();
         order.sort_by(|a, b| hs[*a].total_cmp(&hs[*b]));
         // per grid point: for each h, (S, T, count, mass)
         type Point = (Vec<f64>, Vec<f64>, u64, f64);
-        let per_g: Vec<Vec<Point>> = grid
-            .par_iter()
-            .map(|&ug| {
-                let mut acc = vec![0.0; self.nfam * d1];
-                let mut count = 0u64;
+        let per_g: Vec<Vec<Point>> = (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let ug = grid[g];
+                let mut whole = vec![0.0; self.nfam * d1];
+                let mut whole_count = 0u64;
                 let mut out: Vec<Option<Point>> = vec![None; hs.len()];
-                let gi = self.break_index(ug);
-                // current window: intervals lo..=hi (empty: lo = gi + 1, hi = gi)
-                let (mut lo, mut hi) = (gi + 1, gi);
+                // whole cells summed so far: wl..=g on the left, g+1..=wr on the right
+                let (mut wl, mut wr) = (g + 1, g);
                 for &j in &order {
                     let h = hs[j];
-                    let new_lo = self.break_index(ug - h) + 1;
-                    let new_hi = self.break_index(ug + h);
-                    if new_lo < lo {
-                        count += self.add_range(new_lo, lo - 1, ug, 6, &binom, &mut acc, true);
+                    let lo = self.break_index(ug - h) + 1;
+                    let hi = self.break_index(ug + h);
+                    let (cl, ch) = (cells.cell_of[lo], cells.cell_of[hi]);
+                    while wl > cl + 1 {
+                        wl -= 1;
+                        let piece = self.suffix(&cells, cells.first[wl]);
+                        whole_count += self.add_piece(piece, ug, 6, &binom, &mut whole);
                     }
-                    if new_hi > hi {
-                        count += self.add_range(hi + 1, new_hi, ug, 6, &binom, &mut acc, false);
+                    while wr + 1 < ch {
+                        wr += 1;
+                        let piece = self.prefix(&cells, cells.last[wr]);
+                        whole_count += self.add_piece(piece, ug, 6, &binom, &mut whole);
                     }
-                    lo = lo.min(new_lo);
-                    hi = hi.max(new_hi);
-                    // W[f][s] = acc[f][s] / h^s; A(r) = sum_k kappa_k W(k + r)
-                    let mut hp = [1.0f64; 7];
-                    for k in 1..7 {
-                        hp[k] = hp[k - 1] / h;
-                    }
-                    let a_of = |f: usize, r: usize| -> f64 {
-                        BIWEIGHT
-                            .iter()
-                            .enumerate()
-                            .filter(|(_, c)| **c != 0.0)
-                            .map(|(k, c)| c * acc[f * d1 + k + r] * hp[k + r])
-                            .sum()
-                    };
+                    let mut acc = whole.clone();
+                    let mut count = whole_count;
+                    count += self.add_piece(self.suffix(&cells, lo), ug, 6, &binom, &mut acc);
+                    count += self.add_piece(self.prefix(&cells, hi), ug, 6, &binom, &mut acc);
+                    let a_of = kernel_contraction(&acc, d1, h);
                     let mut s = vec![0.0; n * n];
                     let mut rhs = vec![0.0; n];
                     for a in 0..p {
@@ -351,37 +754,20 @@ impl MomentTable {
             .collect()
     }
 
-    /// Sum over intervals lo..=hi of moments about u, powers 0..=smax.
-    fn range_moments(
-        &self,
-        lo: usize,
-        hi: usize,
-        u: f64,
-        smax: usize,
-        binom: &[[f64; 13]; 13],
-    ) -> Vec<f64> {
-        let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
-        self.add_range(lo, hi, u, smax, binom, &mut acc, false);
-        acc
-    }
-
     /// Exact RSS and trace of the smoother (f between grid points by linear
     /// interpolation, constant beyond the ends) for a fit whose points are all Ok.
+    /// Per cell: the RSS from the cell's moments about its left grid point; the trace
+    /// from the part of each neighbouring grid point's window inside the cell (the
+    /// whole cell, or the run from the grid point to the window's edge).
     pub fn rss_trace(&self, grid: &[f64], fit: &GridFit) -> (f64, f64) {
         let p = self.p;
         let n = 2 * p;
         let d1 = self.deg + 1;
+        let width = self.nfam * d1;
         let h = fit.bandwidth;
         let gl = grid.len();
         let binom = binomial_table();
-        let gidx: Vec<usize> = grid.iter().map(|g| self.break_index(*g)).collect();
-        let e_last = self.n_intervals() - 1;
-        // cells: (first interval, last interval, left grid index, right grid index)
-        let mut cells: Vec<(usize, usize, usize, Option<usize>)> = vec![(0, gidx[0], 0, None)];
-        for k in 0..gl - 1 {
-            cells.push((gidx[k] + 1, gidx[k + 1], k, Some(k + 1)));
-        }
-        cells.push((gidx[gl - 1] + 1, e_last, gl - 1, None));
+        let cells = self.cells(grid);
         let kern: Vec<f64> = {
             let mut hp = 1.0;
             BIWEIGHT
@@ -393,14 +779,24 @@ impl MomentTable {
                 })
                 .collect()
         };
-        let parts: Vec<(f64, f64)> = cells
-            .par_iter()
-            .map(|&(lo, hi, k, k1)| {
-                if lo > hi {
-                    return (0.0, 0.0);
-                }
-                // RSS
-                let r = self.range_moments(lo, hi, grid[k], 2, &binom);
+        let parts: Vec<(f64, f64)> = (0..=gl)
+            .into_par_iter()
+            .map(|c| {
+                // (left grid point k, right grid point k1): cell 0 uses f(u_0), cell G f(u_{G-1})
+                let (k, k1) = match c {
+                    0 => (0, None),
+                    c if c == gl => (gl - 1, None),
+                    c => (c - 1, Some(c)),
+                };
+                let (f0, l0) = (cells.first[c], cells.last[c]);
+                // the whole cell anchored at the edge nearest u_k
+                let whole_at_k = if c == 0 {
+                    self.suffix(&cells, f0)
+                } else {
+                    self.prefix(&cells, l0)
+                };
+                let mut r = vec![0.0; width];
+                self.add_piece(whole_at_k, grid[k], 2, &binom, &mut r);
                 let mom = |f: usize, s: usize| r[f * d1 + s];
                 let fa = &fit.f[k * p..(k + 1) * p];
                 let fb: Vec<f64> = match k1 {
@@ -420,24 +816,42 @@ impl MomentTable {
                             + fb[a] * fb[b] * mom(f, 2);
                     }
                 }
-                // trace
-                let targets: Vec<(usize, Vec<f64>)> = match k1 {
-                    None => vec![(k, vec![1.0])],
-                    Some(k1) => {
-                        let dlt = grid[k1] - grid[k];
-                        vec![(k, vec![1.0, -1.0 / dlt]), (k1, vec![1.0, 1.0 / dlt])]
+                // trace: (grid point, interpolation weight in powers of U - u_g, piece)
+                let mut targets: Vec<(usize, Vec<f64>, Piece)> = Vec::with_capacity(2);
+                let right_part = |g: usize| {
+                    // window of g inside the cell to its right: [u_g, u_g + h)
+                    let whi = self.break_index(grid[g] + h);
+                    if whi >= l0 {
+                        self.prefix(&cells, l0)
+                    } else {
+                        self.prefix(&cells, whi)
                     }
                 };
+                let left_part = |g: usize| {
+                    // window of g inside the cell to its left: [u_g - h, u_g)
+                    let wlo = self.break_index(grid[g] - h) + 1;
+                    if wlo <= f0 {
+                        self.suffix(&cells, f0)
+                    } else {
+                        self.suffix(&cells, wlo)
+                    }
+                };
+                match k1 {
+                    None if c == 0 => targets.push((0, vec![1.0], left_part(0))),
+                    None => targets.push((k, vec![1.0], right_part(k))),
+                    Some(k1) => {
+                        let dlt = grid[k1] - grid[k];
+                        targets.push((k, vec![1.0, -1.0 / dlt], right_part(k)));
+                        targets.push((k1, vec![1.0, 1.0 / dlt], left_part(k1)));
+                    }
+                }
                 let mut tr = 0.0;
-                for (g, omega) in targets {
-                    let ug = grid[g];
-                    let wlo = self.break_index(ug - h) + 1;
-                    let whi = self.break_index(ug + h);
-                    let (a0, b0) = (lo.max(wlo), hi.min(whi));
-                    if a0 > b0 {
+                for (g, omega, piece) in targets {
+                    if piece.count == 0 {
                         continue;
                     }
-                    let r = self.range_moments(a0, b0, ug, 6, &binom);
+                    let mut r = vec![0.0; width];
+                    self.add_piece(piece, grid[g], 6, &binom, &mut r);
                     let base = poly_mul(&omega, &kern);
                     let base2 = poly_mul(&base, &[0.0, 1.0 / h]);
                     let q = &fit.s_inv[g * n * n..(g + 1) * n * n];
@@ -465,9 +879,7 @@ impl MomentTable {
             .into_iter()
             .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
     }
-}
 
-impl MomentTable {
     /// Pointwise standard-error factors of f at bandwidth `fit.bandwidth`: for each
     /// grid point and m, sqrt([S^-1 S2 S^-1]_mm) with S2 = sum K(w)^2 Z Z', so that
     /// se = sigma * factor (the sandwich variance of a local least-squares fit with
@@ -483,17 +895,15 @@ impl MomentTable {
         let d1 = self.deg + 1;
         let h = fit.bandwidth;
         let binom = binomial_table();
+        let cells = self.cells(grid);
         let k2 = poly_mul(&BIWEIGHT, &BIWEIGHT);
-        let per_g: Vec<Vec<f64>> = grid
-            .par_iter()
-            .enumerate()
-            .map(|(g, &ug)| {
+        let per_g: Vec<Vec<f64>> = (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
                 if fit.status[g] != super::problem::PointStatus::Ok {
                     return vec![f64::NAN; p];
                 }
-                let lo = self.break_index(ug - h) + 1;
-                let hi = self.break_index(ug + h);
-                let acc = self.range_moments(lo, hi, ug, 10, &binom);
+                let (acc, _) = self.window(&cells, g, h, 10, &binom);
                 let mut hp = [1.0f64; 11];
                 for k in 1..11 {
                     hp[k] = hp[k - 1] / h;
@@ -525,15 +935,19 @@ impl MomentTable {
 /// The interval of a value among sorted distinct breakpoints: exactly
 /// `breaks.partition_point(|b| *b <= u)`, found from a guess out of a uniform bucket
 /// table (4 buckets per breakpoint) corrected by stepping, instead of a binary search.
-pub struct IntervalLookup<'a> {
-    breaks: &'a [f64],
+/// The first step is taken without a branch (most buckets hold at most one
+/// breakpoint), so the loops that follow are rarely entered and their branches
+/// predicted.
+pub struct IntervalLookup {
+    /// The breakpoints with +inf appended (so `ext[e] <= u` is false at the end).
+    ext: Vec<f64>,
     lo: f64,
     scale: f64,
     first: Vec<u32>,
 }
 
-impl<'a> IntervalLookup<'a> {
-    pub fn new(breaks: &'a [f64]) -> Self {
+impl IntervalLookup {
+    pub fn new(breaks: &[f64]) -> Self {
         let nb = breaks.len();
         let buckets = 4 * nb + 1;
         let (lo, hi) = (breaks[0], breaks[nb - 1]);
@@ -552,8 +966,10 @@ impl<'a> IntervalLookup<'a> {
                 breaks.partition_point(|b| *b <= edge) as u32
             })
             .collect();
+        let mut ext = breaks.to_vec();
+        ext.push(f64::INFINITY);
         IntervalLookup {
-            breaks,
+            ext,
             lo,
             scale,
             first,
@@ -568,9 +984,12 @@ impl<'a> IntervalLookup<'a> {
         } else {
             0
         };
+        let b = &self.ext[..];
+        let nb = b.len() - 1;
         let mut e = self.first[k] as usize;
-        let b = self.breaks;
-        while e < b.len() && b[e] <= u {
+        // e <= nb, and b[nb] = +inf: no bounds to check, no branch
+        e += ((e < nb) & (b[e] <= u)) as usize;
+        while e < nb && b[e] <= u {
             e += 1;
         }
         while e > 0 && b[e - 1] > u {
@@ -625,7 +1044,14 @@ mod tests {
         us.extend(b.iter().map(|v| v.next_up()));
         us.extend(b.iter().map(|v| v.next_down()));
         us.extend((0..20_001).map(|i| -6.0 + 12.0 * i as f64 / 20_000.0));
-        us.extend([f64::MAX, f64::MIN, 0.0, -0.0]);
+        us.extend([
+            f64::MAX,
+            f64::MIN,
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ]);
         for u in us {
             assert_eq!(lk.find(u), b.partition_point(|v| *v <= u), "u = {u}");
         }
