@@ -151,7 +151,7 @@ fn summary(m: &FittedFarma) -> Value {
         .collect();
     json!({
         "b": m.b, "b_bits": m.b.iter().map(|v| format!("{:016x}", v.to_bits())).collect::<Vec<_>>(),
-        "rss": m.rss, "rss_bits": format!("{:016x}", m.rss.to_bits()),
+        "rss_history": m.rss_history, "notes": m.notes, "rss": m.rss, "rss_bits": format!("{:016x}", m.rss.to_bits()),
         "f_bits": format!("{:016x}", m.coef.f.iter().fold(0u64, |h, v| h.rotate_left(5) ^ v.to_bits())),
         "bandwidth": m.bandwidth, "iterations": m.iterations, "converged": m.converged,
         "ladder": m.gcv_table.len(), "f": m.coef.f,

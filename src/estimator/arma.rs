@@ -56,11 +56,19 @@ fn lagged_ls(
         for (i, (s, lag)) in cols.iter().enumerate() {
             v[i] = series[*s][t - lag];
         }
+        // the upper triangle only (v_i v_j = v_j v_i exactly: the mirrored sums are
+        // the same bits)
         for i in 0..k {
-            for j in 0..k {
-                ata[i * k + j] += v[i] * v[j];
+            let vi = v[i];
+            for (a, vj) in ata[i * k + i..(i + 1) * k].iter_mut().zip(&v[i..]) {
+                *a += vi * vj;
             }
-            aty[i] += v[i] * y[t];
+            aty[i] += vi * y[t];
+        }
+    }
+    for i in 0..k {
+        for j in 0..i {
+            ata[i * k + j] = ata[j * k + i];
         }
     }
     normal_equations(&ata, &aty, k)

@@ -263,10 +263,13 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
 pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
     let lookup = IntervalLookup::new(grid);
     let p = coef.p;
-    let mut f = vec![0.0; p];
-    for t in 0..x.len() {
+    let mut f = [0.0f64; 8];
+    let f = &mut f[..p];
+    // the first rows, where some lags fall before the first sample
+    let warm = p.max(b.len()).max(d).min(x.len());
+    for t in 0..warm {
         let u = if t >= d { x[t - d] } else { 0.0 };
-        eval_with(coef, grid, &lookup, u, &mut f);
+        eval_with(coef, grid, &lookup, u, f);
         let mut s = x[t];
         for m in 0..p.min(t) {
             s -= f[m] * x[t - m - 1];
@@ -275,6 +278,18 @@ pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e
             if t > m {
                 s -= bm * e[t - m - 1];
             }
+        }
+        e[t] = s;
+    }
+    // every lag inside the series: the same sums without the checks
+    for t in warm..x.len() {
+        eval_with(coef, grid, &lookup, x[t - d], f);
+        let mut s = x[t];
+        for (m, fm) in f.iter().enumerate() {
+            s -= fm * x[t - m - 1];
+        }
+        for (m, bm) in b.iter().enumerate() {
+            s -= bm * e[t - m - 1];
         }
         e[t] = s;
     }
@@ -293,9 +308,12 @@ fn eval_with(coef: &GridFit, grid: &[f64], lookup: &IntervalLookup, u: f64, out:
     } else {
         let k = lookup.find(u) - 1;
         let lam = (u - grid[k]) / (grid[k + 1] - grid[k]);
+        let (fa, fb) = (
+            &coef.f[k * p..(k + 1) * p],
+            &coef.f[(k + 1) * p..(k + 2) * p],
+        );
         for m in 0..p {
-            let a = coef.f[k * p + m];
-            out[m] = a + lam * (coef.f[(k + 1) * p + m] - a);
+            out[m] = fa[m] + lam * (fb[m] - fa[m]);
         }
     }
 }
@@ -303,12 +321,20 @@ fn eval_with(coef: &GridFit, grid: &[f64], lookup: &IntervalLookup, u: f64, out:
 /// Turns w (in `buf`) into the residuals e_t = w_t - sum b_m e_{t-m} in place, zeros
 /// before the first sample: e_t needs only earlier e, already in place.
 fn ma_filter_in_place(buf: &mut [f64], b: &[f64]) {
-    for t in 0..buf.len() {
+    let q = b.len().min(buf.len());
+    for t in 0..q {
         let mut s = buf[t];
         for (m, bm) in b.iter().enumerate() {
             if t > m {
                 s -= bm * buf[t - m - 1];
             }
+        }
+        buf[t] = s;
+    }
+    for t in q..buf.len() {
+        let mut s = buf[t];
+        for (m, bm) in b.iter().enumerate() {
+            s -= bm * buf[t - m - 1];
         }
         buf[t] = s;
     }
