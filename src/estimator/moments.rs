@@ -653,7 +653,7 @@ impl MomentTable {
         let h = sys.h;
         let binom = binomial_table();
         let cells = self.cells(&sys.grid);
-        let rhs: Vec<Vec<f64>> = (0..sys.grid.len())
+        let points: Vec<GridFit> = (0..sys.grid.len())
             .into_par_iter()
             .map(|g| {
                 let (acc, _) = self.window(&cells, g, h, 6, &binom);
@@ -664,12 +664,15 @@ impl MomentTable {
                     rhs[a] = a_of(fy, 0);
                     rhs[p + a] = a_of(fy, 1);
                 }
-                rhs
+                let (s, count, mass) = &sys.points[g];
+                let mut point = GridFit::new(1, p, h);
+                point.set_point(0, s, &rhs, *count, *mass);
+                point
             })
             .collect();
         let mut fit = GridFit::new(sys.grid.len(), p, h);
-        for (g, (s, count, mass)) in sys.points.iter().enumerate() {
-            fit.set_point(g, s, &rhs[g], *count, *mass);
+        for (g, point) in points.iter().enumerate() {
+            fit.copy_point(g, point, 0);
         }
         fit
     }
@@ -687,15 +690,14 @@ impl MomentTable {
         let cells = self.cells(grid);
         let mut order: Vec<usize> = (0..hs.len()).collect();
         order.sort_by(|a, b| hs[*a].total_cmp(&hs[*b]));
-        // per grid point: for each h, (S, T, count, mass)
-        type Point = (Vec<f64>, Vec<f64>, u64, f64);
-        let per_g: Vec<Vec<Point>> = (0..grid.len())
+        // per grid point: for each h, the point's fit (solved here, in parallel)
+        let per_g: Vec<Vec<GridFit>> = (0..grid.len())
             .into_par_iter()
             .map(|g| {
                 let ug = grid[g];
                 let mut whole = vec![0.0; self.nfam * d1];
                 let mut whole_count = 0u64;
-                let mut out: Vec<Option<Point>> = vec![None; hs.len()];
+                let mut out: Vec<Option<GridFit>> = vec![None; hs.len()];
                 // whole cells summed so far: wl..=g on the left, g+1..=wr on the right
                 let (mut wl, mut wr) = (g + 1, g);
                 for &j in &order {
@@ -734,7 +736,9 @@ impl MomentTable {
                         rhs[p + a] = a_of(fy, 1);
                     }
                     let mass = a_of(self.one_fam(), 0);
-                    out[j] = Some((s, rhs, count, mass));
+                    let mut point = GridFit::new(1, p, h);
+                    point.set_point(0, &s, &rhs, count, mass);
+                    out[j] = Some(point);
                 }
                 out.into_iter()
                     .map(|o| o.expect("every h visited"))
@@ -746,8 +750,7 @@ impl MomentTable {
             .map(|(j, &h)| {
                 let mut fit = GridFit::new(grid.len(), p, h);
                 for (g, pts) in per_g.iter().enumerate() {
-                    let (s, rhs, count, mass) = &pts[j];
-                    fit.set_point(g, s, rhs, *count, *mass);
+                    fit.copy_point(g, &pts[j], 0);
                 }
                 fit
             })
