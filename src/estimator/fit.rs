@@ -729,7 +729,7 @@ fn predicted_decrease(step: &[f64], neg_jte: &[f64]) -> f64 {
 const FLAT_RSS: f64 = 1e-12;
 
 /// Gauss-Newton for b minimising sum_{t >= start} e_t^2, e_t = w_t - sum b_m e_{t-m}
-/// ([`arma_pass`] with p = 0), with step halving. Each trial point's pass also gives
+/// (`arma_pass` with p = 0), with step halving. Each trial point's pass also gives
 /// the normal equations there, so an accepted step costs one pass in all.
 pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     let q = b0.len();
@@ -783,7 +783,7 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
 }
 
 /// Gauss-Newton for the linear ARMA(p,q) on every sample, from (a0, b0): (a, b)
-/// minimise sum_{t >= start} e_t^2 ([`arma_pass`]), with step halving and the MA part
+/// minimise sum_{t >= start} e_t^2 (`arma_pass`), with step halving and the MA part
 /// kept invertible: the conditional least squares of [`super::arma::fit_arma`] from a
 /// given start. Streaming (one pass per iteration, the trial's pass giving the next
 /// normal equations), nothing N-long allocated, so it runs on series of any length.

@@ -11,9 +11,15 @@
 //! and half-width s_e, M_e[ab][i] = sum_{t in e} V_a V_b v^i with v = (U_t - c_e)/s_e
 //! (|v| <= 1, no cancellation), i = 0..deg. Moments about any point u follow exactly
 //! from the binomial theorem: sum V_a V_b (U - u)^s = sum_i C(s,i) s_e^i (c_e - u)^(s-i) M_e[ab][i].
-//! For one grid point the windows of all bandwidths are nested, so they are summed
-//! from the narrowest outwards, each interval recentred once: no prefix-sum
-//! differences, hence no cancellation between far intervals.
+//! Sums of intervals are only ever added, never differenced (no prefix-sum
+//! cancellation between far intervals): inside each cell between grid points the runs
+//! of intervals from either edge are summed once (`Cells`), a window is its two edge
+//! runs plus the whole cells between, and for one grid point the windows of all
+//! bandwidths are nested, so its whole cells are summed once, from the nearest
+//! outwards. A GCV ladder costs O(G (G + J)) recentrings of a moment block, whatever N.
+//! The left-hand sides of the local systems depend on X and U only; an f-step at a
+//! bandwidth already seen sums only the X_a y families ([`Families::Response`]) and
+//! reuses them ([`LocalSystems`]).
 //!
 //! The pass runs over fixed blocks of rows (their size depends on N only), blocks in
 //! parallel, block tables added in block order: the result does not depend on the
@@ -73,8 +79,7 @@ struct Piece<'a> {
 
 /// The intervals grouped by the cells between grid points (cell c lies between grid
 /// points c-1 and c; cell 0 below the first, cell G above the last), with every run of
-/// intervals that starts or ends at a cell's edge summed once (Fan and Marron 1994
-/// group binned sums the same way for fast kernel estimates):
+/// intervals that starts or ends at a cell's edge summed once:
 /// `prefix[e]` = intervals first(c)..=e about the cell's lower edge, scaled by the
 /// run's length; `suffix[e]` = intervals e..=last(c) about the cell's upper edge.
 /// A window (g, h) is then the suffix that holds its left edge, the whole cells
