@@ -259,40 +259,45 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
 }
 
 /// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
-/// U_t = x_{t-d} (0 before the first sample).
+/// U_t = x_{t-d} (0 before the first sample). First w_t = x_t - sum f_m(U_t) x_{t-m}
+/// (independent rows: chunks in parallel), then the MA recursion in place; the same
+/// operations in the same order as the one-loop recursion, so the same bits.
 pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
+    use rayon::prelude::*;
     let lookup = IntervalLookup::new(grid);
     let p = coef.p;
-    let mut f = [0.0f64; 8];
-    let f = &mut f[..p];
     // the first rows, where some lags fall before the first sample
-    let warm = p.max(b.len()).max(d).min(x.len());
+    let warm = p.max(d).min(x.len());
+    let mut f = [0.0f64; 8];
     for t in 0..warm {
         let u = if t >= d { x[t - d] } else { 0.0 };
-        eval_with(coef, grid, &lookup, u, f);
+        eval_with(coef, grid, &lookup, u, &mut f[..p]);
         let mut s = x[t];
         for m in 0..p.min(t) {
             s -= f[m] * x[t - m - 1];
         }
-        for (m, bm) in b.iter().enumerate() {
-            if t > m {
-                s -= bm * e[t - m - 1];
-            }
-        }
         e[t] = s;
     }
     // every lag inside the series: the same sums without the checks
-    for t in warm..x.len() {
-        eval_with(coef, grid, &lookup, x[t - d], f);
-        let mut s = x[t];
-        for (m, fm) in f.iter().enumerate() {
-            s -= fm * x[t - m - 1];
-        }
-        for (m, bm) in b.iter().enumerate() {
-            s -= bm * e[t - m - 1];
-        }
-        e[t] = s;
-    }
+    const CHUNK: usize = 1 << 16;
+    e[warm..]
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, out)| {
+            let mut f = [0.0f64; 8];
+            let f = &mut f[..p];
+            let t0 = warm + c * CHUNK;
+            for (i, w) in out.iter_mut().enumerate() {
+                let t = t0 + i;
+                eval_with(coef, grid, &lookup, x[t - d], f);
+                let mut s = x[t];
+                for (m, fm) in f.iter().enumerate() {
+                    s -= fm * x[t - m - 1];
+                }
+                *w = s;
+            }
+        });
+    ma_filter_in_place(e, b);
 }
 
 /// `GridFit::eval` with the grid cell found by an [`IntervalLookup`] instead of a
