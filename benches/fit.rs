@@ -345,6 +345,9 @@ fn main() {
                 );
                 peer_secs = Some(f(&v["secs"]));
             }
+            None if std::env::var("FARMA_BENCH_PEER").is_ok_and(|v| v == "0") => {
+                println!("statsmodels peer: skipped (FARMA_BENCH_PEER=0)")
+            }
             None => println!("statsmodels peer: missing (pip install statsmodels)"),
         }
     }
