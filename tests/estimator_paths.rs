@@ -284,3 +284,78 @@ fn well_conditioned_farma_points_agree_to_1e9_without_allowance() {
     }
     assert!(checked > 800, "{checked}");
 }
+
+#[test]
+fn reused_left_hand_sides_give_the_one_bandwidth_fit() {
+    // The f-step's path: S_g from a full table, the right-hand sides from a table of
+    // the X_a y families only. It must equal a full one-bandwidth fit bit for bit, and
+    // the direct path to the usual allowance.
+    use farma::estimator::moments::Families;
+    let (x, e) = farma211(6000, 7);
+    let b = [-0.5];
+    let prob = VcProblem {
+        x: &x,
+        e: &e,
+        b: &b,
+        p: 2,
+        d: 1,
+        start: 2,
+    };
+    let grid = uniform_grid(-2.0, 2.0, 41);
+    let index = DirectIndex::build(&prob);
+    for h in [0.05, 0.3, 1.5] {
+        let breaks = breakpoints(&grid, &[h]);
+        let full = MomentTable::build(&prob, breaks.clone(), -100.0, 100.0, 6);
+        let sys = full.local_systems(&grid, h);
+        let resp = MomentTable::build_families(&prob, breaks, -100.0, 100.0, 6, Families::Response);
+        let reused = resp.fit_response(&sys);
+        let one = full.fit_ladder(&grid, &[h]).remove(0);
+        assert_eq!(reused.status, one.status, "h {h}");
+        assert_eq!(reused.n_support, one.n_support, "h {h}");
+        for (a, c) in reused.f.iter().zip(&one.f) {
+            assert!(
+                a.to_bits() == c.to_bits() || (a.is_nan() && c.is_nan()),
+                "h {h}: {a} vs {c}"
+            );
+        }
+        let direct = fit_grid(&prob, &index, &grid, h);
+        let worst = compare(&reused, &direct, &format!("reused h {h}"));
+        assert!(worst <= 1e-9, "h {h}: {worst:e}");
+    }
+}
+
+#[test]
+fn a_bandwidth_below_the_grid_values_resolution_gives_empty_windows() {
+    // u_g + h rounds to u_g for h = 1e-16 at u_g = 1 (and u_g - h does not): the
+    // windows hold only the samples in [fl(u_g - h), fl(u_g + h)), never a whole cell.
+    let n = 3000;
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut x: Vec<f64> = (0..n)
+        .map(|_| {
+            let z: f64 = StandardNormal.sample(&mut rng);
+            z
+        })
+        .collect();
+    x[100] = 1.0 - 1e-16; // = 0.9999999999999999, inside [fl(1 - 1e-16), 1)
+    let e = vec![0.0; n];
+    let prob = VcProblem {
+        x: &x,
+        e: &e,
+        b: &[],
+        p: 2,
+        d: 1,
+        start: 2,
+    };
+    let grid = vec![0.5, 1.0, 1.5];
+    let hs = vec![1e-16, 0.4];
+    let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -10.0, 10.0, 6);
+    let fits = table.fit_ladder(&grid, &hs);
+    for (j, &h) in hs.iter().enumerate() {
+        for (g, &ug) in grid.iter().enumerate() {
+            let (lo, hi) = (ug - h, ug + h);
+            let brute = (2..n).filter(|&t| x[t - 1] >= lo && x[t - 1] < hi).count() as u64;
+            assert_eq!(fits[j].n_support[g], brute, "h {h} u {ug}");
+        }
+    }
+    assert_eq!(fits[0].n_support[1], 1);
+}

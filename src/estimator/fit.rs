@@ -606,7 +606,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize>(
     a: &[f64],
     b: &[f64],
 ) -> (f64, Vec<f64>, Vec<f64>) {
-    debug_assert!(start >= P.max(Q) && P + Q <= 8);
+    debug_assert!(P + Q <= 8);
     let k = P + Q;
     let mut aa = [0.0f64; 8];
     aa[..P].copy_from_slice(a);
@@ -750,18 +750,25 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
             break;
         }
         // A step this small is inside the quadratic basin: the RSS cannot tell the
-        // trial from b any more (the decrease the Gauss-Newton model predicts,
-        // step . (-J'e), is below the rounding of a sum of N squares), so the line
-        // search would only halve the step 30 times, a pass each, and give up. Take
-        // the Gauss-Newton step and stop.
-        if predicted_decrease(&step, &jte) < FLAT_RSS * rss
-            || step
-                .iter()
-                .zip(&b)
-                .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
+        // trial from b any more, so the line search would only halve the step 30
+        // times, a pass each, and give up. Take the Gauss-Newton step and stop.
+        if step
+            .iter()
+            .zip(&b)
+            .all(|(s, bi)| s.abs() < 1e-9 * (1.0 + bi.abs()))
         {
             let bt: Vec<f64> = (0..q).map(|i| b[i] + step[i]).collect();
             if ma_invertible(&bt) {
+                b = bt;
+            }
+            break;
+        }
+        // The same when the model predicts a decrease below the RSS's resolution, but
+        // such a step need not be small (a flat direction of a badly conditioned J'J):
+        // one pass checks that the RSS did not rise beyond rounding, else b stays.
+        if predicted_decrease(&step, &jte) < FLAT_RSS * rss {
+            let bt: Vec<f64> = (0..q).map(|i| b[i] + step[i]).collect();
+            if ma_invertible(&bt) && arma_pass(w, start, &[], &bt).0 <= rss * (1.0 + FLAT_RSS) {
                 b = bt;
             }
             break;
@@ -816,13 +823,16 @@ pub fn arma_cls(
         {
             break;
         }
-        // below the RSS's resolution (see ma_cls): take the step and stop
+        // below the RSS's resolution (see ma_cls): take the step if the RSS did not
+        // rise beyond rounding, and stop
         if predicted_decrease(&step, &jte) < FLAT_RSS * rss {
+            let at: Vec<f64> = (0..p).map(|i| a[i] + step[i]).collect();
             let bt: Vec<f64> = (0..q).map(|i| b[i] + step[p + i]).collect();
             if ma_invertible(&bt) {
-                a = (0..p).map(|i| a[i] + step[i]).collect();
-                b = bt;
-                rss = arma_pass(x, start, &a, &b).0;
+                let r = arma_pass(x, start, &at, &bt).0;
+                if r <= rss * (1.0 + FLAT_RSS) {
+                    (a, b, rss) = (at, bt, r);
+                }
             }
             break;
         }

@@ -508,9 +508,9 @@ impl MomentTable {
         binom: &[[f64; 13]; 13],
     ) -> (Vec<f64>, u64) {
         let ug = cells.grid[g];
-        let lo = self.break_index(ug - h) + 1;
-        let hi = self.break_index(ug + h);
-        let (cl, ch) = (cells.cell_of[lo], cells.cell_of[hi]);
+        let (lo, hi) = self.window_edges(cells, g, h);
+        let cl = lo.map_or(g, |e| cells.cell_of[e]);
+        let ch = hi.map_or(g + 1, |e| cells.cell_of[e]);
         let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
         let mut count = 0;
         for c in (cl + 1..=g).rev() {
@@ -525,9 +525,25 @@ impl MomentTable {
         for c in g + 1..ch {
             count += self.add_piece(self.prefix(cells, cells.last[c]), ug, smax, binom, &mut acc);
         }
-        count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
-        count += self.add_piece(self.prefix(cells, hi), ug, smax, binom, &mut acc);
+        if let Some(lo) = lo {
+            count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
+        }
+        if let Some(hi) = hi {
+            count += self.add_piece(self.prefix(cells, hi), ug, smax, binom, &mut acc);
+        }
         (acc, count)
+    }
+
+    /// The first and last interval of window (g, h): (lo, hi) with lo in a cell at or
+    /// left of u_g and hi right of it; None for a side that is empty because u_g -+ h
+    /// rounds to u_g (h below half an ulp of u_g).
+    fn window_edges(&self, cells: &Cells, g: usize, h: f64) -> (Option<usize>, Option<usize>) {
+        let ug = cells.grid[g];
+        // the last interval left of u_g ends at u_g
+        let gi = cells.last[g];
+        let lo = self.break_index(ug - h) + 1;
+        let hi = self.break_index(ug + h);
+        ((lo <= gi).then_some(lo), (hi > gi).then_some(hi))
     }
 
     /// The pass: blocks of rows of a size set by N alone, `threads` blocks at a time,
@@ -649,7 +665,9 @@ impl MomentTable {
 
     /// Local fits at `sys.h` from the right-hand sides of this table (a
     /// [`Families::Response`] or full table of the same breakpoints) and the reused
-    /// left-hand sides: the same numbers as [`MomentTable::fit_ladder`] at that h.
+    /// left-hand sides: the same numbers as [`MomentTable::fit_ladder`] with `sys.h`
+    /// alone (a ladder of several h sums the whole cells in another order, so its
+    /// last bits may differ).
     pub fn fit_response(&self, sys: &LocalSystems) -> GridFit {
         let p = self.p;
         assert_eq!(p, sys.p);
@@ -707,9 +725,9 @@ impl MomentTable {
                 let (mut wl, mut wr) = (g + 1, g);
                 for &j in &order {
                     let h = hs[j];
-                    let lo = self.break_index(ug - h) + 1;
-                    let hi = self.break_index(ug + h);
-                    let (cl, ch) = (cells.cell_of[lo], cells.cell_of[hi]);
+                    let (lo, hi) = self.window_edges(&cells, g, h);
+                    let cl = lo.map_or(g, |e| cells.cell_of[e]);
+                    let ch = hi.map_or(g + 1, |e| cells.cell_of[e]);
                     while wl > cl + 1 {
                         wl -= 1;
                         let piece = self.suffix(&cells, cells.first[wl]);
@@ -722,8 +740,12 @@ impl MomentTable {
                     }
                     let mut acc = whole.clone();
                     let mut count = whole_count;
-                    count += self.add_piece(self.suffix(&cells, lo), ug, 6, &binom, &mut acc);
-                    count += self.add_piece(self.prefix(&cells, hi), ug, 6, &binom, &mut acc);
+                    if let Some(lo) = lo {
+                        count += self.add_piece(self.suffix(&cells, lo), ug, 6, &binom, &mut acc);
+                    }
+                    if let Some(hi) = hi {
+                        count += self.add_piece(self.prefix(&cells, hi), ug, 6, &binom, &mut acc);
+                    }
                     let a_of = kernel_contraction(&acc, d1, h);
                     let mut s = vec![0.0; n * n];
                     let mut rhs = vec![0.0; n];
@@ -825,24 +847,17 @@ impl MomentTable {
                     }
                 }
                 // trace: (grid point, interpolation weight in powers of U - u_g, piece)
-                let mut targets: Vec<(usize, Vec<f64>, Piece)> = Vec::with_capacity(2);
+                let mut targets: Vec<(usize, Vec<f64>, Option<Piece>)> = Vec::with_capacity(2);
+                // window of g inside the cell to its right, [u_g, u_g + h); None when
+                // u_g + h rounds to u_g
                 let right_part = |g: usize| {
-                    // window of g inside the cell to its right: [u_g, u_g + h)
-                    let whi = self.break_index(grid[g] + h);
-                    if whi >= l0 {
-                        self.prefix(&cells, l0)
-                    } else {
-                        self.prefix(&cells, whi)
-                    }
+                    let (_, whi) = self.window_edges(&cells, g, h);
+                    whi.map(|whi| self.prefix(&cells, whi.min(l0)))
                 };
+                // window of g inside the cell to its left, [u_g - h, u_g)
                 let left_part = |g: usize| {
-                    // window of g inside the cell to its left: [u_g - h, u_g)
-                    let wlo = self.break_index(grid[g] - h) + 1;
-                    if wlo <= f0 {
-                        self.suffix(&cells, f0)
-                    } else {
-                        self.suffix(&cells, wlo)
-                    }
+                    let (wlo, _) = self.window_edges(&cells, g, h);
+                    wlo.map(|wlo| self.suffix(&cells, wlo.max(f0)))
                 };
                 match k1 {
                     None if c == 0 => targets.push((0, vec![1.0], left_part(0))),
@@ -855,9 +870,9 @@ impl MomentTable {
                 }
                 let mut tr = 0.0;
                 for (g, omega, piece) in targets {
-                    if piece.count == 0 {
+                    let Some(piece) = piece.filter(|pc| pc.count > 0) else {
                         continue;
-                    }
+                    };
                     let mut r = vec![0.0; width];
                     self.add_piece(piece, grid[g], 6, &binom, &mut r);
                     let base = poly_mul(&omega, &kern);
