@@ -1182,3 +1182,50 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         timings,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_order_pass_equals_the_general_pass() {
+        // arma_pass_fixed (registers, zeros before the first sample) against
+        // arma_pass_any (explicit checks), every specialised order, to the bit
+        let mut s: u64 = 7;
+        let x: Vec<f64> = (0..3000)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let a_all = [0.4, -0.2, 0.1];
+        let b_all = [-0.5, 0.2];
+        for (p, q) in [
+            (0, 1),
+            (0, 2),
+            (1, 1),
+            (2, 1),
+            (3, 1),
+            (1, 2),
+            (2, 2),
+            (3, 2),
+        ] {
+            let (a, b) = (&a_all[..p], &b_all[..q]);
+            for start in [p.max(q), 5] {
+                let fast = arma_pass(&x, start, a, b);
+                let slow = arma_pass_any(&x, start, a, b);
+                assert_eq!(fast.0.to_bits(), slow.0.to_bits(), "({p},{q}) rss");
+                for (u, v) in fast
+                    .1
+                    .iter()
+                    .chain(&fast.2)
+                    .zip(slow.1.iter().chain(&slow.2))
+                {
+                    assert_eq!(u.to_bits(), v.to_bits(), "({p},{q}) normal equations");
+                }
+            }
+        }
+    }
+}

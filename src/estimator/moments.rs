@@ -77,6 +77,28 @@ struct Piece<'a> {
     count: u64,
 }
 
+/// The whole cells of a growing window of grid point g, summed about u_g: cells
+/// `left..=g` and `g+1..=right` (none at first).
+struct WholeCells {
+    g: usize,
+    left: usize,
+    right: usize,
+    acc: Vec<f64>,
+    count: u64,
+}
+
+impl WholeCells {
+    fn new(table: &MomentTable, g: usize) -> Self {
+        WholeCells {
+            g,
+            left: g + 1,
+            right: g,
+            acc: vec![0.0; table.nfam * (table.deg + 1)],
+            count: 0,
+        }
+    }
+}
+
 /// The intervals grouped by the cells between grid points (cell c lies between grid
 /// points c-1 and c; cell 0 below the first, cell G above the last), with every run of
 /// intervals that starts or ends at a cell's edge summed once:
@@ -111,17 +133,22 @@ pub struct LocalSystems {
     points: Vec<(Vec<f64>, u64, f64)>,
 }
 
-/// A(f, r) = sum_k kappa_k acc[f][k + r] / h^(k + r): the Biweight-weighted moment
-/// sum_t K(w_t) V_a V_b w_t^r, w = (U - u_g)/h, from moments about u_g in unscaled
-/// powers (`acc`, rows of `d1`).
-fn kernel_contraction(acc: &[f64], d1: usize, h: f64) -> impl Fn(usize, usize) -> f64 + '_ {
-    let mut hp = [1.0f64; 7];
-    for k in 1..7 {
+/// A(f, r) = sum_k kappa_k acc[f][k + r] / h^(k + r): the kernel-weighted moment
+/// sum_t L(w_t) V_a V_b w_t^r, w = (U - u_g)/h, of the kernel polynomial
+/// L(w) = sum_k kappa_k w^k (`kern`: the Biweight for fits, its square for standard
+/// errors), from moments about u_g in unscaled powers (`acc`, rows of `d1`).
+fn kernel_contraction<'a>(
+    acc: &'a [f64],
+    d1: usize,
+    h: f64,
+    kern: &'a [f64],
+) -> impl Fn(usize, usize) -> f64 + 'a {
+    let mut hp = [1.0f64; 13];
+    for k in 1..13 {
         hp[k] = hp[k - 1] / h;
     }
     move |f: usize, r: usize| -> f64 {
-        BIWEIGHT
-            .iter()
+        kern.iter()
             .enumerate()
             .filter(|(_, c)| **c != 0.0)
             .map(|(k, c)| c * acc[f * d1 + k + r] * hp[k + r])
@@ -507,24 +534,39 @@ impl MomentTable {
         smax: usize,
         binom: &[[f64; 13]; 13],
     ) -> (Vec<f64>, u64) {
+        let mut whole = WholeCells::new(self, g);
+        self.grown_window(cells, &mut whole, h, smax, binom)
+    }
+
+    /// Window (g, h) from `whole`, the whole cells already summed for a narrower
+    /// window of the same grid point: adds the cells that (g, h) now holds whole
+    /// (left ones from the nearest outwards, then right ones), and returns the whole
+    /// cells plus its two edge runs, with the sample count.
+    fn grown_window(
+        &self,
+        cells: &Cells,
+        whole: &mut WholeCells,
+        h: f64,
+        smax: usize,
+        binom: &[[f64; 13]; 13],
+    ) -> (Vec<f64>, u64) {
+        let g = whole.g;
         let ug = cells.grid[g];
         let (lo, hi) = self.window_edges(cells, g, h);
         let cl = lo.map_or(g, |e| cells.cell_of[e]);
         let ch = hi.map_or(g + 1, |e| cells.cell_of[e]);
-        let mut acc = vec![0.0; self.nfam * (self.deg + 1)];
-        let mut count = 0;
-        for c in (cl + 1..=g).rev() {
-            count += self.add_piece(
-                self.suffix(cells, cells.first[c]),
-                ug,
-                smax,
-                binom,
-                &mut acc,
-            );
+        while whole.left > cl + 1 {
+            whole.left -= 1;
+            let piece = self.suffix(cells, cells.first[whole.left]);
+            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc);
         }
-        for c in g + 1..ch {
-            count += self.add_piece(self.prefix(cells, cells.last[c]), ug, smax, binom, &mut acc);
+        while whole.right + 1 < ch {
+            whole.right += 1;
+            let piece = self.prefix(cells, cells.last[whole.right]);
+            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc);
         }
+        let mut acc = whole.acc.clone();
+        let mut count = whole.count;
         if let Some(lo) = lo {
             count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
         }
@@ -532,6 +574,37 @@ impl MomentTable {
             count += self.add_piece(self.prefix(cells, hi), ug, smax, binom, &mut acc);
         }
         (acc, count)
+    }
+
+    /// S = sum K(w) Z Z' with Z = (X, w X) (row-major 2p x 2p) from the weighted
+    /// moments `a_of(family, r)` of [`kernel_contraction`].
+    fn local_lhs(&self, a_of: &impl Fn(usize, usize) -> f64) -> Vec<f64> {
+        let p = self.p;
+        let n = 2 * p;
+        let mut s = vec![0.0; n * n];
+        for a in 0..p {
+            for b in 0..p {
+                let f = self.fam(a, b);
+                let (m0, m1, m2) = (a_of(f, 0), a_of(f, 1), a_of(f, 2));
+                s[a * n + b] = m0;
+                s[a * n + p + b] = m1;
+                s[(p + a) * n + b] = m1;
+                s[(p + a) * n + p + b] = m2;
+            }
+        }
+        s
+    }
+
+    /// T = sum K(w) Z y (2p) from the weighted moments `a_of(family, r)`.
+    fn local_rhs(&self, a_of: &impl Fn(usize, usize) -> f64) -> Vec<f64> {
+        let p = self.p;
+        let mut rhs = vec![0.0; 2 * p];
+        for a in 0..p {
+            let fy = self.fam(a, p);
+            rhs[a] = a_of(fy, 0);
+            rhs[p + a] = a_of(fy, 1);
+        }
+        rhs
     }
 
     /// The first and last interval of window (g, h): (lo, hi) with lo in a cell at or
@@ -631,8 +704,6 @@ impl MomentTable {
     /// U only), for [`MomentTable::fit_response`] to reuse while the response changes.
     pub fn local_systems(&self, grid: &[f64], h: f64) -> LocalSystems {
         assert!(self.deg >= 6 && self.pairs.last() == Some(&(self.p + 1, self.p + 1)));
-        let p = self.p;
-        let n = 2 * p;
         let d1 = self.deg + 1;
         let binom = binomial_table();
         let cells = self.cells(grid);
@@ -640,25 +711,14 @@ impl MomentTable {
             .into_par_iter()
             .map(|g| {
                 let (acc, count) = self.window(&cells, g, h, 6, &binom);
-                let a_of = kernel_contraction(&acc, d1, h);
-                let mut s = vec![0.0; n * n];
-                for a in 0..p {
-                    for b in 0..p {
-                        let f = self.fam(a, b);
-                        let (m0, m1, m2) = (a_of(f, 0), a_of(f, 1), a_of(f, 2));
-                        s[a * n + b] = m0;
-                        s[a * n + p + b] = m1;
-                        s[(p + a) * n + b] = m1;
-                        s[(p + a) * n + p + b] = m2;
-                    }
-                }
-                (s, count, a_of(self.one_fam(), 0))
+                let a_of = kernel_contraction(&acc, d1, h, &BIWEIGHT);
+                (self.local_lhs(&a_of), count, a_of(self.one_fam(), 0))
             })
             .collect();
         LocalSystems {
             grid: grid.to_vec(),
             h,
-            p,
+            p: self.p,
             points: per_g,
         }
     }
@@ -669,33 +729,21 @@ impl MomentTable {
     /// alone (a ladder of several h sums the whole cells in another order, so its
     /// last bits may differ).
     pub fn fit_response(&self, sys: &LocalSystems) -> GridFit {
-        let p = self.p;
-        assert_eq!(p, sys.p);
-        let n = 2 * p;
+        assert_eq!(self.p, sys.p);
         let d1 = self.deg + 1;
         let h = sys.h;
         let binom = binomial_table();
         let cells = self.cells(&sys.grid);
-        let points: Vec<GridFit> = (0..sys.grid.len())
+        let rhs: Vec<Vec<f64>> = (0..sys.grid.len())
             .into_par_iter()
             .map(|g| {
                 let (acc, _) = self.window(&cells, g, h, 6, &binom);
-                let a_of = kernel_contraction(&acc, d1, h);
-                let mut rhs = vec![0.0; n];
-                for a in 0..p {
-                    let fy = self.fam(a, p);
-                    rhs[a] = a_of(fy, 0);
-                    rhs[p + a] = a_of(fy, 1);
-                }
-                let (s, count, mass) = &sys.points[g];
-                let mut point = GridFit::new(1, p, h);
-                point.set_point(0, s, &rhs, *count, *mass);
-                point
+                self.local_rhs(&kernel_contraction(&acc, d1, h, &BIWEIGHT))
             })
             .collect();
-        let mut fit = GridFit::new(sys.grid.len(), p, h);
-        for (g, point) in points.iter().enumerate() {
-            fit.copy_point(g, point, 0);
+        let mut fit = GridFit::new(sys.grid.len(), self.p, h);
+        for (g, (s, count, mass)) in sys.points.iter().enumerate() {
+            fit.set_point(g, s, &rhs[g], *count, *mass);
         }
         fit
     }
@@ -707,64 +755,28 @@ impl MomentTable {
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
         assert!(self.deg >= 6, "local fits need moments up to degree 6");
         let p = self.p;
-        let n = 2 * p;
         let d1 = self.deg + 1;
         let binom = binomial_table();
         let cells = self.cells(grid);
         let mut order: Vec<usize> = (0..hs.len()).collect();
         order.sort_by(|a, b| hs[*a].total_cmp(&hs[*b]));
-        // per grid point: for each h, the point's fit (solved here, in parallel)
-        let per_g: Vec<Vec<GridFit>> = (0..grid.len())
+        // per grid point: for each h, (S, T, count, mass)
+        type Point = (Vec<f64>, Vec<f64>, u64, f64);
+        let per_g: Vec<Vec<Point>> = (0..grid.len())
             .into_par_iter()
             .map(|g| {
-                let ug = grid[g];
-                let mut whole = vec![0.0; self.nfam * d1];
-                let mut whole_count = 0u64;
-                let mut out: Vec<Option<GridFit>> = vec![None; hs.len()];
-                // whole cells summed so far: wl..=g on the left, g+1..=wr on the right
-                let (mut wl, mut wr) = (g + 1, g);
+                let mut whole = WholeCells::new(self, g);
+                let mut out: Vec<Option<Point>> = vec![None; hs.len()];
                 for &j in &order {
                     let h = hs[j];
-                    let (lo, hi) = self.window_edges(&cells, g, h);
-                    let cl = lo.map_or(g, |e| cells.cell_of[e]);
-                    let ch = hi.map_or(g + 1, |e| cells.cell_of[e]);
-                    while wl > cl + 1 {
-                        wl -= 1;
-                        let piece = self.suffix(&cells, cells.first[wl]);
-                        whole_count += self.add_piece(piece, ug, 6, &binom, &mut whole);
-                    }
-                    while wr + 1 < ch {
-                        wr += 1;
-                        let piece = self.prefix(&cells, cells.last[wr]);
-                        whole_count += self.add_piece(piece, ug, 6, &binom, &mut whole);
-                    }
-                    let mut acc = whole.clone();
-                    let mut count = whole_count;
-                    if let Some(lo) = lo {
-                        count += self.add_piece(self.suffix(&cells, lo), ug, 6, &binom, &mut acc);
-                    }
-                    if let Some(hi) = hi {
-                        count += self.add_piece(self.prefix(&cells, hi), ug, 6, &binom, &mut acc);
-                    }
-                    let a_of = kernel_contraction(&acc, d1, h);
-                    let mut s = vec![0.0; n * n];
-                    let mut rhs = vec![0.0; n];
-                    for a in 0..p {
-                        for b in 0..p {
-                            let f = self.fam(a, b);
-                            let (m0, m1, m2) = (a_of(f, 0), a_of(f, 1), a_of(f, 2));
-                            s[a * n + b] = m0;
-                            s[a * n + p + b] = m1;
-                            s[(p + a) * n + b] = m1;
-                            s[(p + a) * n + p + b] = m2;
-                        }
-                        let fy = self.fam(a, p);
-                        rhs[a] = a_of(fy, 0);
-                        rhs[p + a] = a_of(fy, 1);
-                    }
-                    let mass = a_of(self.one_fam(), 0);
-                    let mut point = GridFit::new(1, p, h);
-                    point.set_point(0, &s, &rhs, count, mass);
+                    let (acc, count) = self.grown_window(&cells, &mut whole, h, 6, &binom);
+                    let a_of = kernel_contraction(&acc, d1, h, &BIWEIGHT);
+                    let point = (
+                        self.local_lhs(&a_of),
+                        self.local_rhs(&a_of),
+                        count,
+                        a_of(self.one_fam(), 0),
+                    );
                     out[j] = Some(point);
                 }
                 out.into_iter()
@@ -772,12 +784,14 @@ impl MomentTable {
                     .collect()
             })
             .collect();
-        hs.iter()
+        // the local solves, bandwidths in parallel
+        hs.par_iter()
             .enumerate()
             .map(|(j, &h)| {
                 let mut fit = GridFit::new(grid.len(), p, h);
                 for (g, pts) in per_g.iter().enumerate() {
-                    fit.copy_point(g, &pts[j], 0);
+                    let (s, rhs, count, mass) = &pts[j];
+                    fit.set_point(g, s, rhs, *count, *mass);
                 }
                 fit
             })
@@ -927,27 +941,7 @@ impl MomentTable {
                     return vec![f64::NAN; p];
                 }
                 let (acc, _) = self.window(&cells, g, h, 10, &binom);
-                let mut hp = [1.0f64; 11];
-                for k in 1..11 {
-                    hp[k] = hp[k - 1] / h;
-                }
-                let a2 = |f: usize, r: usize| -> f64 {
-                    k2.iter()
-                        .enumerate()
-                        .map(|(k, c)| c * acc[f * d1 + k + r] * hp[k + r])
-                        .sum()
-                };
-                let mut s2 = vec![0.0; n * n];
-                for a in 0..p {
-                    for b in 0..p {
-                        let f = self.fam(a, b);
-                        let (m0, m1, m2) = (a2(f, 0), a2(f, 1), a2(f, 2));
-                        s2[a * n + b] = m0;
-                        s2[a * n + p + b] = m1;
-                        s2[(p + a) * n + b] = m1;
-                        s2[(p + a) * n + p + b] = m2;
-                    }
-                }
+                let s2 = self.local_lhs(&kernel_contraction(&acc, d1, h, &k2));
                 sandwich_diag(&fit.s_inv[g * n * n..(g + 1) * n * n], &s2, n, p)
             })
             .collect();

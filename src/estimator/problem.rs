@@ -161,19 +161,6 @@ impl GridFit {
         }
     }
 
-    /// Copies grid point `k` of `other` (same p) into grid point `g`.
-    pub fn copy_point(&mut self, g: usize, other: &GridFit, k: usize) {
-        let p = self.p;
-        let nn = 4 * p * p;
-        self.f[g * p..(g + 1) * p].copy_from_slice(&other.f[k * p..(k + 1) * p]);
-        self.slope[g * p..(g + 1) * p].copy_from_slice(&other.slope[k * p..(k + 1) * p]);
-        self.s_inv[g * nn..(g + 1) * nn].copy_from_slice(&other.s_inv[k * nn..(k + 1) * nn]);
-        self.n_support[g] = other.n_support[k];
-        self.kernel_mass[g] = other.kernel_mass[k];
-        self.cond[g] = other.cond[k];
-        self.status[g] = other.status[k];
-    }
-
     /// f at `u` by linear interpolation between grid values, constant beyond the ends.
     /// `grid` ascending; all points must be Ok.
     #[inline]
