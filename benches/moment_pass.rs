@@ -1,0 +1,89 @@
+//! What one sample costs in the estimator's per-alternation moment pass, beside the
+//! floor (one sum over the same values), on one thread: the interval lookup alone
+//! (`IntervalLookup::find`, and a binary search over the same breakpoints for
+//! comparison) and the whole f-step pass (`MomentTable::build_families` with the X_a y
+//! families, the table every alternation rebuilds). Explains the fit bench's
+//! "alternation / floor" ratio.
+//!
+//! Run: `cargo bench --bench moment_pass` (FARMA_BENCH_N, default 1e6). Best of 5.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::time::Instant;
+
+use farma::estimator::moments::{Families, IntervalLookup, MomentTable, breakpoints};
+use farma::estimator::problem::VcProblem;
+
+fn best_of<T>(f: impl Fn() -> T) -> f64 {
+    (0..5)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(f());
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn main() {
+    let n = std::env::var("FARMA_BENCH_N")
+        .ok()
+        .map(|s| s.parse::<f64>().expect("FARMA_BENCH_N") as usize)
+        .unwrap_or(1_000_000);
+    // an AR(2) series with uniform innovations (LCG: no dependencies)
+    let mut x = vec![0.0f64; n];
+    let mut s: u64 = 1;
+    for t in 2..n {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        x[t] = 0.5 * x[t - 1] - 0.2 * x[t - 2] + u;
+    }
+    let e = vec![0.1; n];
+    let prob = VcProblem {
+        x: &x,
+        e: &e,
+        b: &[-0.5],
+        p: 2,
+        d: 1,
+        start: 2,
+    };
+    let grid: Vec<f64> = (0..201).map(|k| -0.8 + 1.6 * k as f64 / 200.0).collect();
+    let h = 0.2;
+    let mut breaks = breakpoints(&grid, &[h]);
+    breaks.sort_by(f64::total_cmp);
+    breaks.dedup();
+    let lookup = IntervalLookup::new(&breaks);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let ns = |secs: f64| secs / n as f64 * 1e9;
+    let floor = best_of(|| x.iter().sum::<f64>());
+    let find = best_of(|| x.iter().map(|u| lookup.find(*u)).sum::<usize>());
+    let bsearch = best_of(|| {
+        x.iter()
+            .map(|u| breaks.partition_point(|b| *b <= *u))
+            .sum::<usize>()
+    });
+    let pass = pool.install(|| {
+        best_of(|| {
+            MomentTable::build_families(&prob, breaks.clone(), -3.0, 3.0, 6, Families::Response)
+        })
+    });
+    println!("machine: {}, one thread, N = {n:.0e}", common::machine());
+    println!("| step | ns per sample | / floor |");
+    println!("|---|---|---|");
+    for (what, t) in [
+        ("floor: sum", floor),
+        ("IntervalLookup::find", find),
+        (
+            &*format!("binary search over {} breakpoints", breaks.len()),
+            bsearch,
+        ),
+        ("f-step pass (X_a y families, degree 6)", pass),
+    ] {
+        println!("| {what} | {:.1} | {:.1} |", ns(t), t / floor);
+    }
+}
