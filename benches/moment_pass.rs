@@ -12,7 +12,9 @@ mod common;
 
 use std::time::Instant;
 
-use farma::estimator::moments::{Families, IntervalLookup, MomentTable, breakpoints};
+use farma::estimator::moments::{
+    Families, IntervalIndex, IntervalLookup, MomentTable, breakpoints,
+};
 use farma::estimator::problem::VcProblem;
 
 fn best_of<T>(f: impl Fn() -> T) -> f64 {
@@ -72,6 +74,13 @@ fn main() {
             MomentTable::build_families(&prob, breaks.clone(), -3.0, 3.0, 6, Families::Response)
         })
     });
+    let index = pool.install(|| IntervalIndex::build(&prob, breaks.clone()).unwrap());
+    let indexed = pool.install(|| {
+        best_of(|| MomentTable::build_indexed(&prob, &index, -3.0, 3.0, 6, Families::Response))
+    });
+    let full = pool.install(|| {
+        best_of(|| MomentTable::build_indexed(&prob, &index, -3.0, 3.0, 6, Families::All))
+    });
     println!("machine: {}, one thread, N = {n:.0e}", common::machine());
     println!("| step | ns per sample | / floor |");
     println!("|---|---|---|");
@@ -83,6 +92,8 @@ fn main() {
             bsearch,
         ),
         ("f-step pass (X_a y families, degree 6)", pass),
+        ("the same, intervals read from an IntervalIndex", indexed),
+        ("every family, degree 6, intervals read", full),
     ] {
         println!("| {what} | {:.1} | {:.1} |", ns(t), t / floor);
     }
