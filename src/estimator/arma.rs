@@ -140,6 +140,164 @@ pub fn ma_invertible(b: &[f64]) -> bool {
     true
 }
 
+/// One streaming pass of the ARMA(p,q) recursion e_t = x_t - sum a_m x_{t-m} -
+/// sum b_m e_{t-m} (zeros before the first sample) with its derivatives
+/// d e_t / d a_j = -x_{t-j} - sum_k b_k d e_{t-k} / d a_j and
+/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
+/// 7.2): returns the RSS over t >= `start` and the Gauss-Newton normal equations J'J
+/// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
+/// values of e and of the derivatives: nothing N-long is allocated.
+pub(crate) fn arma_pass(
+    x: &[f64],
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+) -> (f64, Vec<f64>, Vec<f64>) {
+    macro_rules! fixed {
+        ($(($p:literal, $q:literal)),*) => {
+            match (a.len(), b.len()) {
+                $(($p, $q) => return arma_pass_fixed::<$p, $q, { $p + $q }>(x, start, a, b),)*
+                _ => {}
+            }
+        };
+    }
+    fixed!(
+        (0, 1),
+        (0, 2),
+        (1, 1),
+        (2, 1),
+        (3, 1),
+        (1, 2),
+        (2, 2),
+        (3, 2)
+    );
+    arma_pass_any(x, start, a, b)
+}
+
+/// [`arma_pass`] for orders known at compile time: the last p values of x, q of e and
+/// of the derivatives kept in registers, zeros before the first sample (subtracting
+/// a zero term leaves every sum as the general version's, bit for bit).
+fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
+    x: &[f64],
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+) -> (f64, Vec<f64>, Vec<f64>) {
+    debug_assert_eq!(P + Q, K);
+    let mut aa = [0.0f64; P];
+    aa.copy_from_slice(a);
+    let mut bb = [0.0f64; Q];
+    bb.copy_from_slice(b);
+    let mut xh = [0.0f64; P];
+    let mut eh = [0.0f64; Q];
+    let mut dh = [[0.0f64; K]; Q];
+    let mut jtj = [[0.0f64; K]; K];
+    let mut jte = [0.0f64; K];
+    let mut rss = 0.0;
+    for (t, &xt) in x.iter().enumerate() {
+        let mut s = xt;
+        for m in 0..P {
+            s -= aa[m] * xh[m];
+        }
+        for m in 0..Q {
+            s -= bb[m] * eh[m];
+        }
+        let mut de = [0.0f64; K];
+        for j in 0..K {
+            let mut v = if j < P { -xh[j] } else { -eh[j - P] };
+            for kk in 0..Q {
+                v -= bb[kk] * dh[kk][j];
+            }
+            de[j] = v;
+        }
+        if t >= start {
+            rss += s * s;
+            for i in 0..K {
+                for j in 0..K {
+                    jtj[i][j] += de[i] * de[j];
+                }
+                jte[i] -= de[i] * s;
+            }
+        }
+        for m in (1..P).rev() {
+            xh[m] = xh[m - 1];
+        }
+        if P > 0 {
+            xh[0] = xt;
+        }
+        for kk in (1..Q).rev() {
+            eh[kk] = eh[kk - 1];
+            dh[kk] = dh[kk - 1];
+        }
+        if Q > 0 {
+            eh[0] = s;
+            dh[0] = de;
+        }
+    }
+    let jtj: Vec<f64> = (0..K * K).map(|i| jtj[i / K][i % K]).collect();
+    (rss, jtj, jte.to_vec())
+}
+
+/// [`arma_pass`] for any order.
+fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    let (p, q) = (a.len(), b.len());
+    let k = p + q;
+    let n = x.len();
+    let mut ehist = [0.0f64; 8];
+    // dhist[kk * k + j] = d e_{t-kk-1} / d theta_j, theta = (a, b)
+    let mut dhist = [0.0f64; 8 * 16];
+    let mut de = [0.0f64; 16];
+    let mut jtj = vec![0.0; k * k];
+    let mut jte = vec![0.0; k];
+    let mut rss = 0.0;
+    for t in 0..n {
+        let mut s = x[t];
+        for (m, am) in a.iter().enumerate() {
+            if t > m {
+                s -= am * x[t - m - 1];
+            }
+        }
+        for (m, bm) in b.iter().enumerate() {
+            if t > m {
+                s -= bm * ehist[m];
+            }
+        }
+        for j in 0..k {
+            let mut v = if j < p {
+                if t > j { -x[t - j - 1] } else { 0.0 }
+            } else if t > j - p {
+                -ehist[j - p]
+            } else {
+                0.0
+            };
+            for (kk, bk) in b.iter().enumerate() {
+                if t > kk {
+                    v -= bk * dhist[kk * k + j];
+                }
+            }
+            de[j] = v;
+        }
+        if t >= start {
+            rss += s * s;
+            for i in 0..k {
+                for j in 0..k {
+                    jtj[i * k + j] += de[i] * de[j];
+                }
+                jte[i] -= de[i] * s;
+            }
+        }
+        for kk in (1..q).rev() {
+            ehist[kk] = ehist[kk - 1];
+            for j in 0..k {
+                dhist[kk * k + j] = dhist[(kk - 1) * k + j];
+            }
+        }
+        ehist[0] = s;
+        dhist[..k].copy_from_slice(&de[..k]);
+    }
+    (rss, jtj, jte)
+}
+
 /// Hannan-Rissanen start, then conditional least squares.
 pub fn fit_arma(x: &[f64], p: usize, q: usize) -> Option<LinearArma> {
     let n = x.len();
@@ -147,7 +305,6 @@ pub fn fit_arma(x: &[f64], p: usize, q: usize) -> Option<LinearArma> {
     if n < 10 * (p + q + 1) {
         return None;
     }
-    let mut e = vec![0.0; n];
     let (mut ar, mut ma) = if q == 0 {
         let cols: Vec<(usize, usize)> = (1..=p).map(|l| (0, l)).collect();
         (lagged_ls(x, &[x], &cols, p..n)?, vec![])
@@ -170,60 +327,27 @@ pub fn fit_arma(x: &[f64], p: usize, q: usize) -> Option<LinearArma> {
         }
         (c[..p].to_vec(), ma)
     };
-    arma_residuals(x, &ar, &ma, &mut e);
-    let rss_of = |e: &[f64]| e[pq..].iter().map(|v| v * v).sum::<f64>();
-    let mut rss = rss_of(&e);
+    // Gauss-Newton: each pass gives the RSS and the normal equations at its point
+    // (the derivative recursion above, summed over t >= max(p, q)), so an accepted
+    // step costs one pass
     let k = p + q;
+    let (mut rss, mut jtj, mut jte) = arma_pass(x, pq, &ar, &ma);
     let mut iterations = 0;
-    let mut de = vec![0.0; n * k];
     for _ in 0..50 {
         iterations += 1;
-        // derivative series
-        for t in 0..n {
-            for j in 0..k {
-                let mut v = if j < p {
-                    if t > j { -x[t - j - 1] } else { 0.0 }
-                } else {
-                    let m = j - p;
-                    if t > m { -e[t - m - 1] } else { 0.0 }
-                };
-                for (kk, b) in ma.iter().enumerate() {
-                    if t > kk {
-                        v -= b * de[(t - kk - 1) * k + j];
-                    }
-                }
-                de[t * k + j] = v;
-            }
-        }
-        let mut jtj = vec![0.0; k * k];
-        let mut jte = vec![0.0; k];
-        for t in pq..n {
-            let row = &de[t * k..(t + 1) * k];
-            for i in 0..k {
-                for j in 0..k {
-                    jtj[i * k + j] += row[i] * row[j];
-                }
-                jte[i] -= row[i] * e[t];
-            }
-        }
         let Some(step) = normal_equations(&jtj, &jte, k) else {
             break;
         };
         let mut scale = 1.0;
         let mut improved = false;
-        let mut e_try = vec![0.0; n];
         for _ in 0..20 {
             let ar_try: Vec<f64> = (0..p).map(|i| ar[i] + scale * step[i]).collect();
             let ma_try: Vec<f64> = (0..q).map(|i| ma[i] + scale * step[p + i]).collect();
             if ma_invertible(&ma_try) {
-                arma_residuals(x, &ar_try, &ma_try, &mut e_try);
-                let r = rss_of(&e_try);
+                let (r, jt, je) = arma_pass(x, pq, &ar_try, &ma_try);
                 if r <= rss {
                     let done = rss - r <= 1e-12 * rss;
-                    ar = ar_try;
-                    ma = ma_try;
-                    rss = r;
-                    std::mem::swap(&mut e, &mut e_try);
+                    (ar, ma, rss, jtj, jte) = (ar_try, ma_try, r, jt, je);
                     improved = !done;
                     break;
                 }
@@ -247,6 +371,48 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
+
+    #[test]
+    fn fixed_order_pass_equals_the_general_pass() {
+        // arma_pass_fixed (registers, zeros before the first sample) against
+        // arma_pass_any (explicit checks), every specialised order, to the bit
+        let mut s: u64 = 7;
+        let x: Vec<f64> = (0..3000)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let a_all = [0.4, -0.2, 0.1];
+        let b_all = [-0.5, 0.2];
+        for (p, q) in [
+            (0, 1),
+            (0, 2),
+            (1, 1),
+            (2, 1),
+            (3, 1),
+            (1, 2),
+            (2, 2),
+            (3, 2),
+        ] {
+            let (a, b) = (&a_all[..p], &b_all[..q]);
+            for start in [p.max(q), 5] {
+                let fast = arma_pass(&x, start, a, b);
+                let slow = arma_pass_any(&x, start, a, b);
+                assert_eq!(fast.0.to_bits(), slow.0.to_bits(), "({p},{q}) rss");
+                for (u, v) in fast
+                    .1
+                    .iter()
+                    .chain(&fast.2)
+                    .zip(slow.1.iter().chain(&slow.2))
+                {
+                    assert_eq!(u.to_bits(), v.to_bits(), "({p},{q}) normal equations");
+                }
+            }
+        }
+    }
 
     #[test]
     fn one_series_gram_equals_the_direct_sums() {

@@ -33,7 +33,7 @@
 //! [`PATIENCE`] rule (`converged` is true when either rule stopped the alternation,
 //! false when `max_iter` did).
 
-use super::arma::{fit_arma, ma_invertible};
+use super::arma::{arma_pass, arma_residuals, fit_arma, ma_invertible};
 use super::direct::{self, DirectIndex};
 use super::linalg::normal_equations;
 use super::moments::{
@@ -678,7 +678,7 @@ impl<'a> Smoother<'a> {
     }
 
     /// Fits (and RSS, trace where every point is Ok) for each bandwidth.
-    fn ladder(&self, hs: &[f64]) -> Vec<(GridFit, Option<(f64, f64)>)> {
+    fn ladder(&self, hs: &[f64]) -> Vec<RungFit> {
         match self.path {
             FitPath::Fast => {
                 let table = MomentTable::build(
@@ -765,6 +765,9 @@ fn ladder_h(j: i32, range: f64) -> f64 {
 /// usual extension (10 rungs, when the GCV minimum is at the smallest) needs no pass.
 const LADDER_AHEAD: i32 = 10;
 
+/// A ladder rung's fit, with its RSS and trace when every grid point has a fit.
+type RungFit = (GridFit, Option<(f64, f64)>);
+
 /// A GCV ladder's moment table (fast path): every family over the breakpoints of the
 /// rungs `js`, and each row's interval. The next ladder (the re-check after
 /// convergence: the same X and U, new residuals) sums only the families that hold y.
@@ -772,6 +775,8 @@ struct LadderCache {
     js: (i32, i32),
     table: MomentTable,
     index: Option<IntervalIndex>,
+    /// Fits (and RSS, trace) at every rung of `js`, from the table as it is now.
+    fits: Option<Vec<RungFit>>,
 }
 
 impl<'a> Smoother<'a> {
@@ -784,7 +789,7 @@ impl<'a> Smoother<'a> {
         range: f64,
         cache: &mut StepCache,
         fresh: &mut bool,
-    ) -> Vec<(GridFit, Option<(f64, f64)>)> {
+    ) -> Vec<RungFit> {
         let (lo, hi) = (js[0], js[js.len() - 1]);
         let span = (self.umin, self.umax);
         let kept = cache.ladder.take().filter(|l| l.js.0 <= lo && l.js.1 >= hi);
@@ -792,6 +797,7 @@ impl<'a> Smoother<'a> {
             Some(l) if *fresh => l,
             Some(l) => LadderCache {
                 table: l.table.with_response(&self.prob, l.index.as_ref(), span),
+                fits: None,
                 ..l
             },
             None => {
@@ -810,19 +816,32 @@ impl<'a> Smoother<'a> {
                     js: (lo, hi + LADDER_AHEAD),
                     table,
                     index,
+                    fits: None,
                 }
             }
         };
         *fresh = true;
-        let hs: Vec<f64> = js.iter().map(|j| ladder_h(*j, range)).collect();
-        let out = lad
-            .table
-            .fit_ladder(self.grid, &hs)
-            .into_iter()
-            .map(|f| {
-                let rt = f.all_ok().then(|| lad.table.rss_trace(self.grid, &f));
-                (f, rt)
-            })
+        // every rung of the table at once (a fit's last bits depend on the set of
+        // rungs a ladder sums, not on which of them are asked for)
+        let mut lad = lad;
+        if lad.fits.is_none() {
+            use rayon::prelude::*;
+            let hs: Vec<f64> = (lad.js.0..=lad.js.1).map(|j| ladder_h(j, range)).collect();
+            let table = &lad.table;
+            let fits = table.fit_ladder(self.grid, &hs);
+            lad.fits = Some(
+                fits.into_par_iter()
+                    .map(|f| {
+                        let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
+                        (f, rt)
+                    })
+                    .collect(),
+            );
+        }
+        let all = lad.fits.as_ref().expect("fitted above");
+        let out = js
+            .iter()
+            .map(|j| all[(j - lad.js.0) as usize].clone())
             .collect();
         cache.ladder = Some(lad);
         out
@@ -920,159 +939,6 @@ fn gcv_select(
             }
         }
     }
-}
-
-/// One streaming pass of the ARMA(p,q) recursion e_t = x_t - sum a_m x_{t-m} -
-/// sum b_m e_{t-m} (zeros before the first sample) with its derivatives
-/// d e_t / d a_j = -x_{t-j} - sum_k b_k d e_{t-k} / d a_j and
-/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
-/// 7.2): returns the RSS over t >= `start` and the Gauss-Newton normal equations J'J
-/// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
-/// values of e and of the derivatives: nothing N-long is allocated.
-fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
-    macro_rules! fixed {
-        ($(($p:literal, $q:literal)),*) => {
-            match (a.len(), b.len()) {
-                $(($p, $q) => return arma_pass_fixed::<$p, $q, { $p + $q }>(x, start, a, b),)*
-                _ => {}
-            }
-        };
-    }
-    fixed!(
-        (0, 1),
-        (0, 2),
-        (1, 1),
-        (2, 1),
-        (3, 1),
-        (1, 2),
-        (2, 2),
-        (3, 2)
-    );
-    arma_pass_any(x, start, a, b)
-}
-
-/// [`arma_pass`] for orders known at compile time: the last p values of x, q of e and
-/// of the derivatives kept in registers, zeros before the first sample (subtracting
-/// a zero term leaves every sum as the general version's, bit for bit).
-fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
-    x: &[f64],
-    start: usize,
-    a: &[f64],
-    b: &[f64],
-) -> (f64, Vec<f64>, Vec<f64>) {
-    debug_assert_eq!(P + Q, K);
-    let mut aa = [0.0f64; P];
-    aa.copy_from_slice(a);
-    let mut bb = [0.0f64; Q];
-    bb.copy_from_slice(b);
-    let mut xh = [0.0f64; P];
-    let mut eh = [0.0f64; Q];
-    let mut dh = [[0.0f64; K]; Q];
-    let mut jtj = [[0.0f64; K]; K];
-    let mut jte = [0.0f64; K];
-    let mut rss = 0.0;
-    for (t, &xt) in x.iter().enumerate() {
-        let mut s = xt;
-        for m in 0..P {
-            s -= aa[m] * xh[m];
-        }
-        for m in 0..Q {
-            s -= bb[m] * eh[m];
-        }
-        let mut de = [0.0f64; K];
-        for j in 0..K {
-            let mut v = if j < P { -xh[j] } else { -eh[j - P] };
-            for kk in 0..Q {
-                v -= bb[kk] * dh[kk][j];
-            }
-            de[j] = v;
-        }
-        if t >= start {
-            rss += s * s;
-            for i in 0..K {
-                for j in 0..K {
-                    jtj[i][j] += de[i] * de[j];
-                }
-                jte[i] -= de[i] * s;
-            }
-        }
-        for m in (1..P).rev() {
-            xh[m] = xh[m - 1];
-        }
-        if P > 0 {
-            xh[0] = xt;
-        }
-        for kk in (1..Q).rev() {
-            eh[kk] = eh[kk - 1];
-            dh[kk] = dh[kk - 1];
-        }
-        if Q > 0 {
-            eh[0] = s;
-            dh[0] = de;
-        }
-    }
-    let jtj: Vec<f64> = (0..K * K).map(|i| jtj[i / K][i % K]).collect();
-    (rss, jtj, jte.to_vec())
-}
-
-/// [`arma_pass`] for any order.
-fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
-    let (p, q) = (a.len(), b.len());
-    let k = p + q;
-    let n = x.len();
-    let mut ehist = [0.0f64; 8];
-    // dhist[kk * k + j] = d e_{t-kk-1} / d theta_j, theta = (a, b)
-    let mut dhist = [0.0f64; 8 * 16];
-    let mut de = [0.0f64; 16];
-    let mut jtj = vec![0.0; k * k];
-    let mut jte = vec![0.0; k];
-    let mut rss = 0.0;
-    for t in 0..n {
-        let mut s = x[t];
-        for (m, am) in a.iter().enumerate() {
-            if t > m {
-                s -= am * x[t - m - 1];
-            }
-        }
-        for (m, bm) in b.iter().enumerate() {
-            if t > m {
-                s -= bm * ehist[m];
-            }
-        }
-        for j in 0..k {
-            let mut v = if j < p {
-                if t > j { -x[t - j - 1] } else { 0.0 }
-            } else if t > j - p {
-                -ehist[j - p]
-            } else {
-                0.0
-            };
-            for (kk, bk) in b.iter().enumerate() {
-                if t > kk {
-                    v -= bk * dhist[kk * k + j];
-                }
-            }
-            de[j] = v;
-        }
-        if t >= start {
-            rss += s * s;
-            for i in 0..k {
-                for j in 0..k {
-                    jtj[i * k + j] += de[i] * de[j];
-                }
-                jte[i] -= de[i] * s;
-            }
-        }
-        for kk in (1..q).rev() {
-            ehist[kk] = ehist[kk - 1];
-            for j in 0..k {
-                dhist[kk * k + j] = dhist[(kk - 1) * k + j];
-            }
-        }
-        ehist[0] = s;
-        dhist[..k].copy_from_slice(&de[..k]);
-    }
-    (rss, jtj, jte)
 }
 
 /// A Gauss-Newton step's predicted RSS decrease, step . (-J'e): with
@@ -1357,7 +1223,10 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         coef.f[k * p..(k + 1) * p].copy_from_slice(&a0);
     }
     let mut e = vec![0.0; n];
-    residuals(&x, d, &grid, &coef, &b, &mut e);
+    // constant f_m = a_m: the linear ARMA's recursion, the same operations as
+    // `residuals` with every grid value a_m (interpolating between equal values
+    // gives a_m itself), without finding cells
+    arma_residuals(&x, &a0, &b, &mut e);
     let mut rss = rss_from(&e, pp);
     let mut rss_history = vec![rss];
     timings.start_s = lap();
@@ -1679,47 +1548,5 @@ mod tests {
         let (r_far, _, _) = arma_pass(&w, 1, &[], &[0.95]);
         let (r_new, _, _) = arma_pass(&w, 1, &[], &b);
         assert!(r_new < r_far, "{b:?}");
-    }
-
-    #[test]
-    fn fixed_order_pass_equals_the_general_pass() {
-        // arma_pass_fixed (registers, zeros before the first sample) against
-        // arma_pass_any (explicit checks), every specialised order, to the bit
-        let mut s: u64 = 7;
-        let x: Vec<f64> = (0..3000)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect();
-        let a_all = [0.4, -0.2, 0.1];
-        let b_all = [-0.5, 0.2];
-        for (p, q) in [
-            (0, 1),
-            (0, 2),
-            (1, 1),
-            (2, 1),
-            (3, 1),
-            (1, 2),
-            (2, 2),
-            (3, 2),
-        ] {
-            let (a, b) = (&a_all[..p], &b_all[..q]);
-            for start in [p.max(q), 5] {
-                let fast = arma_pass(&x, start, a, b);
-                let slow = arma_pass_any(&x, start, a, b);
-                assert_eq!(fast.0.to_bits(), slow.0.to_bits(), "({p},{q}) rss");
-                for (u, v) in fast
-                    .1
-                    .iter()
-                    .chain(&fast.2)
-                    .zip(slow.1.iter().chain(&slow.2))
-                {
-                    assert_eq!(u.to_bits(), v.to_bits(), "({p},{q}) normal equations");
-                }
-            }
-        }
     }
 }
