@@ -12,6 +12,7 @@ mod common;
 
 use std::time::Instant;
 
+use farma::estimator::arma::arma_pass;
 use farma::estimator::moments::{
     Families, IntervalIndex, IntervalLookup, MomentTable, breakpoints,
 };
@@ -81,6 +82,16 @@ fn main() {
     let full = pool.install(|| {
         best_of(|| MomentTable::build_indexed(&prob, &index, -3.0, 3.0, 6, Families::All))
     });
+    // the Gauss-Newton pass (ARMA(2,1) and MA(1)): chunks in parallel on two threads
+    // against one thread (the one-loop recursion's time, plus the leads)
+    let pool2 = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let gn21_1 = pool.install(|| best_of(|| arma_pass(&x, 2, &[0.4, -0.2], &[-0.5])));
+    let gn21_2 = pool2.install(|| best_of(|| arma_pass(&x, 2, &[0.4, -0.2], &[-0.5])));
+    let gn01_1 = pool.install(|| best_of(|| arma_pass(&x, 2, &[], &[-0.5])));
+    let gn01_2 = pool2.install(|| best_of(|| arma_pass(&x, 2, &[], &[-0.5])));
     println!("machine: {}, one thread, N = {n:.0e}", common::machine());
     println!("| step | ns per sample | / floor |");
     println!("|---|---|---|");
@@ -94,6 +105,10 @@ fn main() {
         ("f-step pass (X_a y families, degree 6)", pass),
         ("the same, intervals read from an IntervalIndex", indexed),
         ("every family, degree 6, intervals read", full),
+        ("Gauss-Newton pass, ARMA(2,1)", gn21_1),
+        ("the same, two threads (chunks)", gn21_2),
+        ("Gauss-Newton pass, MA(1)", gn01_1),
+        ("the same, two threads (chunks)", gn01_2),
     ] {
         println!("| {what} | {:.1} | {:.1} |", ns(t), t / floor);
     }

@@ -147,12 +147,7 @@ pub fn ma_invertible(b: &[f64]) -> bool {
 /// 7.2): returns the RSS over t >= `start` and the Gauss-Newton normal equations J'J
 /// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
 /// values of e and of the derivatives: nothing N-long is allocated.
-pub(crate) fn arma_pass(
-    x: &[f64],
-    start: usize,
-    a: &[f64],
-    b: &[f64],
-) -> (f64, Vec<f64>, Vec<f64>) {
+pub fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
     macro_rules! fixed {
         ($(($p:literal, $q:literal)),*) => {
             match (a.len(), b.len()) {
@@ -177,24 +172,207 @@ pub(crate) fn arma_pass(
 /// [`arma_pass`] for orders known at compile time: the last p values of x, q of e and
 /// of the derivatives kept in registers, zeros before the first sample (subtracting
 /// a zero term leaves every sum as the general version's, bit for bit).
+///
+/// Long series run in fixed chunks, in parallel, with every e_t and derivative exact
+/// (the values of the one-loop recursion, bit for bit): each chunk first runs from a
+/// zero MA state (its x lags are known) and records its state after `lead` rows and
+/// at its end; then, chunk after chunk, the recursion re-runs the first `lead` rows
+/// from the true state (the previous chunk's end). The zero-start state's error
+/// decays like rho^t (rho the largest root of the MA polynomial), and once the two
+/// states agree to the bit every later row is the same computation: the chunk's
+/// recorded sums and end state are then exact; if they do not agree (rho near 1) the
+/// rest of the chunk re-runs from the true state. The sums are added per chunk
+/// (first `lead` rows, then the rest) in chunk order, in both cases: the result
+/// depends on N and b, not on the threads.
 fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     x: &[f64],
     start: usize,
     a: &[f64],
     b: &[f64],
 ) -> (f64, Vec<f64>, Vec<f64>) {
+    use rayon::prelude::*;
     debug_assert_eq!(P + Q, K);
     let mut aa = [0.0f64; P];
     aa.copy_from_slice(a);
     let mut bb = [0.0f64; Q];
     bb.copy_from_slice(b);
-    let mut xh = [0.0f64; P];
-    let mut eh = [0.0f64; Q];
-    let mut dh = [[0.0f64; K]; Q];
-    let mut jtj = [[0.0f64; K]; K];
-    let mut jte = [0.0f64; K];
-    let mut rss = 0.0;
-    for (t, &xt) in x.iter().enumerate() {
+    let n = x.len();
+    let chunk = (n / 32).max(PASS_CHUNK_MIN);
+    let run =
+        |rows: std::ops::Range<usize>, st: &mut PassState<P, Q, K>, sums: &mut PassSums<K>| {
+            pass_rows(x, rows, start, &aa, &bb, st, sums)
+        };
+    let finish = |s: PassSums<K>| {
+        let jtj: Vec<f64> = (0..K * K).map(|i| s.jtj[i / K][i % K]).collect();
+        (s.rss, jtj, s.jte.to_vec())
+    };
+    if n < 2 * chunk || Q == 0 {
+        let mut st = PassState::at(x, 0);
+        let mut sums = PassSums::zero();
+        run(0..n, &mut st, &mut sums);
+        return finish(sums);
+    }
+    let lead = lead_rows(b, chunk);
+    let chunks: Vec<std::ops::Range<usize>> = (0..n)
+        .step_by(chunk)
+        .map(|s| s..(s + chunk).min(n))
+        .collect();
+    // each chunk from a zero MA state: (state after the lead, end state, sums after it)
+    type Part<const P: usize, const Q: usize, const K: usize> = (
+        PassState<P, Q, K>,
+        PassState<P, Q, K>,
+        PassSums<K>,
+        PassSums<K>,
+    );
+    let parts: Vec<Part<P, Q, K>> = chunks
+        .par_iter()
+        .map(|r| {
+            let mid = r.start + lead.min(r.len());
+            let mut st = PassState::at(x, r.start);
+            let mut head = PassSums::zero();
+            run(r.start..mid, &mut st, &mut head);
+            let at_lead = st;
+            let mut rest = PassSums::zero();
+            run(mid..r.end, &mut st, &mut rest);
+            (at_lead, st, head, rest)
+        })
+        .collect();
+    // the first chunk started from the true state; the others re-run their lead
+    let mut total = parts[0].2;
+    total.add(&parts[0].3);
+    let mut state = parts[0].1;
+    for (r, part) in chunks.iter().zip(&parts).skip(1) {
+        let mid = r.start + lead.min(r.len());
+        let mut st = state;
+        let mut head = PassSums::zero();
+        run(r.start..mid, &mut st, &mut head);
+        total.add(&head);
+        if st.same(&part.0) {
+            total.add(&part.3);
+            state = part.1;
+        } else {
+            let mut rest = PassSums::zero();
+            run(mid..r.end, &mut st, &mut rest);
+            total.add(&rest);
+            state = st;
+        }
+    }
+    finish(total)
+}
+
+/// Rows per chunk of [`arma_pass_fixed`] at least (shorter series run in one).
+const PASS_CHUNK_MIN: usize = 1 << 17;
+
+/// Rows a chunk re-runs from the true state: enough for rho^t to fall below 2^-80
+/// (rho the largest modulus of a root of z^q + b_1 z^(q-1) + ... + b_q), plus a
+/// margin; the whole chunk when rho is not below 1.
+fn lead_rows(b: &[f64], chunk: usize) -> usize {
+    let rho = match b {
+        [b1] => b1.abs(),
+        [b1, b2] => {
+            let disc = b1 * b1 - 4.0 * b2;
+            if disc >= 0.0 {
+                ((-b1 + disc.sqrt()) / 2.0)
+                    .abs()
+                    .max(((-b1 - disc.sqrt()) / 2.0).abs())
+            } else {
+                b2.abs().sqrt()
+            }
+        }
+        _ => 1.0,
+    };
+    if rho < 1.0 && rho.is_finite() {
+        let rows = (-80.0 / rho.max(1e-300).log2()).ceil() + 256.0;
+        (rows as usize).min(chunk)
+    } else {
+        chunk
+    }
+}
+
+/// The recursion's state before a row: the last p values of x, q of e and q of the
+/// derivative vectors.
+#[derive(Clone, Copy)]
+struct PassState<const P: usize, const Q: usize, const K: usize> {
+    xh: [f64; P],
+    eh: [f64; Q],
+    dh: [[f64; K]; Q],
+}
+
+impl<const P: usize, const Q: usize, const K: usize> PassState<P, Q, K> {
+    /// Before row t: the x lags from the series (zeros before the first sample), a
+    /// zero MA state.
+    fn at(x: &[f64], t: usize) -> Self {
+        let mut xh = [0.0f64; P];
+        for (m, v) in xh.iter_mut().enumerate() {
+            if t > m {
+                *v = x[t - m - 1];
+            }
+        }
+        PassState {
+            xh,
+            eh: [0.0; Q],
+            dh: [[0.0; K]; Q],
+        }
+    }
+
+    /// The same state to the bit.
+    fn same(&self, o: &Self) -> bool {
+        let bits = |v: &f64| v.to_bits();
+        self.xh.iter().map(bits).eq(o.xh.iter().map(bits))
+            && self.eh.iter().map(bits).eq(o.eh.iter().map(bits))
+            && self
+                .dh
+                .iter()
+                .flatten()
+                .map(bits)
+                .eq(o.dh.iter().flatten().map(bits))
+    }
+}
+
+/// RSS and normal equations summed over some rows.
+#[derive(Clone, Copy)]
+struct PassSums<const K: usize> {
+    rss: f64,
+    jtj: [[f64; K]; K],
+    jte: [f64; K],
+}
+
+impl<const K: usize> PassSums<K> {
+    fn zero() -> Self {
+        PassSums {
+            rss: 0.0,
+            jtj: [[0.0; K]; K],
+            jte: [0.0; K],
+        }
+    }
+
+    fn add(&mut self, o: &Self) {
+        self.rss += o.rss;
+        for i in 0..K {
+            for j in 0..K {
+                self.jtj[i][j] += o.jtj[i][j];
+            }
+            self.jte[i] += o.jte[i];
+        }
+    }
+}
+
+/// The recursion over `rows` from state `st` (left at the state after them), adding
+/// rows t >= `start` to `sums`.
+#[inline]
+fn pass_rows<const P: usize, const Q: usize, const K: usize>(
+    x: &[f64],
+    rows: std::ops::Range<usize>,
+    start: usize,
+    aa: &[f64; P],
+    bb: &[f64; Q],
+    st: &mut PassState<P, Q, K>,
+    sums: &mut PassSums<K>,
+) {
+    let PassState { xh, eh, dh } = st;
+    let PassSums { rss, jtj, jte } = sums;
+    for t in rows {
+        let xt = x[t];
         let mut s = xt;
         for m in 0..P {
             s -= aa[m] * xh[m];
@@ -211,7 +389,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
             de[j] = v;
         }
         if t >= start {
-            rss += s * s;
+            *rss += s * s;
             for i in 0..K {
                 for j in 0..K {
                     jtj[i][j] += de[i] * de[j];
@@ -234,8 +412,6 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
             dh[0] = de;
         }
     }
-    let jtj: Vec<f64> = (0..K * K).map(|i| jtj[i / K][i % K]).collect();
-    (rss, jtj, jte.to_vec())
 }
 
 /// [`arma_pass`] for any order.
@@ -371,6 +547,57 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
+
+    #[test]
+    fn chunked_pass_equals_the_one_loop_recursion() {
+        // N of several chunks: the chunked pass (parallel, re-run leads) against one
+        // run over all rows (the one-loop recursion): the e_t and derivatives are the
+        // same to the bit, so the sums differ only by their grouping; with 1 and 2
+        // threads the bits are the same; b near the unit circle takes the fallback
+        let mut s: u64 = 3;
+        let x: Vec<f64> = (0..5 * PASS_CHUNK_MIN + 123)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let cases: [(&[f64], &[f64]); 5] = [
+            (&[], &[-0.5]),
+            (&[0.4, -0.2], &[-0.5]),
+            (&[0.3], &[0.6, 0.2]),
+            (&[], &[-0.9999]),
+            (&[0.2], &[1.2, 0.5]),
+        ];
+        for (a, b) in cases {
+            let chunked = arma_pass(&x, 2, a, b);
+            let one = arma_pass_any(&x, 2, a, b);
+            let close = |u: f64, v: f64| (u - v).abs() <= 1e-12 * v.abs().max(1.0);
+            assert!(
+                close(chunked.0, one.0),
+                "{a:?} {b:?}: {} vs {}",
+                chunked.0,
+                one.0
+            );
+            for (u, v) in chunked
+                .1
+                .iter()
+                .chain(&chunked.2)
+                .zip(one.1.iter().chain(&one.2))
+            {
+                assert!(close(*u, *v), "{a:?} {b:?}: {u} vs {v}");
+            }
+            let one_thread = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap()
+                .install(|| arma_pass(&x, 2, a, b));
+            assert_eq!(one_thread.0.to_bits(), chunked.0.to_bits());
+            assert_eq!(one_thread.1, chunked.1);
+            assert_eq!(one_thread.2, chunked.2);
+        }
+    }
 
     #[test]
     fn fixed_order_pass_equals_the_general_pass() {
