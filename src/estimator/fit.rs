@@ -639,7 +639,8 @@ impl<'a> Smoother<'a> {
     /// Local fits at one bandwidth, without RSS and trace. On the fast path the
     /// left-hand sides of the local systems (which depend on X and U only) are kept in
     /// `cache` and reused while h stays the same: then the pass sums only the
-    /// response's moments, X_a y, and the fits are the same numbers a full table gives.
+    /// response's moments, X_a y (after a GCV ladder the kept left-hand sides come from
+    /// the ladder's table: the same sums over finer intervals, equal to rounding).
     /// Each row's interval is read from the cache's index (built on first use at h).
     fn fit_at(&self, h: f64, cache: &mut StepCache) -> GridFit {
         match self.path {
@@ -1248,6 +1249,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut iterations = 0;
     let mut converged = false;
     let mut reselections = 0;
+    // rss_history index of the last bandwidth re-selection
+    let mut reselected_at = 0;
     let mut need_gcv = prm.bandwidth.is_none();
     // left-hand sides of the local systems and each row's interval at the current h
     let mut cache = StepCache::default();
@@ -1345,7 +1348,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         // settled: the RSS changed by less than tol, or the least RSS so far was not
         // beaten for PATIENCE alternations while the last is above it by more than tol
         // (the iterate of least RSS is then returned, see below)
-        let since_best = rss_history.len() - 1 - best.index;
+        // (counted from the last bandwidth re-selection, if later: a new h gets its own
+        // PATIENCE alternations)
+        let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
         let settled = change <= prm.tol * rss.max(f64::MIN_POSITIVE)
             || (since_best >= PATIENCE && rss - best.rss > prm.tol * rss);
         if settled {
@@ -1368,6 +1373,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                         cache.systems = Some(lad.table.local_systems(&grid, h));
                     }
                     gcv_table = rows;
+                    reselected_at = rss_history.len() - 1;
                     continue;
                 }
                 gcv_table = rows;

@@ -698,13 +698,17 @@ impl MomentTable {
     ) {
         assert_eq!(self.deg + 1, D1, "tables of degree 2..=12");
         let n_rows = prob.n_rows();
-        // blocks of a size set by N and the table's size (never by the threads); a
-        // large table (a GCV ladder's) gets larger blocks, so that zeroing and adding
-        // the block tables stays small beside the pass
+        // blocks of a size set by N, p and the number of intervals (never by the
+        // threads, nor by the families or degree: tables of other families over the
+        // same breakpoints are summed in the same blocks, so a family has the same bits
+        // in every table that holds it); many intervals (a GCV ladder's) get larger
+        // blocks, so that zeroing and adding the block tables stays small beside the pass
         let table_len = self.m.len();
+        let nv = prob.p + 1;
+        let full_len = self.count.len() * (nv * (nv + 1) / 2 + 1) * 7;
         let block = (n_rows / 16)
             .clamp(1 << 17, 1 << 22)
-            .max((n_rows / 4).min(4 * table_len));
+            .max((n_rows / 4).min(4 * full_len));
         let starts: Vec<usize> = (prob.start..prob.x.len()).step_by(block).collect();
         let wave = rayon::current_num_threads().max(1);
         let ne = self.count.len();
@@ -1442,5 +1446,39 @@ mod tests {
                 assert_eq!(bits(&refreshed), bits(&fresh), "p = {p}");
             }
         }
+    }
+
+    #[test]
+    fn tables_of_other_families_are_summed_in_the_same_blocks() {
+        // many intervals and N large enough that the block size follows the number
+        // of intervals: a table of fewer families or a lower degree must still be cut
+        // into the same blocks, or its sums (and the refreshed table) lose the bits
+        let (x, e) = series(700_000, 13);
+        let grid: Vec<f64> = (0..101).map(|k| -0.6 + 0.012 * k as f64).collect();
+        let hs: Vec<f64> = (0..13).map(|j| 0.3 * 1.1f64.powi(-j)).collect();
+        let prob = VcProblem {
+            x: &x,
+            e: &e,
+            b: &[-0.4],
+            p: 1,
+            d: 1,
+            start: 1,
+        };
+        let breaks = breakpoints(&grid, &hs);
+        let ix = IntervalIndex::build(&prob, breaks.clone()).unwrap();
+        let all = MomentTable::build_indexed(&prob, &ix, -2.0, 2.0, 6, Families::All);
+        let xy = MomentTable::build_indexed(&prob, &ix, -2.0, 2.0, 5, Families::Response);
+        let f = all.fam(0, 1);
+        let (wa, wx) = (all.nfam * 7, 6);
+        for e in 0..all.n_intervals() {
+            let ra = &all.m[e * wa + f * 7..e * wa + f * 7 + 6];
+            let rx = &xy.m[e * wx..e * wx + 6];
+            assert!(ra.iter().zip(rx).all(|(u, v)| u.to_bits() == v.to_bits()));
+        }
+        let e2: Vec<f64> = e.iter().map(|v| 0.5 * v).collect();
+        let prob2 = VcProblem { e: &e2, ..prob };
+        let fresh = MomentTable::build(&prob2, breaks, -2.0, 2.0, 6);
+        let refreshed = all.with_response(&prob2, Some(&ix), (-2.0, 2.0));
+        assert_eq!(bits(&refreshed), bits(&fresh));
     }
 }
