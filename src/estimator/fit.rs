@@ -180,9 +180,11 @@ pub struct AlternationTiming {
     /// GCV ladders run in this alternation (the first one, and re-checks after
     /// convergence), tables and solves for every bandwidth included.
     pub gcv_s: f64,
-    /// The b-step (Gauss-Newton or one least-squares step).
+    /// The b-step (Gauss-Newton or one least-squares step); on the Gauss-Newton path
+    /// it ends with the residual recursion and the RSS ([`ma_step`]).
     pub b_step_s: f64,
-    /// Residual recursion and RSS.
+    /// Residual recursion and RSS after a least-squares b-step (`Init::Literal`); 0 on
+    /// the Gauss-Newton path, where the b-step holds them.
     pub residuals_s: f64,
 }
 
@@ -276,9 +278,9 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
 pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
     let lookup = IntervalLookup::new(grid);
     let warm = coef.p.max(d).min(x.len());
-    w_values(x, d, grid, coef, e, warm, &|_t: usize, u: f64| {
-        grid_cell(grid, &lookup, u)
-    });
+    w_head(x, d, grid, coef, &mut e[..warm]);
+    let cell = |_t: usize, u: f64| grid_cell(grid, &lookup, u);
+    w_rows(x, d, grid, coef, e, warm, &cell);
     ma_filter_in_place(e, b);
 }
 
@@ -296,28 +298,17 @@ pub fn residuals_indexed(
 ) {
     let p = coef.p;
     let warm = p.max(d).max(index.start()).min(x.len());
-    let lookup = IntervalLookup::new(grid);
-    w_values(
-        x,
-        d,
-        grid,
-        coef,
-        &mut e[..warm],
-        warm,
-        &|_t: usize, u: f64| grid_cell(grid, &lookup, u),
-    );
-    if warm < x.len() {
-        let segs = CellSegments::new(grid, coef, &index.grid_cells(grid));
-        match p {
-            1 => w_indexed::<1>(x, d, &segs, index, e, warm),
-            2 => w_indexed::<2>(x, d, &segs, index, e, warm),
-            3 => w_indexed::<3>(x, d, &segs, index, e, warm),
-            4 => w_indexed::<4>(x, d, &segs, index, e, warm),
-            _ => {
-                let cells = index.grid_cells(grid);
-                let cell = |t: usize, _u: f64| cells[index.interval(t)];
-                w_rows(x, d, grid, coef, e, warm, &cell);
-            }
+    w_head(x, d, grid, coef, &mut e[..warm]);
+    let cells = index.grid_cells(grid);
+    let segs = || CellSegments::new(grid, coef, &cells);
+    match p {
+        1 => w_indexed::<1>(x, d, &segs(), index, e, warm),
+        2 => w_indexed::<2>(x, d, &segs(), index, e, warm),
+        3 => w_indexed::<3>(x, d, &segs(), index, e, warm),
+        4 => w_indexed::<4>(x, d, &segs(), index, e, warm),
+        _ => {
+            let cell = |t: usize, _u: f64| cells[index.interval(t)];
+            w_rows(x, d, grid, coef, e, warm, &cell);
         }
     }
     ma_filter_in_place(e, b);
@@ -395,31 +386,20 @@ fn w_indexed<const P: usize>(
         });
 }
 
-/// w_t = x_t - sum f_m(U_t) x_{t-m} into `e`: rows before `warm` one by one (some lags
-/// fall before the first sample; cells by search), the others by [`w_rows`].
-fn w_values<F: Fn(usize, f64) -> u32 + Sync>(
-    x: &[f64],
-    d: usize,
-    grid: &[f64],
-    coef: &GridFit,
-    e: &mut [f64],
-    warm: usize,
-    cell: &F,
-) {
+/// w_t = x_t - sum f_m(U_t) x_{t-m} for the first rows, `e.len()` of them, one by one
+/// (some lags fall before the first sample; U_t = 0 before it; cells by search).
+fn w_head(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, e: &mut [f64]) {
     let lookup = IntervalLookup::new(grid);
     let p = coef.p;
     let mut f = [0.0f64; 8];
-    for t in 0..warm {
+    for (t, w) in e.iter_mut().enumerate() {
         let u = if t >= d { x[t - d] } else { 0.0 };
         eval_cell(coef, grid, grid_cell(grid, &lookup, u), u, &mut f[..p]);
         let mut s = x[t];
         for m in 0..p.min(t) {
             s -= f[m] * x[t - m - 1];
         }
-        e[t] = s;
-    }
-    if warm < e.len() {
-        w_rows(x, d, grid, coef, e, warm, cell);
+        *w = s;
     }
 }
 
@@ -1290,15 +1270,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         // the new residuals in place: one N-long vector in all.
         let new_rss;
         if q > 0 && prm.init == Init::Arma {
-            let prob = VcProblem {
-                x: &x,
-                e: &[],
-                b: &[],
-                p,
-                d,
-                start: pp,
-            };
-            let index = cache.index_for(&prob, &grid, h);
+            let index = cache.index_for(&sm.prob, &grid, h);
             residuals_at(&x, d, &grid, (&coef, &[]), &mut e, index);
             let refill = |buf: &mut [f64]| residuals_at(&x, d, &grid, (&coef, &[]), buf, index);
             let (b_new, rss_new) = ma_step(&mut e, pp, &b, refill);

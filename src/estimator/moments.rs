@@ -519,25 +519,39 @@ impl MomentTable {
 
     /// Intervals first(cell(e))..=e, about the cell's lower edge.
     fn prefix<'c>(&self, cells: &'c Cells, e: usize) -> Piece<'c> {
-        let width = self.nfam * (self.deg + 1);
         let c = cells.cell_of[e];
-        Piece {
-            m: &cells.prefix[e * width..(e + 1) * width],
-            anchor: self.lo_edge[cells.first[c]],
-            scale: cells.prefix_scale[e],
-            count: cells.prefix_count[e],
-        }
+        let anchor = self.lo_edge[cells.first[c]];
+        self.run_piece(
+            e,
+            anchor,
+            (&cells.prefix, &cells.prefix_scale, &cells.prefix_count),
+        )
     }
 
     /// Intervals e..=last(cell(e)), about the cell's upper edge.
     fn suffix<'c>(&self, cells: &'c Cells, e: usize) -> Piece<'c> {
-        let width = self.nfam * (self.deg + 1);
         let c = cells.cell_of[e];
+        let anchor = self.hi_edge[cells.last[c]];
+        self.run_piece(
+            e,
+            anchor,
+            (&cells.suffix, &cells.suffix_scale, &cells.suffix_count),
+        )
+    }
+
+    /// The run of cell sums `runs` (moments, scales, counts) that ends or starts at e.
+    fn run_piece<'c>(
+        &self,
+        e: usize,
+        anchor: f64,
+        (m, scale, count): (&'c [f64], &'c [f64], &'c [u64]),
+    ) -> Piece<'c> {
+        let width = self.nfam * (self.deg + 1);
         Piece {
-            m: &cells.suffix[e * width..(e + 1) * width],
-            anchor: self.hi_edge[cells.last[c]],
-            scale: cells.suffix_scale[e],
-            count: cells.suffix_count[e],
+            m: &m[e * width..(e + 1) * width],
+            anchor,
+            scale: scale[e],
+            count: count[e],
         }
     }
 
@@ -1193,12 +1207,6 @@ impl IntervalIndex {
             start,
             rows,
         })
-    }
-
-    /// Whether this index was built over `breaks` (in any order, with repeats).
-    pub fn has_breaks(&self, breaks: &[f64]) -> bool {
-        let b = sorted_breaks(breaks.to_vec());
-        b == self.breaks
     }
 
     /// Interval of row t (t >= the first row).
