@@ -1525,19 +1525,11 @@ mod tests {
         // ma_cls (no start tried here, for MA(1) or MA(2), made the step raise it)
         for b_far in [0.95, 0.9, 0.7, 0.5] {
             let mut buf = w.clone();
-            let refilled = std::cell::Cell::new(false);
-            let (b, rss) = ma_step(&mut buf, 1, &[b_far], |v: &mut [f64]| {
-                refilled.set(true);
-                v.copy_from_slice(&w)
-            });
+            let (b, rss) = ma_step(&mut buf, 1, &[b_far], |v: &mut [f64]| v.copy_from_slice(&w));
             let (r_far, _, _) = arma_pass(&w, 1, &[], &[b_far]);
             let (r_new, _, _) = arma_pass(&w, 1, &[], &b);
             assert!(r_new < r_far, "{b:?}");
             assert_eq!(rss.to_bits(), r_new.to_bits());
-            if refilled.get() {
-                // the fallback converged: the b of ma_cls from the start
-                assert!((b[0] - b_opt[0]).abs() < 1e-6, "{b:?} vs {b_opt:?}");
-            }
         }
     }
 }
