@@ -82,6 +82,17 @@ fn main() {
     let full = pool.install(|| {
         best_of(|| MomentTable::build_indexed(&prob, &index, -3.0, 3.0, 6, Families::All))
     });
+    // a GCV ladder's table: 301 grid points, 41 rungs (some 25,000 intervals, 9.8 MB
+    // of moments hit at random: compare with the one-bandwidth table above)
+    let lgrid: Vec<f64> = (0..301).map(|k| -0.8 + 1.6 * k as f64 / 300.0).collect();
+    let lhs: Vec<f64> = (0..41).map(|j| 1.1f64.powi(-j) * 1.5).collect();
+    let lbreaks = breakpoints(&lgrid, &lhs);
+    let lindex = pool.install(|| IntervalIndex::build(&prob, lbreaks.clone()).unwrap());
+    let ladder = |fam: Families| {
+        pool.install(|| best_of(|| MomentTable::build_indexed(&prob, &lindex, -3.0, 3.0, 6, fam)))
+    };
+    let lad_all = ladder(Families::All);
+    let lad_y = ladder(Families::ResponseAndSquare);
     // the Gauss-Newton pass (ARMA(2,1) and MA(1)): chunks in parallel on two threads
     // against one thread (the one-loop recursion's time, plus the leads)
     let pool2 = rayon::ThreadPoolBuilder::new()
@@ -105,6 +116,14 @@ fn main() {
         ("f-step pass (X_a y families, degree 6)", pass),
         ("the same, intervals read from an IntervalIndex", indexed),
         ("every family, degree 6, intervals read", full),
+        (
+            "GCV ladder table (41 rungs), every family, intervals read",
+            lad_all,
+        ),
+        (
+            "its y families alone (the re-check after convergence)",
+            lad_y,
+        ),
         ("Gauss-Newton pass, ARMA(2,1)", gn21_1),
         ("the same, two threads (chunks)", gn21_2),
         ("Gauss-Newton pass, MA(1)", gn01_1),

@@ -732,33 +732,32 @@ impl MomentTable {
         let mut total_m = std::mem::take(&mut self.m);
         let mut total_count = std::mem::take(&mut self.count);
         let this = &*self;
+        // one table per block of a wave, allocated once and zeroed for each block (a
+        // fresh large allocation per block costs a page fault per 4 KiB)
+        let mut tables: Vec<(Vec<f64>, Vec<u64>)> = Vec::new();
         for group in starts.chunks(wave) {
-            let parts: Vec<(Vec<f64>, Vec<u64>)> = group
+            tables.resize_with(group.len().max(tables.len()), || {
+                (vec![0.0; table_len], vec![0u64; ne])
+            });
+            group
                 .par_iter()
-                .map(|&s| {
+                .zip(tables.par_iter_mut())
+                .for_each(|(&s, (m, count))| {
+                    m.fill(0.0);
+                    count.fill(0);
                     let rows = s..(s + block).min(prob.x.len());
-                    let mut m = vec![0.0; table_len];
-                    let mut count = vec![0u64; ne];
                     match (xy_only, prob.p) {
-                        (true, 1) => {
-                            this.block_xy::<D1, 1, F>(prob, find, rows, &mut m, &mut count)
-                        }
-                        (true, 2) => {
-                            this.block_xy::<D1, 2, F>(prob, find, rows, &mut m, &mut count)
-                        }
-                        (true, 3) => {
-                            this.block_xy::<D1, 3, F>(prob, find, rows, &mut m, &mut count)
-                        }
-                        _ => this.block_any::<D1, F>(prob, find, rows, &mut m, &mut count),
+                        (true, 1) => this.block_xy::<D1, 1, F>(prob, find, rows, m, count),
+                        (true, 2) => this.block_xy::<D1, 2, F>(prob, find, rows, m, count),
+                        (true, 3) => this.block_xy::<D1, 3, F>(prob, find, rows, m, count),
+                        _ => this.block_any::<D1, F>(prob, find, rows, m, count),
                     }
-                    (m, count)
-                })
-                .collect();
-            for (m, count) in parts {
-                for (a, b) in total_m.iter_mut().zip(&m) {
+                });
+            for (m, count) in &tables[..group.len()] {
+                for (a, b) in total_m.iter_mut().zip(m) {
                     *a += b;
                 }
-                for (a, b) in total_count.iter_mut().zip(&count) {
+                for (a, b) in total_count.iter_mut().zip(count) {
                     *a += b;
                 }
             }
