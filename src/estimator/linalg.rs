@@ -135,7 +135,7 @@ pub fn small_spd_solve_inverse(
         for k in 0..j {
             d -= l[j][k] * l[j][k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let djj = d.sqrt();
