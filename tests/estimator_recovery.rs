@@ -198,6 +198,19 @@ fn fit_never_ends_above_its_linear_start() {
     assert!(m.coef.f.iter().all(|f| *f == ar[0]));
     assert_eq!(m.b, ma);
     assert!((m.rss - rss0).abs() <= 1e-12 * rss0);
+    // with the linear model's degrees of freedom: p for f, not a smoother's trace
+    assert_eq!(m.trace, 1.0);
+    let rows = (n - 1) as f64;
+    assert_eq!(m.gcv, (m.rss / rows) / (1.0 - 1.0 / rows).powi(2));
+    // and the least-squares standard error of the constant a_1 given b, at every
+    // grid point: sigma / sqrt(sum x_{t-1}^2)
+    let sxx: f64 = xc[..n - 1].iter().map(|v| v * v).sum();
+    let se = (m.sigma2 / sxx).sqrt();
+    assert!(
+        m.se.iter().all(|s| (s - se).abs() <= 1e-12 * se),
+        "{:?} vs {se}",
+        &m.se[..3]
+    );
 }
 
 /// The streaming Gauss-Newton of the linear start against the stored-array one of

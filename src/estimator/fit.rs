@@ -28,14 +28,17 @@
 //! rises slowly towards a fixed point 1.2e-5 above. `rss_history` records every step.
 //! The iterate of least global RSS (the linear start included) is returned when the
 //! last one ends above it by more than `tol` relative, with a note: the fit never ends
-//! more than `tol` above the linear ARMA it nests. Alternating on past that iterate
-//! cannot change what is returned unless the RSS comes back below it, hence the
+//! more than `tol` above the linear ARMA it nests. A returned linear start reports the
+//! linear model's degrees of freedom, trace = p, its GCV from them and the
+//! least-squares standard errors of its constant coefficients (the bandwidth field
+//! keeps the one GCV last chose, which that model does not use). Alternating on past
+//! that iterate cannot change what is returned unless the RSS comes back below it, hence the
 //! [`PATIENCE`] rule (`converged` is true when either rule stopped the alternation,
 //! false when `max_iter` did).
 
 use super::arma::{arma_pass, arma_residuals, fit_arma, ma_invertible};
 use super::direct::{self, DirectIndex};
-use super::linalg::normal_equations;
+use super::linalg::{normal_equations, spd_solve_inverse};
 use super::moments::{
     ABOVE_GRID, BELOW_GRID, Families, IntervalIndex, IntervalLookup, LocalSystems, MomentTable,
     breakpoints,
@@ -220,7 +223,9 @@ pub struct FittedFarma {
     /// Local fits at the chosen bandwidth; failed points filled by interpolation.
     pub coef: GridFit,
     /// Pointwise standard error of f_m at the grid points (G x p), sigma times the
-    /// sandwich factor; NaN at filled points.
+    /// sandwich factor; NaN at filled points. For a returned linear start, the
+    /// least-squares standard error of the constant a_m given b, sigma sqrt([(X'X)^-1]_mm)
+    /// with X the lagged values, at every grid point.
     pub se: Vec<f64>,
     /// Grid points whose f was filled from their neighbours (status not Ok).
     pub filled: Vec<bool>,
@@ -228,8 +233,10 @@ pub struct FittedFarma {
     pub bandwidth: f64,
     pub rss: f64,
     pub sigma2: f64,
-    /// Trace of the smoother at the chosen bandwidth (effective degrees of freedom).
+    /// Trace of the smoother at the chosen bandwidth (effective degrees of freedom);
+    /// p when the fit returned its linear start (constant f_m, see the module doc).
     pub trace: f64,
+    /// GCV = (RSS/m) / (1 - trace/m)^2, m = N - max(p,q,d).
     pub gcv: f64,
     pub gcv_table: Vec<GcvRow>,
     /// Whether the ladder was extended beyond the paper's 21 bandwidths.
@@ -1370,12 +1377,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // can end above an earlier iterate, even above the linear start it nests (on the
     // quantised ADIS16405 gyros with q = 2, see tests/estimator_recovery.rs). The
     // iterate of least global RSS is returned when the last one is above it by more
-    // than the convergence tolerance; the linear start (constant f_m = a_m) keeps the
-    // bandwidth GCV chose, at which trace and GCV are then reported.
+    // than the convergence tolerance. The linear start (constant f_m = a_m) is the
+    // linear model: trace p, its GCV, and the least-squares standard errors of a_m
+    // (the bandwidth field keeps the one GCV last chose, unused by that model).
+    let returned_start = rss - best.rss > prm.tol * rss && best.index == 0;
     if rss - best.rss > prm.tol * rss {
         notes.push(if best.index == 0 {
             format!(
-                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m, h = {h:.6e} kept for trace and GCV)",
+                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m; trace p = {p}, the linear model's; h = {h:.6e} is the bandwidth GCV last chose)",
                 best.rss
             )
         } else {
@@ -1401,6 +1410,25 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let sigma2 = rss / (n - pp) as f64;
     // one table of degree 10 gives the fit, its RSS and trace, and the standard errors
     let (rt, factors) = match prm.path {
+        _ if returned_start => {
+            // the linear model with constant f_m: trace p (the least-squares hat
+            // matrix on X_1..X_p), and Var(a) = sigma^2 (X'X)^-1 given b, the same at
+            // every grid point
+            let mut xtx = vec![0.0; p * p];
+            for t in pp..n {
+                for i in 0..p {
+                    for j in 0..p {
+                        xtx[i * p + j] += x[t - 1 - i] * x[t - 1 - j];
+                    }
+                }
+            }
+            let rhs = vec![0.0; p];
+            let diag: Vec<f64> = match spd_solve_inverse(&xtx, &rhs, p) {
+                Some((_, inv, _)) => (0..p).map(|i| inv[i * p + i].sqrt()).collect(),
+                None => vec![f64::NAN; p],
+            };
+            (Some((rss, p as f64)), diag.repeat(g))
+        }
         FitPath::Fast => {
             let table = match cache.index_for(&prob, &grid, h) {
                 Some(ix) => MomentTable::build_indexed(&prob, ix, xmin, xmax, 10, Families::All),

@@ -63,10 +63,13 @@ pub fn faer_spd_solve_inverse(
 ///   positive definite when a pivot is not positive.
 /// - z by forward and back substitution; S^-1 = L'^-1 L^-1 from the inverse of L.
 /// - The condition number lambda_max / lambda_min from the eigenvalues by the cyclic
-///   Jacobi method (Golub and Van Loan, alg. 8.5.3), run until every off-diagonal entry
-///   is below 1e-18 of the geometric mean of its two diagonal entries (Jacobi then
-///   gives the small eigenvalues of a positive definite matrix to high relative
-///   accuracy: Demmel and Veselic 1992).
+///   Jacobi method (Golub and Van Loan, alg. 8.5.3; each rotated entry set to zero, as
+///   in Rutishauser's form), run until every off-diagonal entry is below 1e-18 of the
+///   geometric mean of its two diagonal entries, at most 60 sweeps. Near
+///   [`MAX_COND`] the eigenvalues of either path carry errors of about eps lambda_max,
+///   so the two may disagree on systems right at the limit.
+/// - The Cholesky factor is computed first: a matrix that is not numerically positive
+///   definite (or holds NaN) returns None before the eigenvalues.
 pub fn small_spd_solve_inverse(
     s: &[f64],
     rhs: &[f64],
@@ -77,7 +80,27 @@ pub fn small_spd_solve_inverse(
         return None;
     }
     const M: usize = SMALL_N;
-    // eigenvalues first (Jacobi on a copy of the lower triangle made symmetric)
+    // Cholesky, lower triangle
+    let mut l = [[0.0f64; M]; M];
+    for j in 0..n {
+        let mut d = s[j * n + j];
+        for k in 0..j {
+            d -= l[j][k] * l[j][k];
+        }
+        if d.is_nan() || d <= 0.0 {
+            return None;
+        }
+        let djj = d.sqrt();
+        l[j][j] = djj;
+        for i in j + 1..n {
+            let mut v = s[i * n + j];
+            for k in 0..j {
+                v -= l[i][k] * l[j][k];
+            }
+            l[i][j] = v / djj;
+        }
+    }
+    // eigenvalues (Jacobi on a copy of the lower triangle made symmetric)
     let mut a = [[0.0f64; M]; M];
     for i in 0..n {
         for j in 0..=i {
@@ -91,7 +114,7 @@ pub fn small_spd_solve_inverse(
         for p in 0..n {
             for q in p + 1..n {
                 let apq = a[p][q];
-                if apq == 0.0 || apq.abs() <= 1e-18 * (a[p][p] * a[q][q]).abs().sqrt() {
+                if apq == 0.0 || apq.abs() <= 1e-18 * a[p][p].abs().sqrt() * a[q][q].abs().sqrt() {
                     continue;
                 }
                 rotated = true;
@@ -114,6 +137,8 @@ pub fn small_spd_solve_inverse(
                     a[p][k] = c * apk - sn * aqk;
                     a[q][k] = sn * apk + c * aqk;
                 }
+                a[p][q] = 0.0;
+                a[q][p] = 0.0;
             }
         }
         sweeps += 1;
@@ -127,26 +152,6 @@ pub fn small_spd_solve_inverse(
     let cond = if lo > 0.0 { hi / lo } else { f64::INFINITY };
     if cond.is_nan() || cond > MAX_COND {
         return None;
-    }
-    // Cholesky, lower triangle
-    let mut l = [[0.0f64; M]; M];
-    for j in 0..n {
-        let mut d = s[j * n + j];
-        for k in 0..j {
-            d -= l[j][k] * l[j][k];
-        }
-        if d.is_nan() || d <= 0.0 {
-            return None;
-        }
-        let djj = d.sqrt();
-        l[j][j] = djj;
-        for i in j + 1..n {
-            let mut v = s[i * n + j];
-            for k in 0..j {
-                v -= l[i][k] * l[j][k];
-            }
-            l[i][j] = v / djj;
-        }
     }
     // z: L y = rhs, L' z = y
     let mut z = [0.0f64; M];
@@ -267,5 +272,15 @@ mod tests {
         assert!(faer_spd_solve_inverse(&s, &[1.0; 4], 4).is_none());
         s[0] = -1.0;
         assert!(small_spd_solve_inverse(&s, &[1.0; 4], 4).is_none());
+        // indefinite with a positive diagonal; NaN off the diagonal; huge entries of
+        // a singular matrix (its condition must not be lost to overflow)
+        let indefinite = [1.0, 2.0, 2.0, 1.0];
+        assert!(small_spd_solve_inverse(&indefinite, &[1.0; 2], 2).is_none());
+        assert!(faer_spd_solve_inverse(&indefinite, &[1.0; 2], 2).is_none());
+        let nan = [1.0, f64::NAN, f64::NAN, 1.0];
+        assert!(small_spd_solve_inverse(&nan, &[1.0; 2], 2).is_none());
+        let big = [1e200, 1e200 * (1.0 - 1e-15), 1e200 * (1.0 - 1e-15), 1e200];
+        assert!(small_spd_solve_inverse(&big, &[1.0; 2], 2).is_none());
+        assert!(faer_spd_solve_inverse(&big, &[1.0; 2], 2).is_none());
     }
 }

@@ -7,7 +7,9 @@
 //! and the FARMA fit never ends above its start (beyond the convergence tolerance), so
 //! the F statistic against the ARMA is not negative.
 //! Per order: RSS, sigma^2 = RSS / m (m = N - max(p,q,d)), the effective degrees of
-//! freedom df = tr(S) + q (trace of the f-step smoother plus the MA coefficients),
+//! freedom df = tr(S) + q (trace of the f-step smoother plus the MA coefficients; p + q
+//! when the fit returned its linear start, which is then the ARMA itself, so its F
+//! against the ARMA is 0/0, printed NaN),
 //! GCV, and the corrected AIC of Hurvich, Simonoff and Tsai (1998, JRSS B 60, eq. 3)
 //! AICc = ln(RSS/m) + (1 + df/m) / (1 - (df + 2)/m), the same formula with df = p + q
 //! for the ARMA baseline. The order with the smallest AICc is selected.
