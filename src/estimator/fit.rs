@@ -751,15 +751,15 @@ fn ladder_h(j: i32, range: f64) -> f64 {
 
 /// Rungs a ladder table is built for beyond the smallest bandwidth asked, so that the
 /// usual extensions (10 rungs each, when the GCV minimum is at the smallest) need no
-/// new pass: 10 up to 1e6 rows, and 10 more for every two decades beyond (rounded up),
-/// because the bandwidth that minimises the error of a local-linear fit shrinks as
-/// N^(-1/5) (Fan and Gijbels 1996, sec. 3.2): 1.1^(-4.8) per decade, about 5 rungs.
-/// (On the bench's FARMA(2,1,1) series GCV chooses h_26 at 1e6 rows and h_33 at 1e7,
-/// after the extensions to j = 30 and j = 40; with 10 rungs ahead the 1e7 fit built
-/// its ladder's table twice.)
+/// new pass: 10 up to 1e6 rows, and 10 more for every decade beyond (or part of one).
+/// The bandwidth GCV chooses shrinks with N (as N^(-1/5) for the error-optimal one of
+/// a local-linear fit, Fan and Gijbels 1996, sec. 3.2: about 5 rungs of 1.1 per
+/// decade); on the bench's FARMA(2,1,1) series it moved faster, h_26, h_33 and h_40 at
+/// 1e6, 1e7 and 1e8 rows, the last after the extensions to j = 30, 40 and 50. With 10
+/// rungs ahead the 1e7 and 1e8 fits built their ladder's table twice.
 fn ladder_ahead(n_rows: usize) -> i32 {
     let decades = (n_rows as f64 / 1e6).log10().max(0.0);
-    10 * (1.0 + decades / 2.0).ceil() as i32
+    10 * (1 + decades.ceil() as i32)
 }
 
 /// A ladder rung's fit, with its RSS and trace when every grid point has a fit.
