@@ -772,8 +772,9 @@ struct LadderCache {
     js: (i32, i32),
     table: MomentTable,
     index: Option<IntervalIndex>,
-    /// Fits (and RSS, trace) at every rung of `js`, from the table as it is now.
-    fits: Option<Vec<RungFit>>,
+    /// Fits (and RSS, trace) at the rungs of `js` asked for so far (index j - js.0),
+    /// from the table as it is now.
+    fits: Vec<Option<RungFit>>,
 }
 
 impl<'a> Smoother<'a> {
@@ -794,7 +795,7 @@ impl<'a> Smoother<'a> {
             Some(l) if *fresh => l,
             Some(l) => LadderCache {
                 table: l.table.with_response(&self.prob, l.index.as_ref(), span),
-                fits: None,
+                fits: vec![None; l.fits.len()],
                 ..l
             },
             None => {
@@ -812,32 +813,42 @@ impl<'a> Smoother<'a> {
                     js: (lo, hi + ahead),
                     table,
                     index,
-                    fits: None,
+                    fits: vec![None; (hi + ahead - lo + 1) as usize],
                 }
             }
         };
         *fresh = true;
-        // every rung of the table at once (a fit's last bits depend on the set of
-        // rungs a ladder sums, not on which of them are asked for)
+        // the rungs asked for and not fitted yet (a rung's fit has the same bits
+        // whichever other rungs it is computed with: `MomentTable::fit_ladder`)
         let mut lad = lad;
-        if lad.fits.is_none() {
+        let missing: Vec<i32> = js
+            .iter()
+            .copied()
+            .filter(|j| lad.fits[(j - lad.js.0) as usize].is_none())
+            .collect();
+        if !missing.is_empty() {
             use rayon::prelude::*;
-            let hs: Vec<f64> = (lad.js.0..=lad.js.1).map(|j| ladder_h(j, range)).collect();
+            let hs: Vec<f64> = missing.iter().map(|&j| ladder_h(j, range)).collect();
             let table = &lad.table;
-            let fits = table.fit_ladder(self.grid, &hs);
-            lad.fits = Some(
-                fits.into_par_iter()
-                    .map(|f| {
-                        let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
-                        (f, rt)
-                    })
-                    .collect(),
-            );
+            let fits: Vec<RungFit> = table
+                .fit_ladder(self.grid, &hs)
+                .into_par_iter()
+                .map(|f| {
+                    let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
+                    (f, rt)
+                })
+                .collect();
+            for (j, fit) in missing.iter().zip(fits) {
+                lad.fits[(j - lad.js.0) as usize] = Some(fit);
+            }
         }
-        let all = lad.fits.as_ref().expect("fitted above");
         let out = js
             .iter()
-            .map(|j| all[(j - lad.js.0) as usize].clone())
+            .map(|j| {
+                lad.fits[(j - lad.js.0) as usize]
+                    .clone()
+                    .expect("fitted above")
+            })
             .collect();
         cache.ladder = Some(lad);
         out

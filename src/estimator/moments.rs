@@ -81,22 +81,28 @@ struct Piece<'a> {
 }
 
 /// The whole cells of a growing window of grid point g, summed about u_g: cells
-/// `left..=g` and `g+1..=right` (none at first).
+/// `left..=g` and `g+1..=right` (none at first), each side in its own sum, from the
+/// nearest cell outwards. A window's sum is then the same whichever narrower windows
+/// were summed before it: a ladder's fit at one bandwidth has the same bits whatever
+/// other bandwidths it is computed with, and the same as a window summed alone.
 struct WholeCells {
     g: usize,
     left: usize,
     right: usize,
-    acc: Vec<f64>,
+    acc_left: Vec<f64>,
+    acc_right: Vec<f64>,
     count: u64,
 }
 
 impl WholeCells {
     fn new(table: &MomentTable, g: usize) -> Self {
+        let width = table.nfam * (table.deg + 1);
         WholeCells {
             g,
             left: g + 1,
             right: g,
-            acc: vec![0.0; table.nfam * (table.deg + 1)],
+            acc_left: vec![0.0; width],
+            acc_right: vec![0.0; width],
             count: 0,
         }
     }
@@ -612,14 +618,17 @@ impl MomentTable {
         while whole.left > cl + 1 {
             whole.left -= 1;
             let piece = self.suffix(cells, cells.first[whole.left]);
-            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc);
+            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc_left);
         }
         while whole.right + 1 < ch {
             whole.right += 1;
             let piece = self.prefix(cells, cells.last[whole.right]);
-            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc);
+            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc_right);
         }
-        let mut acc = whole.acc.clone();
+        let mut acc = whole.acc_left.clone();
+        for (a, r) in acc.iter_mut().zip(&whole.acc_right) {
+            *a += r;
+        }
         let mut count = whole.count;
         if let Some(lo) = lo {
             count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
@@ -935,9 +944,8 @@ impl MomentTable {
     /// Local fits at `sys.h` from the right-hand sides of this table (a
     /// [`Families::Response`] or full table of the same breakpoints, degree 5 or more:
     /// the right-hand sides need powers up to 5) and the reused
-    /// left-hand sides: the same numbers as [`MomentTable::fit_ladder`] with `sys.h`
-    /// alone (a ladder of several h sums the whole cells in another order, so its
-    /// last bits may differ).
+    /// left-hand sides: the windows are summed as in [`MomentTable::fit_ladder`] (the
+    /// same right-hand sides, bit for bit, as a ladder's fit at `sys.h`).
     pub fn fit_response(&self, sys: &LocalSystems) -> GridFit {
         assert_eq!(self.p, sys.p);
         assert!(
@@ -965,7 +973,9 @@ impl MomentTable {
     /// Local-linear fits at every grid point for every bandwidth in `hs`. Every
     /// `u_g`, `u_g - h` and `u_g + h` must be a breakpoint. For one grid point the
     /// windows of all bandwidths are nested: the whole cells inside them are summed
-    /// once, from the nearest outwards, and each window adds its two edge runs.
+    /// once, from the nearest outwards on either side ([`WholeCells`]), and each
+    /// window adds its two edge runs. The fit at one h has the same bits whatever the
+    /// other bandwidths in `hs` (tested), so a ladder can be fitted rung by rung.
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
         assert!(self.deg >= 6, "local fits need moments up to degree 6");
         let p = self.p;
@@ -1487,5 +1497,34 @@ mod tests {
         let fresh = MomentTable::build(&prob2, breaks, -2.0, 2.0, 6);
         let refreshed = all.with_response(&prob2, Some(&ix), (-2.0, 2.0));
         assert_eq!(bits(&refreshed), bits(&fresh));
+    }
+
+    #[test]
+    fn a_rung_has_the_same_bits_in_any_ladder() {
+        // the whole cells of each side are summed nearest first in their own sum, so a
+        // window does not depend on the narrower ones summed before it
+        let (x, e) = series(50_000, 23);
+        let grid: Vec<f64> = (0..41).map(|k| -0.6 + 0.03 * k as f64).collect();
+        let hs: Vec<f64> = (0..12).map(|j| 0.9 * 1.1f64.powi(-j)).collect();
+        let prob = VcProblem {
+            x: &x,
+            e: &e,
+            b: &[-0.4],
+            p: 2,
+            d: 1,
+            start: 2,
+        };
+        let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -2.0, 2.0, 6);
+        let fbits = |f: &GridFit| -> Vec<u64> { f.f.iter().map(|v| v.to_bits()).collect() };
+        let all = table.fit_ladder(&grid, &hs);
+        for (k, &h) in hs.iter().enumerate() {
+            let alone = table.fit_ladder(&grid, &[h]).remove(0);
+            assert_eq!(fbits(&alone), fbits(&all[k]), "h_{k}");
+            let some = table.fit_ladder(&grid, &[hs[0], h, hs[hs.len() - 1]]);
+            assert_eq!(fbits(&some[1]), fbits(&all[k]), "h_{k}");
+            // and the f-step's path: kept left-hand sides, the right-hand sides alone
+            let sys = table.local_systems(&grid, h);
+            assert_eq!(fbits(&table.fit_response(&sys)), fbits(&all[k]), "h_{k}");
+        }
     }
 }
