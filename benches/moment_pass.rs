@@ -44,14 +44,7 @@ fn main() {
         x[t] = 0.5 * x[t - 1] - 0.2 * x[t - 2] + u;
     }
     let e = vec![0.1; n];
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &[-0.5],
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&x, &e, &[-0.5], 2, 1);
     let grid: Vec<f64> = (0..201).map(|k| -0.8 + 1.6 * k as f64 / 200.0).collect();
     let h = 0.2;
     let mut breaks = breakpoints(&grid, &[h]);

@@ -90,14 +90,7 @@ fn main() {
     let xa: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
     let mut ea = m.residuals.clone();
     ea.extend(&up.model.residuals);
-    let prob = VcProblem {
-        x: &xa,
-        e: &ea,
-        b: &up.model.b,
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&xa, &ea, &up.model.b, 2, 1);
     let mut best_direct = f64::INFINITY;
     let mut worst = 0.0f64;
     for _ in 0..3 {

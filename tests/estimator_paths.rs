@@ -146,15 +146,7 @@ fn check_paths(
     hs: &[f64],
     label: &str,
 ) -> usize {
-    let q = b.len();
-    let prob = VcProblem {
-        x,
-        e,
-        b,
-        p,
-        d,
-        start: p.max(q).max(d),
-    };
+    let prob = VcProblem::new(x, e, b, p, d);
     let (umin, umax) = x
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
@@ -257,14 +249,7 @@ fn fast_equals_direct_with_empty_sparse_and_singular_supports() {
 #[test]
 fn well_conditioned_farma_points_agree_to_1e9_without_allowance() {
     let (x, e) = farma211(6000, 5);
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &[-0.5],
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&x, &e, &[-0.5], 2, 1);
     let grid = uniform_grid(-2.0, 2.0, 41);
     let hs = ladder(&x, 21);
     let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -100.0, 100.0, 6);
@@ -293,14 +278,7 @@ fn reused_left_hand_sides_give_the_one_bandwidth_fit() {
     use farma::estimator::moments::Families;
     let (x, e) = farma211(6000, 7);
     let b = [-0.5];
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &b,
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&x, &e, &b, 2, 1);
     let grid = uniform_grid(-2.0, 2.0, 41);
     let index = DirectIndex::build(&prob);
     for h in [0.05, 0.3, 1.5] {
@@ -338,14 +316,7 @@ fn a_bandwidth_below_the_grid_values_resolution_gives_empty_windows() {
         .collect();
     x[100] = 1.0 - 1e-16; // = 0.9999999999999999, inside [fl(1 - 1e-16), 1)
     let e = vec![0.0; n];
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &[],
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&x, &e, &[], 2, 1);
     let grid = vec![0.5, 1.0, 1.5];
     let hs = vec![1e-16, 0.4];
     let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -10.0, 10.0, 6);

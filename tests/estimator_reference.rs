@@ -29,14 +29,7 @@ fn grid_fits_match_ref_farma_local_linear_to_1e10() {
         }
     }
     let b = [-0.5];
-    let prob = VcProblem {
-        x: &x,
-        e: &e,
-        b: &b,
-        p: 2,
-        d: 1,
-        start: 2,
-    };
+    let prob = VcProblem::new(&x, &e, &b, 2, 1);
     let mut hs: Vec<f64> = fits.iter().map(|f| f.0).collect();
     hs.dedup();
     let grid: Vec<f64> = fits.iter().filter(|f| f.0 == hs[0]).map(|f| f.1).collect();

@@ -63,14 +63,7 @@ fn update_without_forgetting_equals_batch_on_concatenated_data() {
         let st = state_from_fit("x", old, &m);
         // the state's normal equations reproduce the batch fit at the fit's residuals
         let xc: Vec<f64> = old.iter().map(|v| v - m.mean).collect();
-        let prob = VcProblem {
-            x: &xc,
-            e: &m.residuals,
-            b: &m.b,
-            p: 2,
-            d: 1,
-            start: 2,
-        };
+        let prob = VcProblem::new(&xc, &m.residuals, &m.b, 2, 1);
         let start_fit = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
         let up = update(&st, new, 1.0).unwrap();
         assert_eq!(up.model.residuals.len(), new.len());
@@ -81,14 +74,7 @@ fn update_without_forgetting_equals_batch_on_concatenated_data() {
         let xa: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
         let mut ea = m.residuals.clone();
         ea.extend(&up.model.residuals);
-        let prob = VcProblem {
-            x: &xa,
-            e: &ea,
-            b: &up.model.b,
-            p: 2,
-            d: 1,
-            start: 2,
-        };
+        let prob = VcProblem::new(&xa, &ea, &up.model.b, 2, 1);
         let batch = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
         let scale = scale_of(&batch.f);
         let (mut worst, mut moved, mut compared) = (0.0f64, 0.0f64, 0);

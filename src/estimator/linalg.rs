@@ -250,7 +250,7 @@ mod tests {
                 // the solution and inverse to the accuracy a backward-stable solve
                 // has, eps times the condition number; the condition numbers to each
                 // other and to the one the matrix was made with
-                let tol = 1e-13 * c_true;
+                let tol = 1e-14 * c_true;
                 let zmax = z2.iter().fold(0.0f64, |a, v| a.max(v.abs()));
                 let imax = i2.iter().fold(0.0f64, |a, v| a.max(v.abs()));
                 for (a, b) in z1.iter().zip(&z2) {

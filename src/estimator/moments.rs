@@ -1419,14 +1419,7 @@ mod tests {
         let grid: Vec<f64> = (0..41).map(|k| -0.6 + 0.03 * k as f64).collect();
         let hs = [0.25, 0.1];
         for p in [1, 2, 3, 4] {
-            let prob = VcProblem {
-                x: &x,
-                e: &e,
-                b: &[-0.4],
-                p,
-                d: 1,
-                start: p,
-            };
+            let prob = VcProblem::new(&x, &e, &[-0.4], p, 1);
             let breaks = breakpoints(&grid, &hs);
             let ix = IntervalIndex::build(&prob, breaks.clone()).unwrap();
             for t in [p, p + 1, 1000, x.len() - 1] {
@@ -1467,20 +1460,15 @@ mod tests {
 
     #[test]
     fn tables_of_other_families_are_summed_in_the_same_blocks() {
-        // many intervals and N large enough that the block size follows the number
-        // of intervals: a table of fewer families or a lower degree must still be cut
-        // into the same blocks, or its sums (and the refreshed table) lose the bits
+        // many intervals and N large enough that the blocks are above their minimum
+        // size (here N/4): a table of fewer families or a lower degree must still be
+        // cut into the same blocks, or its sums (and the refreshed table) lose the
+        // bits (the formula that followed each table's own length gave the X_a y
+        // table of degree 5 blocks of 2^17 rows, the full table N/4)
         let (x, e) = series(700_000, 13);
         let grid: Vec<f64> = (0..101).map(|k| -0.6 + 0.012 * k as f64).collect();
         let hs: Vec<f64> = (0..13).map(|j| 0.3 * 1.1f64.powi(-j)).collect();
-        let prob = VcProblem {
-            x: &x,
-            e: &e,
-            b: &[-0.4],
-            p: 1,
-            d: 1,
-            start: 1,
-        };
+        let prob = VcProblem::new(&x, &e, &[-0.4], 1, 1);
         let breaks = breakpoints(&grid, &hs);
         let ix = IntervalIndex::build(&prob, breaks.clone()).unwrap();
         let all = MomentTable::build_indexed(&prob, &ix, -2.0, 2.0, 6, Families::All);
@@ -1506,14 +1494,7 @@ mod tests {
         let (x, e) = series(50_000, 23);
         let grid: Vec<f64> = (0..41).map(|k| -0.6 + 0.03 * k as f64).collect();
         let hs: Vec<f64> = (0..12).map(|j| 0.9 * 1.1f64.powi(-j)).collect();
-        let prob = VcProblem {
-            x: &x,
-            e: &e,
-            b: &[-0.4],
-            p: 2,
-            d: 1,
-            start: 2,
-        };
+        let prob = VcProblem::new(&x, &e, &[-0.4], 2, 1);
         let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -2.0, 2.0, 6);
         let fbits = |f: &GridFit| -> Vec<u64> { f.f.iter().map(|v| v.to_bits()).collect() };
         let all = table.fit_ladder(&grid, &hs);

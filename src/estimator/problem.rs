@@ -22,6 +22,19 @@ pub struct VcProblem<'a> {
 }
 
 impl<'a> VcProblem<'a> {
+    /// The problem of series `x` with residuals `e`, MA coefficients `b` (q of them),
+    /// order p and delay d, from its first usable row max(p, q, d).
+    pub fn new(x: &'a [f64], e: &'a [f64], b: &'a [f64], p: usize, d: usize) -> Self {
+        VcProblem {
+            x,
+            e,
+            b,
+            p,
+            d,
+            start: p.max(b.len()).max(d),
+        }
+    }
+
     /// Rows used.
     pub fn n_rows(&self) -> usize {
         self.x.len().saturating_sub(self.start)
