@@ -749,6 +749,23 @@ struct LadderCache {
     /// Fits (and RSS, trace) at the rungs of `js` asked for so far (index j - js.0),
     /// from the table as it is now.
     fits: Vec<Option<RungFit>>,
+    /// The left-hand sides of the rungs fitted on this table (index j - js.0): they
+    /// depend on X and U only, so they outlive a refresh of the y families.
+    systems: Vec<Option<LocalSystems>>,
+}
+
+impl LadderCache {
+    /// The left-hand sides at bandwidth h: those kept for its rung (the same bits as
+    /// [`MomentTable::local_systems`]: a window grown from narrower ones has the bits
+    /// of one summed alone), else computed from the table.
+    fn systems_at(&self, grid: &[f64], h: f64) -> LocalSystems {
+        self.systems
+            .iter()
+            .flatten()
+            .find(|s| s.h == h)
+            .cloned()
+            .unwrap_or_else(|| self.table.local_systems(grid, h))
+    }
 }
 
 impl<'a> Smoother<'a> {
@@ -783,11 +800,13 @@ impl<'a> Smoother<'a> {
                     }
                     None => MomentTable::build(&self.prob, breaks, span.0, span.1, 6),
                 };
+                let rungs = (hi + ahead - lo + 1) as usize;
                 LadderCache {
                     js: (lo, hi + ahead),
                     table,
                     index,
-                    fits: vec![None; (hi + ahead - lo + 1) as usize],
+                    fits: vec![None; rungs],
+                    systems: (0..rungs).map(|_| None).collect(),
                 }
             }
         };
@@ -804,8 +823,20 @@ impl<'a> Smoother<'a> {
             use rayon::prelude::*;
             let hs: Vec<f64> = missing.iter().map(|&j| ladder_h(j, range)).collect();
             let table = &lad.table;
-            let fits: Vec<RungFit> = table
-                .fit_ladder(self.grid, &hs)
+            // the left-hand sides kept from an earlier ladder on this table: only the
+            // right-hand sides are summed (the same bits)
+            let kept: Option<Vec<&LocalSystems>> = missing
+                .iter()
+                .map(|j| lad.systems[(j - lad.js.0) as usize].as_ref())
+                .collect();
+            let (fits, systems) = match kept {
+                Some(sys) => (table.fit_ladder_response(&sys), None),
+                None => {
+                    let (f, s) = table.fit_ladder_systems(self.grid, &hs);
+                    (f, Some(s))
+                }
+            };
+            let fits: Vec<RungFit> = fits
                 .into_par_iter()
                 .map(|f| {
                     let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
@@ -814,6 +845,11 @@ impl<'a> Smoother<'a> {
                 .collect();
             for (j, fit) in missing.iter().zip(fits) {
                 lad.fits[(j - lad.js.0) as usize] = Some(fit);
+            }
+            if let Some(systems) = systems {
+                for (j, sys) in missing.iter().zip(systems) {
+                    lad.systems[(j - lad.js.0) as usize] = Some(sys);
+                }
             }
         }
         let out = js
@@ -1248,7 +1284,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             // the next f-steps' left-hand sides, from the ladder's table (they depend
             // on X and U only)
             if let Some(lad) = &cache.ladder {
-                cache.systems = Some(lad.table.local_systems(&grid, rows[best].bandwidth));
+                cache.systems = Some(lad.systems_at(&grid, rows[best].bandwidth));
             }
             at.gcv_s = lap();
             ladder_extended |= ext;
@@ -1344,7 +1380,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                     notes.extend(nt);
                     h = rows[best].bandwidth;
                     if let Some(lad) = &cache.ladder {
-                        cache.systems = Some(lad.table.local_systems(&grid, h));
+                        cache.systems = Some(lad.systems_at(&grid, h));
                     }
                     gcv_table = rows;
                     reselected_at = rss_history.len() - 1;

@@ -96,7 +96,12 @@ struct WholeCells {
 
 impl WholeCells {
     fn new(table: &MomentTable, g: usize) -> Self {
-        let width = table.nfam * (table.deg + 1);
+        Self::for_fams(table, g, table.nfam)
+    }
+
+    /// Sums of `nfam` families (all of the table's, or a subset).
+    fn for_fams(table: &MomentTable, g: usize, nfam: usize) -> Self {
+        let width = nfam * (table.deg + 1);
         WholeCells {
             g,
             left: g + 1,
@@ -135,6 +140,7 @@ struct Cells {
 
 /// The left-hand sides of the local systems at one bandwidth: S_g, the support's
 /// sample count and kernel mass for every grid point.
+#[derive(Clone)]
 pub struct LocalSystems {
     grid: Vec<f64>,
     pub h: f64,
@@ -583,6 +589,34 @@ impl MomentTable {
         piece.count
     }
 
+    /// [`MomentTable::add_piece`] for the families `fams` only (row i of `acc` takes
+    /// family fams[i]): each family is recentred alone, with the same operations, so
+    /// its sums have the bits of the all-family version.
+    fn add_piece_fams(
+        &self,
+        piece: Piece,
+        u: f64,
+        smax: usize,
+        binom: &[[f64; 13]; 13],
+        fams: &[usize],
+        acc: &mut [f64],
+    ) -> u64 {
+        let d1 = self.deg + 1;
+        for (i, &f) in fams.iter().enumerate() {
+            recentre_into(
+                &piece.m[f * d1..(f + 1) * d1],
+                (piece.anchor, piece.scale),
+                (u, 1.0),
+                1,
+                d1,
+                smax,
+                binom,
+                &mut acc[i * d1..(i + 1) * d1],
+            );
+        }
+        piece.count
+    }
+
     /// Moments of window (g, h) about u_g, unscaled powers 0..=smax, and its sample
     /// count: the suffix holding its left edge, the whole cells between (nearest
     /// first), the prefix holding its right edge.
@@ -610,6 +644,24 @@ impl MomentTable {
         smax: usize,
         binom: &[[f64; 13]; 13],
     ) -> (Vec<f64>, u64) {
+        self.grown_window_fams(cells, whole, h, smax, binom, None)
+    }
+
+    /// [`MomentTable::grown_window`] for the families `fams` only when given (`whole`
+    /// made for them, [`WholeCells::for_fams`]): the same bits for those families.
+    fn grown_window_fams(
+        &self,
+        cells: &Cells,
+        whole: &mut WholeCells,
+        h: f64,
+        smax: usize,
+        binom: &[[f64; 13]; 13],
+        fams: Option<&[usize]>,
+    ) -> (Vec<f64>, u64) {
+        let add = |piece: Piece, u: f64, acc: &mut [f64]| match fams {
+            None => self.add_piece(piece, u, smax, binom, acc),
+            Some(fs) => self.add_piece_fams(piece, u, smax, binom, fs, acc),
+        };
         let g = whole.g;
         let ug = cells.grid[g];
         let (lo, hi) = self.window_edges(cells, g, h);
@@ -618,12 +670,12 @@ impl MomentTable {
         while whole.left > cl + 1 {
             whole.left -= 1;
             let piece = self.suffix(cells, cells.first[whole.left]);
-            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc_left);
+            whole.count += add(piece, ug, &mut whole.acc_left);
         }
         while whole.right + 1 < ch {
             whole.right += 1;
             let piece = self.prefix(cells, cells.last[whole.right]);
-            whole.count += self.add_piece(piece, ug, smax, binom, &mut whole.acc_right);
+            whole.count += add(piece, ug, &mut whole.acc_right);
         }
         let mut acc = whole.acc_left.clone();
         for (a, r) in acc.iter_mut().zip(&whole.acc_right) {
@@ -631,10 +683,10 @@ impl MomentTable {
         }
         let mut count = whole.count;
         if let Some(lo) = lo {
-            count += self.add_piece(self.suffix(cells, lo), ug, smax, binom, &mut acc);
+            count += add(self.suffix(cells, lo), ug, &mut acc);
         }
         if let Some(hi) = hi {
-            count += self.add_piece(self.prefix(cells, hi), ug, smax, binom, &mut acc);
+            count += add(self.prefix(cells, hi), ug, &mut acc);
         }
         (acc, count)
     }
@@ -977,6 +1029,18 @@ impl MomentTable {
     /// window adds its two edge runs. The fit at one h has the same bits whatever the
     /// other bandwidths in `hs` (tested), so a ladder can be fitted rung by rung.
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
+        self.fit_ladder_systems(grid, hs).0
+    }
+
+    /// [`MomentTable::fit_ladder`], with each bandwidth's left-hand sides: they
+    /// depend on X and U only, so a ladder over the same table with new residuals
+    /// ([`MomentTable::with_response`]) can reuse them
+    /// ([`MomentTable::fit_ladder_response`]).
+    pub fn fit_ladder_systems(
+        &self,
+        grid: &[f64],
+        hs: &[f64],
+    ) -> (Vec<GridFit>, Vec<LocalSystems>) {
         assert!(self.deg >= 6, "local fits need moments up to degree 6");
         let p = self.p;
         let d1 = self.deg + 1;
@@ -1016,6 +1080,68 @@ impl MomentTable {
                 for (g, pts) in per_g.iter().enumerate() {
                     let (s, rhs, count, mass) = &pts[j];
                     fit.set_point(g, s, rhs, *count, *mass);
+                }
+                let sys = LocalSystems {
+                    grid: grid.to_vec(),
+                    h,
+                    p,
+                    points: per_g
+                        .iter()
+                        .map(|pts| (pts[j].0.clone(), pts[j].2, pts[j].3))
+                        .collect(),
+                };
+                (fit, sys)
+            })
+            .unzip()
+    }
+
+    /// Fits at the bandwidths of `systems` (left-hand sides of this table's X and U,
+    /// kept from [`MomentTable::fit_ladder_systems`]): only the X_a y families'
+    /// windows are summed, grown as in [`MomentTable::fit_ladder`], so each fit has
+    /// the bits of that ladder's fit on this table (tested).
+    pub fn fit_ladder_response(&self, systems: &[&LocalSystems]) -> Vec<GridFit> {
+        assert!(
+            self.deg >= 5,
+            "right-hand sides need moments up to degree 5"
+        );
+        let Some(first) = systems.first() else {
+            return Vec::new();
+        };
+        let (p, grid) = (self.p, &first.grid[..]);
+        assert!(systems.iter().all(|s| s.p == p && s.grid == grid));
+        let d1 = self.deg + 1;
+        let binom = binomial_table();
+        let cells = self.cells(grid);
+        let fams: Vec<usize> = (0..p).map(|a| self.fam(a, p)).collect();
+        let mut order: Vec<usize> = (0..systems.len()).collect();
+        order.sort_by(|a, b| systems[*a].h.total_cmp(&systems[*b].h));
+        let per_g: Vec<Vec<Vec<f64>>> = (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let mut whole = WholeCells::for_fams(self, g, p);
+                let mut out: Vec<Vec<f64>> = vec![Vec::new(); systems.len()];
+                for &j in &order {
+                    let h = systems[j].h;
+                    let (acc, _) =
+                        self.grown_window_fams(&cells, &mut whole, h, 6, &binom, Some(&fams));
+                    let a_of = kernel_contraction(&acc, d1, h, &BIWEIGHT);
+                    let mut rhs = vec![0.0; 2 * p];
+                    for a in 0..p {
+                        rhs[a] = a_of(a, 0);
+                        rhs[p + a] = a_of(a, 1);
+                    }
+                    out[j] = rhs;
+                }
+                out
+            })
+            .collect();
+        systems
+            .par_iter()
+            .enumerate()
+            .map(|(j, sys)| {
+                let mut fit = GridFit::new(grid.len(), p, sys.h);
+                for (g, (s, count, mass)) in sys.points.iter().enumerate() {
+                    fit.set_point(g, s, &per_g[g][j], *count, *mass);
                 }
                 fit
             })
@@ -1506,6 +1632,66 @@ mod tests {
             // and the f-step's path: kept left-hand sides, the right-hand sides alone
             let sys = table.local_systems(&grid, h);
             assert_eq!(fbits(&table.fit_response(&sys)), fbits(&all[k]), "h_{k}");
+        }
+    }
+
+    #[test]
+    fn a_ladder_on_kept_left_hand_sides_has_the_full_ladders_bits() {
+        // the re-check's path: the left-hand sides of a first ladder (X and U only),
+        // new residuals and b in the y families, the right-hand sides alone, against
+        // the full ladder on the refreshed table, for every p of the fixed passes
+        let (x, e) = series(60_000, 29);
+        let e2: Vec<f64> = e.iter().map(|v| 0.7 * v - 0.02).collect();
+        let grid: Vec<f64> = (0..41).map(|k| -0.6 + 0.03 * k as f64).collect();
+        let hs: Vec<f64> = (0..12).map(|j| 0.9 * 1.1f64.powi(-j)).collect();
+        let fbits = |f: &GridFit| -> Vec<u64> {
+            f.f.iter()
+                .chain(&f.slope)
+                .chain(&f.s_inv)
+                .map(|v| v.to_bits())
+                .collect()
+        };
+        for p in [1, 2, 3] {
+            let prob = VcProblem::new(&x, &e, &[-0.4], p, 1);
+            let table = MomentTable::build(&prob, breakpoints(&grid, &hs), -2.0, 2.0, 6);
+            let (_, systems) = table.fit_ladder_systems(&grid, &hs);
+            // the kept left-hand sides are those of local_systems at each h
+            for (sys, &h) in systems.iter().zip(&hs) {
+                let alone = table.local_systems(&grid, h);
+                assert_eq!(sys.h, h);
+                for (a, b) in sys.points.iter().zip(&alone.points) {
+                    assert_eq!(a.1, b.1);
+                    assert_eq!(a.2.to_bits(), b.2.to_bits());
+                    assert!(
+                        a.0.iter()
+                            .zip(&b.0)
+                            .all(|(u, v)| u.to_bits() == v.to_bits())
+                    );
+                }
+            }
+            let prob2 = VcProblem {
+                e: &e2,
+                b: &[0.3],
+                ..prob
+            };
+            let fresh = table.with_response(&prob2, None, (-2.0, 2.0));
+            let full = fresh.fit_ladder(&grid, &hs);
+            // every rung, and a subset in another order
+            let all: Vec<&LocalSystems> = systems.iter().collect();
+            let kept = fresh.fit_ladder_response(&all);
+            for (k, f) in kept.iter().enumerate() {
+                assert_eq!(fbits(f), fbits(&full[k]), "p = {p}, h_{k}");
+                assert_eq!(f.status, full[k].status);
+                assert_eq!(f.n_support, full[k].n_support);
+            }
+            let some = fresh.fit_ladder_response(&[&systems[7], &systems[2]]);
+            assert_eq!(fbits(&some[0]), fbits(&full[7]), "p = {p}");
+            assert_eq!(fbits(&some[1]), fbits(&full[2]), "p = {p}");
+            // the residuals changed, so the fits did
+            assert_ne!(
+                fbits(&kept[3]),
+                fbits(&table.fit_ladder(&grid, &[hs[3]])[0])
+            );
         }
     }
 }
