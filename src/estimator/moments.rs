@@ -253,6 +253,43 @@ fn recentre_fixed<const S: usize>(
     }
 }
 
+/// [`recentre_fixed`] for the families `fams` of `src` only (row i of `acc` takes
+/// family fams[i]): the same coefficient table and sums, so the same bits per family.
+#[inline]
+fn recentre_fixed_fams<const S: usize>(
+    src: &[f64],
+    a: f64,
+    b: f64,
+    fams: &[usize],
+    d1: usize,
+    binom: &[[f64; 13]; 13],
+    acc: &mut [f64],
+) {
+    let mut sp = [1.0f64; S];
+    let mut dp = [1.0f64; S];
+    for k in 1..S {
+        sp[k] = sp[k - 1] * a;
+        dp[k] = dp[k - 1] * b;
+    }
+    let mut coef = [[0.0f64; S]; S];
+    for s in 0..S {
+        for i in 0..=s {
+            coef[s][i] = binom[s][i] * sp[i] * dp[s - i];
+        }
+    }
+    for (slot, &f) in fams.iter().enumerate() {
+        let mrow: &[f64; S] = src[f * d1..f * d1 + S].try_into().unwrap();
+        let arow: &mut [f64; S] = (&mut acc[slot * d1..slot * d1 + S]).try_into().unwrap();
+        for s in 0..S {
+            let mut sum = 0.0;
+            for i in 0..=s {
+                sum += coef[s][i] * mrow[i];
+            }
+            arow[s] += sum;
+        }
+    }
+}
+
 /// Adds `ratio^s` times moments `src` to `acc`: the same samples about the same anchor,
 /// powers of (U - c)/s_src rewritten as powers of (U - c)/s_dst, ratio = s_src/s_dst.
 #[inline]
@@ -602,17 +639,23 @@ impl MomentTable {
         acc: &mut [f64],
     ) -> u64 {
         let d1 = self.deg + 1;
-        for (i, &f) in fams.iter().enumerate() {
-            recentre_into(
-                &piece.m[f * d1..(f + 1) * d1],
-                (piece.anchor, piece.scale),
-                (u, 1.0),
-                1,
-                d1,
-                smax,
-                binom,
-                &mut acc[i * d1..(i + 1) * d1],
-            );
+        if smax == 6 && d1 >= 7 {
+            // the coefficient table once for every family (recentre_fixed's operations)
+            let (a, b) = (piece.scale, piece.anchor - u);
+            recentre_fixed_fams::<7>(piece.m, a, b, fams, d1, binom, acc);
+        } else {
+            for (i, &f) in fams.iter().enumerate() {
+                recentre_into(
+                    &piece.m[f * d1..(f + 1) * d1],
+                    (piece.anchor, piece.scale),
+                    (u, 1.0),
+                    1,
+                    d1,
+                    smax,
+                    binom,
+                    &mut acc[i * d1..(i + 1) * d1],
+                );
+            }
         }
         piece.count
     }
