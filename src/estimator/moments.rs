@@ -483,17 +483,53 @@ impl MomentTable {
             }
         }
         let binom = binomial_table();
-        // one cell's prefix and suffix runs, cells in parallel
-        type Runs = (Vec<f64>, Vec<f64>, Vec<u64>, Vec<f64>, Vec<f64>, Vec<u64>);
-        let per_cell: Vec<Runs> = (0..=gl)
+        // one cell's prefix and suffix runs, cells in parallel, each written into its
+        // own part of the runs (no per-cell buffers to copy)
+        let mut prefix = vec![0.0; ne * width];
+        let mut prefix_scale = vec![0.0; ne];
+        let mut prefix_count = vec![0u64; ne];
+        let mut suffix = vec![0.0; ne * width];
+        let mut suffix_scale = vec![0.0; ne];
+        let mut suffix_count = vec![0u64; ne];
+        type Parts<'b> = (
+            usize,
+            &'b mut [f64],
+            &'b mut [f64],
+            &'b mut [u64],
+            &'b mut [f64],
+            &'b mut [f64],
+            &'b mut [u64],
+        );
+        let mut parts: Vec<Parts> = Vec::with_capacity(gl + 1);
+        {
+            let (mut pm, mut ps, mut pc) = (
+                &mut prefix[..],
+                &mut prefix_scale[..],
+                &mut prefix_count[..],
+            );
+            let (mut sm, mut ss, mut sc) = (
+                &mut suffix[..],
+                &mut suffix_scale[..],
+                &mut suffix_count[..],
+            );
+            for c in 0..=gl {
+                let len = last[c] + 1 - first[c];
+                let (a, b) = std::mem::take(&mut pm).split_at_mut(len * width);
+                let (a2, b2) = std::mem::take(&mut ps).split_at_mut(len);
+                let (a3, b3) = std::mem::take(&mut pc).split_at_mut(len);
+                let (a4, b4) = std::mem::take(&mut sm).split_at_mut(len * width);
+                let (a5, b5) = std::mem::take(&mut ss).split_at_mut(len);
+                let (a6, b6) = std::mem::take(&mut sc).split_at_mut(len);
+                parts.push((c, a, a2, a3, a4, a5, a6));
+                (pm, ps, pc, sm, ss, sc) = (b, b2, b3, b4, b5, b6);
+            }
+        }
+        parts
             .into_par_iter()
-            .map(|c| {
+            .for_each(|(c, pm, ps, pc, sm, ss, sc)| {
                 let (f, l) = (first[c], last[c]);
                 let len = l + 1 - f;
                 let (lo_c, hi_c) = (self.lo_edge[f], self.hi_edge[l]);
-                let mut pm = vec![0.0; len * width];
-                let mut ps = vec![0.0; len];
-                let mut pc = vec![0u64; len];
                 for (i, e) in (f..=l).enumerate() {
                     let s = (self.hi_edge[e] - lo_c).max(f64::MIN_POSITIVE);
                     ps[i] = s;
@@ -516,9 +552,6 @@ impl MomentTable {
                     );
                     pc[i] += self.count[e];
                 }
-                let mut sm = vec![0.0; len * width];
-                let mut ss = vec![0.0; len];
-                let mut sc = vec![0u64; len];
                 for (i, e) in (f..l + 1).enumerate().rev() {
                     let s = (hi_c - self.lo_edge[e]).max(f64::MIN_POSITIVE);
                     ss[i] = s;
@@ -540,30 +573,19 @@ impl MomentTable {
                     );
                     sc[i] += self.count[e];
                 }
-                (pm, ps, pc, sm, ss, sc)
-            })
-            .collect();
-        let mut cells = Cells {
+            });
+        Cells {
             grid: grid.to_vec(),
             cell_of,
             first,
             last,
-            prefix: Vec::with_capacity(ne * width),
-            prefix_scale: Vec::with_capacity(ne),
-            prefix_count: Vec::with_capacity(ne),
-            suffix: Vec::with_capacity(ne * width),
-            suffix_scale: Vec::with_capacity(ne),
-            suffix_count: Vec::with_capacity(ne),
-        };
-        for (pm, ps, pc, sm, ss, sc) in per_cell {
-            cells.prefix.extend(pm);
-            cells.prefix_scale.extend(ps);
-            cells.prefix_count.extend(pc);
-            cells.suffix.extend(sm);
-            cells.suffix_scale.extend(ss);
-            cells.suffix_count.extend(sc);
+            prefix,
+            prefix_scale,
+            prefix_count,
+            suffix,
+            suffix_scale,
+            suffix_count,
         }
-        cells
     }
 
     /// Intervals first(cell(e))..=e, about the cell's lower edge.
