@@ -398,7 +398,7 @@ fn main() {
         );
         let t = &v["model"]["timings"];
         println!(
-            "|   | steps: prepare {:.3} s, start {:.3} s, alternations {:.3} s (of which GCV {:.3} s), final {:.3} s; all fits {:?} |",
+            "|   | steps: prepare {:.3} s, start {:.3} s, alternations {:.3} s (of which GCV {:.3} s), final {:.3} s; alternations without GCV / floor {:?}; all fits {:?} |",
             f(&t["prepare_s"]),
             f(&t["start_s"]),
             alts.iter().sum::<f64>(),
@@ -409,6 +409,16 @@ fn main() {
                 .map(|a| f(&a["gcv_s"]))
                 .sum::<f64>(),
             f(&t["final_s"]),
+            t["alternations"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|a| f(&a["gcv_s"]) == 0.0)
+                .map(|a| format!(
+                    "{:.1}",
+                    (f(&a["f_step_s"]) + f(&a["b_step_s"]) + f(&a["residuals_s"])) / floor
+                ))
+                .collect::<Vec<_>>(),
             v["fit_s"]
                 .as_array()
                 .unwrap()
