@@ -119,6 +119,25 @@ fn fast_and_direct_fits_agree_end_to_end() {
         b.rss
     );
     assert!((a.trace - b.trace).abs() <= 1e-9 * a.trace);
+    // the GCV table of the last ladder (the re-check after convergence: on the fast
+    // path its fits reuse the first ladder's left-hand sides) row by row
+    assert_eq!(a.gcv_table.len(), b.gcv_table.len());
+    assert!(a.gcv_table.len() >= 21, "the whole ladder");
+    for (r, s) in a.gcv_table.iter().zip(&b.gcv_table) {
+        assert_eq!(r.bandwidth, s.bandwidth);
+        assert!(
+            (r.rss - s.rss).abs() <= 1e-9 * s.rss,
+            "{} vs {}",
+            r.rss,
+            s.rss
+        );
+        assert!(
+            (r.trace - s.trace).abs() <= 1e-9 * s.trace,
+            "{} vs {}",
+            r.trace,
+            s.trace
+        );
+    }
     assert!(
         (a.b[0] - b.b[0]).abs() <= 1e-9,
         "b {:?} vs {:?}, rss {} vs {}, it {} {}",

@@ -762,7 +762,7 @@ impl LadderCache {
         self.systems
             .iter()
             .flatten()
-            .find(|s| s.h == h)
+            .find(|s| s.h == h && s.grid() == grid)
             .cloned()
             .unwrap_or_else(|| self.table.local_systems(grid, h))
     }
@@ -821,7 +821,6 @@ impl<'a> Smoother<'a> {
             .collect();
         if !missing.is_empty() {
             use rayon::prelude::*;
-            let hs: Vec<f64> = missing.iter().map(|&j| ladder_h(j, range)).collect();
             let table = &lad.table;
             // the left-hand sides kept from an earlier ladder on this table: only the
             // right-hand sides are summed (the same bits)
@@ -832,6 +831,7 @@ impl<'a> Smoother<'a> {
             let (fits, systems) = match kept {
                 Some(sys) => (table.fit_ladder_response(&sys), None),
                 None => {
+                    let hs: Vec<f64> = missing.iter().map(|&j| ladder_h(j, range)).collect();
                     let (f, s) = table.fit_ladder_systems(self.grid, &hs);
                     (f, Some(s))
                 }

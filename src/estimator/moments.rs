@@ -148,6 +148,13 @@ pub struct LocalSystems {
     points: Vec<(Vec<f64>, u64, f64)>,
 }
 
+impl LocalSystems {
+    /// The grid points they are at.
+    pub fn grid(&self) -> &[f64] {
+        &self.grid
+    }
+}
+
 /// A(f, r) = sum_k kappa_k acc[f][k + r] / h^(k + r): the kernel-weighted moment
 /// sum_t L(w_t) V_a V_b w_t^r, w = (U - u_g)/h, of the kernel polynomial
 /// L(w) = sum_k kappa_k w^k (`kern`: the Biweight for fits, its square for standard
@@ -649,36 +656,23 @@ impl MomentTable {
     }
 
     /// [`MomentTable::add_piece`] for the families `fams` only (row i of `acc` takes
-    /// family fams[i]): each family is recentred alone, with the same operations, so
-    /// its sums have the bits of the all-family version.
+    /// family fams[i]), powers 0..=6 (what the local fits read; the table's degree
+    /// at least 6): the coefficient table of [`recentre_fixed`] built once for every
+    /// family, each family summed with the same operations, so its sums have the bits
+    /// of the all-family version (`recentre_into` with s_dst = 1 gives a = scale and
+    /// b = anchor - u exactly).
     fn add_piece_fams(
         &self,
         piece: Piece,
         u: f64,
-        smax: usize,
         binom: &[[f64; 13]; 13],
         fams: &[usize],
         acc: &mut [f64],
     ) -> u64 {
         let d1 = self.deg + 1;
-        if smax == 6 && d1 >= 7 {
-            // the coefficient table once for every family (recentre_fixed's operations)
-            let (a, b) = (piece.scale, piece.anchor - u);
-            recentre_fixed_fams::<7>(piece.m, a, b, fams, d1, binom, acc);
-        } else {
-            for (i, &f) in fams.iter().enumerate() {
-                recentre_into(
-                    &piece.m[f * d1..(f + 1) * d1],
-                    (piece.anchor, piece.scale),
-                    (u, 1.0),
-                    1,
-                    d1,
-                    smax,
-                    binom,
-                    &mut acc[i * d1..(i + 1) * d1],
-                );
-            }
-        }
+        assert!(d1 >= 7, "powers up to 6 need a table of degree 6 or more");
+        let (a, b) = (piece.scale, piece.anchor - u);
+        recentre_fixed_fams::<7>(piece.m, a, b, fams, d1, binom, acc);
         piece.count
     }
 
@@ -725,7 +719,10 @@ impl MomentTable {
     ) -> (Vec<f64>, u64) {
         let add = |piece: Piece, u: f64, acc: &mut [f64]| match fams {
             None => self.add_piece(piece, u, smax, binom, acc),
-            Some(fs) => self.add_piece_fams(piece, u, smax, binom, fs, acc),
+            Some(fs) => {
+                assert_eq!(smax, 6, "a subset of families is summed to power 6");
+                self.add_piece_fams(piece, u, binom, fs, acc)
+            }
         };
         let g = whole.g;
         let ug = cells.grid[g];
@@ -1165,10 +1162,7 @@ impl MomentTable {
     /// windows are summed, grown as in [`MomentTable::fit_ladder`], so each fit has
     /// the bits of that ladder's fit on this table (tested).
     pub fn fit_ladder_response(&self, systems: &[&LocalSystems]) -> Vec<GridFit> {
-        assert!(
-            self.deg >= 5,
-            "right-hand sides need moments up to degree 5"
-        );
+        assert!(self.deg >= 6, "a ladder's table has degree 6 or more");
         let Some(first) = systems.first() else {
             return Vec::new();
         };
