@@ -19,7 +19,9 @@
 //! outwards. A GCV ladder costs O(G (G + J)) recentrings of a moment block, whatever N.
 //! The left-hand sides of the local systems depend on X and U only; an f-step at a
 //! bandwidth already seen sums only the X_a y families ([`Families::Response`]) and
-//! reuses them ([`LocalSystems`]).
+//! reuses them ([`LocalSystems`]); a second ladder over the same table with new
+//! residuals ([`MomentTable::with_response`]) reuses the first one's, rung by rung, and
+//! grows only the X_a y windows ([`MomentTable::fit_ladder_response`]).
 //!
 //! The pass runs over fixed blocks of rows (their size depends on N only), blocks in
 //! parallel, block tables added in block order: the result does not depend on the
