@@ -370,16 +370,17 @@ fn main() {
             .map(|a| f(&a["f_step_s"]) + f(&a["gcv_s"]) + f(&a["b_step_s"]) + f(&a["residuals_s"]))
             .collect();
         // alternations without a GCV ladder in them
-        let mut plain: Vec<f64> = v["model"]["timings"]["alternations"]
+        let plain: Vec<f64> = v["model"]["timings"]["alternations"]
             .as_array()
             .unwrap()
             .iter()
             .filter(|a| f(&a["gcv_s"]) == 0.0)
             .map(|a| f(&a["f_step_s"]) + f(&a["b_step_s"]) + f(&a["residuals_s"]))
             .collect();
-        plain.sort_by(f64::total_cmp);
+        let mut sorted = plain.clone();
+        sorted.sort_by(f64::total_cmp);
         let slowest = alts.iter().cloned().fold(0.0, f64::max);
-        let median = plain.get(plain.len() / 2).cloned().unwrap_or(f64::NAN);
+        let median = sorted.get(sorted.len() / 2).cloned().unwrap_or(f64::NAN);
         let anon = f(&v["anon_peak_kib"]) - f(&v["anon_before_kib"]);
         let chan_kib = (n * 8) as f64 / 1024.0;
         per_sample.push((n, fit_s / n as f64));
@@ -409,15 +410,9 @@ fn main() {
                 .map(|a| f(&a["gcv_s"]))
                 .sum::<f64>(),
             f(&t["final_s"]),
-            t["alternations"]
-                .as_array()
-                .unwrap()
+            plain
                 .iter()
-                .filter(|a| f(&a["gcv_s"]) == 0.0)
-                .map(|a| format!(
-                    "{:.1}",
-                    (f(&a["f_step_s"]) + f(&a["b_step_s"]) + f(&a["residuals_s"])) / floor
-                ))
+                .map(|s| format!("{:.1}", s / floor))
                 .collect::<Vec<_>>(),
             v["fit_s"]
                 .as_array()

@@ -155,6 +155,16 @@ impl LocalSystems {
     pub fn grid(&self) -> &[f64] {
         &self.grid
     }
+
+    /// The local fits with these left-hand sides and the right-hand side `rhs(g)` at
+    /// grid point g ([`GridFit::set_point`]).
+    fn fit_with<'r>(&self, rhs: impl Fn(usize) -> &'r [f64]) -> GridFit {
+        let mut fit = GridFit::new(self.grid.len(), self.p, self.h);
+        for (g, (s, count, mass)) in self.points.iter().enumerate() {
+            fit.set_point(g, s, rhs(g), *count, *mass);
+        }
+        fit
+    }
 }
 
 /// A(f, r) = sum_k kappa_k acc[f][k + r] / h^(k + r): the kernel-weighted moment
@@ -180,6 +190,22 @@ fn kernel_contraction<'a>(
     }
 }
 
+/// T = sum K(w) Z y with Z = (X, w X) from the weighted moments `a_of(family, r)`,
+/// X_a y being family `fy(a)` (its index in a full table, or its row in a table of
+/// the X_a y families alone).
+fn local_rhs_of(
+    p: usize,
+    a_of: &impl Fn(usize, usize) -> f64,
+    fy: impl Fn(usize) -> usize,
+) -> Vec<f64> {
+    let mut rhs = vec![0.0; 2 * p];
+    for a in 0..p {
+        rhs[a] = a_of(fy(a), 0);
+        rhs[p + a] = a_of(fy(a), 1);
+    }
+    rhs
+}
+
 /// Adds moments `src` (nfam rows of deg + 1, powers of (U - c_src)/s_src) to `acc` as
 /// powers 0..=smax of (U - c_dst)/s_dst: with a = s_src/s_dst, b = (c_src - c_dst)/s_dst,
 /// ((U - c_dst)/s_dst)^s = sum_i C(s,i) a^i b^(s-i) ((U - c_src)/s_src)^i.
@@ -198,10 +224,10 @@ fn recentre_into(
 ) {
     let (a, b) = (s_src / s_dst, (c_src - c_dst) / s_dst);
     match smax {
-        2 => recentre_fixed::<3>(src, a, b, nfam, d1, binom, acc),
-        5 => recentre_fixed::<6>(src, a, b, nfam, d1, binom, acc),
-        6 => recentre_fixed::<7>(src, a, b, nfam, d1, binom, acc),
-        10 => recentre_fixed::<11>(src, a, b, nfam, d1, binom, acc),
+        2 => recentre_fixed::<3>(src, a, b, recentre_all(nfam), d1, binom, acc),
+        5 => recentre_fixed::<6>(src, a, b, recentre_all(nfam), d1, binom, acc),
+        6 => recentre_fixed::<7>(src, a, b, recentre_all(nfam), d1, binom, acc),
+        10 => recentre_fixed::<11>(src, a, b, recentre_all(nfam), d1, binom, acc),
         _ => {
             let mut sp = [1.0f64; 13];
             let mut dp = [1.0f64; 13];
@@ -226,13 +252,15 @@ fn recentre_into(
 
 /// [`recentre_into`] for powers 0..S-1: the coefficient table C(s,i) a^i b^(s-i) built
 /// once (same products in the same order as the general case) and shared by every
-/// family.
+/// family. `rows` gives (family of `src`, row of `acc`): every family into its own row
+/// ([`recentre_all`]), or a subset packed into the first rows of `acc`; a family's
+/// sums have the same bits either way.
 #[inline]
 fn recentre_fixed<const S: usize>(
     src: &[f64],
     a: f64,
     b: f64,
-    nfam: usize,
+    rows: impl Iterator<Item = (usize, usize)>,
     d1: usize,
     binom: &[[f64; 13]; 13],
     acc: &mut [f64],
@@ -249,9 +277,9 @@ fn recentre_fixed<const S: usize>(
             coef[s][i] = binom[s][i] * sp[i] * dp[s - i];
         }
     }
-    for f in 0..nfam {
+    for (f, r) in rows {
         let mrow: &[f64; S] = src[f * d1..f * d1 + S].try_into().unwrap();
-        let arow: &mut [f64; S] = (&mut acc[f * d1..f * d1 + S]).try_into().unwrap();
+        let arow: &mut [f64; S] = (&mut acc[r * d1..r * d1 + S]).try_into().unwrap();
         for s in 0..S {
             let mut sum = 0.0;
             for i in 0..=s {
@@ -262,41 +290,9 @@ fn recentre_fixed<const S: usize>(
     }
 }
 
-/// [`recentre_fixed`] for the families `fams` of `src` only (row i of `acc` takes
-/// family fams[i]): the same coefficient table and sums, so the same bits per family.
-#[inline]
-fn recentre_fixed_fams<const S: usize>(
-    src: &[f64],
-    a: f64,
-    b: f64,
-    fams: &[usize],
-    d1: usize,
-    binom: &[[f64; 13]; 13],
-    acc: &mut [f64],
-) {
-    let mut sp = [1.0f64; S];
-    let mut dp = [1.0f64; S];
-    for k in 1..S {
-        sp[k] = sp[k - 1] * a;
-        dp[k] = dp[k - 1] * b;
-    }
-    let mut coef = [[0.0f64; S]; S];
-    for s in 0..S {
-        for i in 0..=s {
-            coef[s][i] = binom[s][i] * sp[i] * dp[s - i];
-        }
-    }
-    for (slot, &f) in fams.iter().enumerate() {
-        let mrow: &[f64; S] = src[f * d1..f * d1 + S].try_into().unwrap();
-        let arow: &mut [f64; S] = (&mut acc[slot * d1..slot * d1 + S]).try_into().unwrap();
-        for s in 0..S {
-            let mut sum = 0.0;
-            for i in 0..=s {
-                sum += coef[s][i] * mrow[i];
-            }
-            arow[s] += sum;
-        }
-    }
+/// Every family of `nfam` into its own row: the `rows` of [`recentre_fixed`].
+fn recentre_all(nfam: usize) -> impl Iterator<Item = (usize, usize)> {
+    (0..nfam).map(|f| (f, f))
 }
 
 /// Adds `ratio^s` times moments `src` to `acc`: the same samples about the same anchor,
@@ -492,53 +488,17 @@ impl MomentTable {
             }
         }
         let binom = binomial_table();
-        // one cell's prefix and suffix runs, cells in parallel, each written into its
-        // own part of the runs (no per-cell buffers to copy)
-        let mut prefix = vec![0.0; ne * width];
-        let mut prefix_scale = vec![0.0; ne];
-        let mut prefix_count = vec![0u64; ne];
-        let mut suffix = vec![0.0; ne * width];
-        let mut suffix_scale = vec![0.0; ne];
-        let mut suffix_count = vec![0u64; ne];
-        type Parts<'b> = (
-            usize,
-            &'b mut [f64],
-            &'b mut [f64],
-            &'b mut [u64],
-            &'b mut [f64],
-            &'b mut [f64],
-            &'b mut [u64],
-        );
-        let mut parts: Vec<Parts> = Vec::with_capacity(gl + 1);
-        {
-            let (mut pm, mut ps, mut pc) = (
-                &mut prefix[..],
-                &mut prefix_scale[..],
-                &mut prefix_count[..],
-            );
-            let (mut sm, mut ss, mut sc) = (
-                &mut suffix[..],
-                &mut suffix_scale[..],
-                &mut suffix_count[..],
-            );
-            for c in 0..=gl {
-                let len = last[c] + 1 - first[c];
-                let (a, b) = std::mem::take(&mut pm).split_at_mut(len * width);
-                let (a2, b2) = std::mem::take(&mut ps).split_at_mut(len);
-                let (a3, b3) = std::mem::take(&mut pc).split_at_mut(len);
-                let (a4, b4) = std::mem::take(&mut sm).split_at_mut(len * width);
-                let (a5, b5) = std::mem::take(&mut ss).split_at_mut(len);
-                let (a6, b6) = std::mem::take(&mut sc).split_at_mut(len);
-                parts.push((c, a, a2, a3, a4, a5, a6));
-                (pm, ps, pc, sm, ss, sc) = (b, b2, b3, b4, b5, b6);
-            }
-        }
-        parts
+        // one cell's prefix and suffix runs, cells in parallel
+        type Runs = (Vec<f64>, Vec<f64>, Vec<u64>, Vec<f64>, Vec<f64>, Vec<u64>);
+        let per_cell: Vec<Runs> = (0..=gl)
             .into_par_iter()
-            .for_each(|(c, pm, ps, pc, sm, ss, sc)| {
+            .map(|c| {
                 let (f, l) = (first[c], last[c]);
                 let len = l + 1 - f;
                 let (lo_c, hi_c) = (self.lo_edge[f], self.hi_edge[l]);
+                let mut pm = vec![0.0; len * width];
+                let mut ps = vec![0.0; len];
+                let mut pc = vec![0u64; len];
                 for (i, e) in (f..=l).enumerate() {
                     let s = (self.hi_edge[e] - lo_c).max(f64::MIN_POSITIVE);
                     ps[i] = s;
@@ -561,6 +521,9 @@ impl MomentTable {
                     );
                     pc[i] += self.count[e];
                 }
+                let mut sm = vec![0.0; len * width];
+                let mut ss = vec![0.0; len];
+                let mut sc = vec![0u64; len];
                 for (i, e) in (f..l + 1).enumerate().rev() {
                     let s = (hi_c - self.lo_edge[e]).max(f64::MIN_POSITIVE);
                     ss[i] = s;
@@ -582,19 +545,30 @@ impl MomentTable {
                     );
                     sc[i] += self.count[e];
                 }
-            });
-        Cells {
+                (pm, ps, pc, sm, ss, sc)
+            })
+            .collect();
+        let mut cells = Cells {
             grid: grid.to_vec(),
             cell_of,
             first,
             last,
-            prefix,
-            prefix_scale,
-            prefix_count,
-            suffix,
-            suffix_scale,
-            suffix_count,
+            prefix: Vec::with_capacity(ne * width),
+            prefix_scale: Vec::with_capacity(ne),
+            prefix_count: Vec::with_capacity(ne),
+            suffix: Vec::with_capacity(ne * width),
+            suffix_scale: Vec::with_capacity(ne),
+            suffix_count: Vec::with_capacity(ne),
+        };
+        for (pm, ps, pc, sm, ss, sc) in per_cell {
+            cells.prefix.extend(pm);
+            cells.prefix_scale.extend(ps);
+            cells.prefix_count.extend(pc);
+            cells.suffix.extend(sm);
+            cells.suffix_scale.extend(ss);
+            cells.suffix_count.extend(sc);
         }
+        cells
     }
 
     /// Intervals first(cell(e))..=e, about the cell's lower edge.
@@ -674,7 +648,8 @@ impl MomentTable {
         let d1 = self.deg + 1;
         assert!(d1 >= 7, "powers up to 6 need a table of degree 6 or more");
         let (a, b) = (piece.scale, piece.anchor - u);
-        recentre_fixed_fams::<7>(piece.m, a, b, fams, d1, binom, acc);
+        let rows = fams.iter().enumerate().map(|(r, &f)| (f, r));
+        recentre_fixed::<7>(piece.m, a, b, rows, d1, binom, acc);
         piece.count
     }
 
@@ -776,14 +751,7 @@ impl MomentTable {
 
     /// T = sum K(w) Z y (2p) from the weighted moments `a_of(family, r)`.
     fn local_rhs(&self, a_of: &impl Fn(usize, usize) -> f64) -> Vec<f64> {
-        let p = self.p;
-        let mut rhs = vec![0.0; 2 * p];
-        for a in 0..p {
-            let fy = self.fam(a, p);
-            rhs[a] = a_of(fy, 0);
-            rhs[p + a] = a_of(fy, 1);
-        }
-        rhs
+        local_rhs_of(self.p, a_of, |a| self.fam(a, self.p))
     }
 
     /// The first and last interval of window (g, h): (lo, hi) with lo in a cell at or
@@ -1079,11 +1047,7 @@ impl MomentTable {
                 self.local_rhs(&kernel_contraction(&acc, d1, h, &BIWEIGHT))
             })
             .collect();
-        let mut fit = GridFit::new(sys.grid.len(), self.p, h);
-        for (g, (s, count, mass)) in sys.points.iter().enumerate() {
-            fit.set_point(g, s, &rhs[g], *count, *mass);
-        }
-        fit
+        sys.fit_with(|g| &rhs[g])
     }
 
     /// Local-linear fits at every grid point for every bandwidth in `hs`. Every
@@ -1140,11 +1104,6 @@ impl MomentTable {
         hs.par_iter()
             .enumerate()
             .map(|(j, &h)| {
-                let mut fit = GridFit::new(grid.len(), p, h);
-                for (g, pts) in per_g.iter().enumerate() {
-                    let (s, rhs, count, mass) = &pts[j];
-                    fit.set_point(g, s, rhs, *count, *mass);
-                }
                 let sys = LocalSystems {
                     grid: grid.to_vec(),
                     h,
@@ -1154,7 +1113,7 @@ impl MomentTable {
                         .map(|pts| (pts[j].0.clone(), pts[j].2, pts[j].3))
                         .collect(),
                 };
-                (fit, sys)
+                (sys.fit_with(|g| &per_g[g][j].1), sys)
             })
             .unzip()
     }
@@ -1185,13 +1144,8 @@ impl MomentTable {
                     let h = systems[j].h;
                     let (acc, _) =
                         self.grown_window_fams(&cells, &mut whole, h, 6, &binom, Some(&fams));
-                    let a_of = kernel_contraction(&acc, d1, h, &BIWEIGHT);
-                    let mut rhs = vec![0.0; 2 * p];
-                    for a in 0..p {
-                        rhs[a] = a_of(a, 0);
-                        rhs[p + a] = a_of(a, 1);
-                    }
-                    out[j] = rhs;
+                    // row a of acc holds X_a y
+                    out[j] = local_rhs_of(p, &kernel_contraction(&acc, d1, h, &BIWEIGHT), |a| a);
                 }
                 out
             })
@@ -1199,13 +1153,7 @@ impl MomentTable {
         systems
             .par_iter()
             .enumerate()
-            .map(|(j, sys)| {
-                let mut fit = GridFit::new(grid.len(), p, sys.h);
-                for (g, (s, count, mass)) in sys.points.iter().enumerate() {
-                    fit.set_point(g, s, &per_g[g][j], *count, *mass);
-                }
-                fit
-            })
+            .map(|(j, sys)| sys.fit_with(|g| &per_g[g][j]))
             .collect()
     }
 
