@@ -246,3 +246,26 @@ fn streaming_arma_cls_matches_fit_arma() {
         assert!((u - v).abs() < 1e-6, "{u} vs {v}");
     }
 }
+
+/// The linear start on a series long enough for its prefix refinement (N above
+/// REFINE_RATIO x START_MAX: the first fit, then prefixes of N/16 and N) against the
+/// streaming Gauss-Newton on every sample run to its own convergence (the slow twin):
+/// the same optimum, its RSS within the start's stopping rule (1e-10 relative, with
+/// room for the model's prediction), never below the optimum by more than rounding.
+#[test]
+fn prefix_refined_linear_start_reaches_the_full_data_optimum() {
+    use farma::estimator::fit::{REFINE_RATIO, START_MAX, arma_cls, linear_start};
+    let n = 20 * START_MAX;
+    assert!(n > REFINE_RATIO * START_MAX);
+    let x = simulate(n, 17);
+    let (a, b) = linear_start(&x, 2, 1, 2).unwrap();
+    let rss_of = |a: &[f64], b: &[f64]| arma_cls(&x, 2, a, b, 0).2;
+    let rss = rss_of(&a, &b);
+    let (a_opt, b_opt, rss_opt) = arma_cls(&x, 2, &[0.2, -0.05], &[-0.3], 50);
+    eprintln!("start {a:?} {b:?} {rss}; optimum {a_opt:?} {b_opt:?} {rss_opt}");
+    assert!(rss >= rss_opt * (1.0 - 1e-12), "{rss} below {rss_opt}");
+    assert!(rss - rss_opt <= 1e-9 * rss_opt, "{rss} vs {rss_opt}");
+    for (u, v) in a.iter().chain(&b).zip(a_opt.iter().chain(&b_opt)) {
+        assert!((u - v).abs() < 1e-4, "{u} vs {v}");
+    }
+}

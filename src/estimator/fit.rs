@@ -2,7 +2,8 @@
 //!
 //! The scheme of the paper, made to converge to the right answer:
 //! 1. start: a linear ARMA(p,q) by conditional least squares ([`super::arma`]) on the
-//!    first [`START_MAX`] samples, refined on every sample ([`linear_start`]), gives
+//!    first [`START_MAX`] samples, refined on longer prefixes and then on every sample
+//!    ([`linear_start`]), gives
 //!    constant f_m = a_m and b (`Init::Arma`, default); `Init::Literal` is the paper's
 //!    literal start (least-squares AR(p), b = 0), kept for comparison: it stalls with
 //!    b near 0 when the MA part is strong;
@@ -237,7 +238,9 @@ pub struct FittedFarma {
     /// Trace of the smoother at the chosen bandwidth (effective degrees of freedom);
     /// p when the fit returned its linear start (constant f_m, see the module doc).
     pub trace: f64,
-    /// GCV = (RSS/m) / (1 - trace/m)^2, m = N - max(p,q,d).
+    /// GCV = (RSS/m) / (1 - trace/m)^2, m = N - max(p,q,d), of the returned model:
+    /// its own RSS (`rss`) and the smoother's trace at its bandwidth (NaN where a
+    /// grid point has no local fit there).
     pub gcv: f64,
     pub gcv_table: Vec<GcvRow>,
     /// Whether the ladder was extended beyond the paper's 21 bandwidths.
@@ -1076,6 +1079,19 @@ pub fn arma_cls(
     b0: &[f64],
     max_iter: usize,
 ) -> (Vec<f64>, Vec<f64>, f64) {
+    arma_cls_within(x, start, (a0, b0), max_iter, 0.0)
+}
+
+/// [`arma_cls`], stopping where it is, without a pass for the step, once the
+/// Gauss-Newton model predicts a further RSS decrease below `enough` times the RSS
+/// (0: never; [`arma_cls`]). Returns (a, b, RSS).
+pub fn arma_cls_within(
+    x: &[f64],
+    start: usize,
+    (a0, b0): (&[f64], &[f64]),
+    max_iter: usize,
+    enough: f64,
+) -> (Vec<f64>, Vec<f64>, f64) {
     let (p, q) = (a0.len(), b0.len());
     let k = p + q;
     let (mut a, mut b) = (a0.to_vec(), b0.to_vec());
@@ -1090,6 +1106,9 @@ pub fn arma_cls(
             .zip(&theta)
             .all(|(s, v)| s.abs() < 1e-9 * (1.0 + v.abs()))
         {
+            break;
+        }
+        if predicted_decrease(&step, &jte) < enough * rss {
             break;
         }
         // below the RSS's resolution (see ma_cls): take the step if the RSS did not
@@ -1132,15 +1151,36 @@ pub fn arma_cls(
 /// sample by [`arma_cls`] (rows t >= `start`) when the series is longer. The workflow's
 /// ARMA baseline is this same fit, so a FARMA RSS can be compared with it. None when
 /// the design is singular.
+///
+/// The refinement runs on prefixes of N / [`REFINE_RATIO`]^k samples, k = ..., 1, 0
+/// (those longer than [`START_MAX`]), shortest first: each prefix's optimum is within about 1/sqrt(its length) of the
+/// next one's, so the passes over every sample start close to their optimum and
+/// need fewer steps (on the bench's FARMA(2,1,1) series, 5 passes over every sample
+/// from the first fit, 3 from the prefix's), while all the prefixes' passes together
+/// cost less than one over every sample.
 pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<f64>, Vec<f64>)> {
     let m = fit_arma(&x[..x.len().min(START_MAX)], p, q)?;
-    if x.len() > START_MAX {
-        let (a, b, _) = arma_cls(x, start, &m.ar, &m.ma, 30);
-        Some((a, b))
-    } else {
-        Some((m.ar, m.ma))
+    let (mut a, mut b) = (m.ar, m.ma);
+    // N / RATIO^k for k = ..., 2, 1, 0, those longer than the first fit's
+    let mut lens: Vec<usize> = std::iter::successors(Some(x.len()), |l| Some(l / REFINE_RATIO))
+        .take_while(|l| *l > START_MAX)
+        .collect();
+    lens.reverse();
+    for len in lens {
+        (a, b, _) = arma_cls_within(&x[..len], start, (&a, &b), 30, START_ENOUGH);
     }
+    Some((a, b))
 }
+
+/// [`linear_start`] stops refining once the Gauss-Newton model predicts less than
+/// this relative RSS decrease ([`arma_cls_within`]): its RSS is then within about
+/// 1e-10 of the linear ARMA's least one, far below the alternation's tolerance
+/// (1e-6 by default) and any test's resolution, and a pass over every sample is saved
+/// on long series (the step that would check a decrease of that size).
+pub const START_ENOUGH: f64 = 1e-10;
+
+/// Growth of the prefixes [`linear_start`] refines the linear ARMA on.
+pub const REFINE_RATIO: usize = 16;
 
 /// One iterate of the alternation, kept while it has the least global RSS.
 struct Iterate {
@@ -1161,7 +1201,7 @@ pub const PATIENCE: usize = 2;
 
 /// Samples the linear ARMA start is first fitted on (the first ones); on longer series
 /// it is then refined on every sample by the streaming [`arma_cls`].
-pub const START_MAX: usize = 1 << 16;
+pub const START_MAX: usize = 1 << 14;
 
 /// Fits a FARMA model to `series`.
 pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
@@ -1427,13 +1467,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         rss = rss_from(&e, pp);
     }
     lap();
-    // GCV, trace and standard errors at the final bandwidth
+    // trace, GCV and standard errors at the final bandwidth: the trace and the
+    // standard errors depend on X and U only (not on the residuals), and the GCV is
+    // the returned model's, from its own RSS
     let sm = Smoother::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
     let m = (n - pp) as f64;
     let sigma2 = rss / (n - pp) as f64;
-    // one table of degree 10 gives the fit, its RSS and trace, and the standard errors
-    let (rt, factors) = match prm.path {
+    let (trace, factors) = match prm.path {
         _ if returned_start => {
             // the linear model with constant f_m: trace p (the least-squares hat
             // matrix on X_1..X_p), and Var(a) = sigma^2 (X'X)^-1 with the MA part
@@ -1445,26 +1486,34 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 Some((_, inv, _)) => (0..p).map(|i| inv[i * p + i].sqrt()).collect(),
                 None => vec![f64::NAN; p],
             };
-            (Some((rss, p as f64)), diag.repeat(g))
+            (Some(p as f64), diag.repeat(g))
         }
         FitPath::Fast => {
+            // one table of the design's families to degree 10 (K^2 for the standard
+            // errors): the local systems' inverses, the trace, the standard errors
             let table = match cache.index_for(&prob, &grid, h) {
-                Some(ix) => MomentTable::build_indexed(&prob, ix, xmin, xmax, 10, Families::All),
-                None => MomentTable::build(&prob, breakpoints(&grid, &[h]), xmin, xmax, 10),
+                Some(ix) => MomentTable::build_indexed(&prob, ix, xmin, xmax, 10, Families::Design),
+                None => MomentTable::build_families(
+                    &prob,
+                    breakpoints(&grid, &[h]),
+                    xmin,
+                    xmax,
+                    10,
+                    Families::Design,
+                ),
             };
-            let f = table.fit_ladder(&grid, &[h]).remove(0);
-            let rt = f.all_ok().then(|| table.rss_trace(&grid, &f));
-            let factors = table.se_factors(&grid, &f);
-            (rt, factors)
+            let f = table.local_systems(&grid, h).design_fit();
+            let trace = f.all_ok().then(|| table.trace(&grid, &f));
+            (trace, table.se_factors(&grid, &f))
         }
         FitPath::Direct => {
             let (f, rt) = sm.ladder_direct(&[h]).remove(0);
             let factors = direct::se_factors(&prob, &DirectIndex::build(&prob), &grid, &f);
-            (rt, factors)
+            (rt.map(|(_, tr)| tr), factors)
         }
     };
-    let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
-    let gcv = (frss / m) / (1.0 - trace / m).powi(2);
+    let trace = trace.unwrap_or(f64::NAN);
+    let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {

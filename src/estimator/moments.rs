@@ -45,6 +45,10 @@ pub enum Families {
     /// X_a y and y y: every family that holds the response (what a GCV ladder needs
     /// anew when only the residuals changed, [`MomentTable::with_response`]).
     ResponseAndSquare,
+    /// X_a X_b (a <= b) and the constant 1: the design alone, what the local systems'
+    /// left-hand sides, the smoother's trace and the standard errors need (they do
+    /// not depend on the response).
+    Design,
 }
 
 /// Moment tables over the elementary intervals of `breaks`.
@@ -154,6 +158,14 @@ impl LocalSystems {
     /// The grid points they are at.
     pub fn grid(&self) -> &[f64] {
         &self.grid
+    }
+
+    /// The systems' status, inverses S_g^-1, counts and kernel masses as a
+    /// [`GridFit`] with f = 0 and slope 0 (a zero right-hand side): what the trace
+    /// and the standard errors read, which do not depend on the response.
+    pub fn design_fit(&self) -> GridFit {
+        let zero = vec![0.0; 2 * self.p];
+        self.fit_with(|_| &zero)
     }
 
     /// The local fits with these left-hand sides and the right-hand side `rhs(g)` at
@@ -400,6 +412,15 @@ impl MomentTable {
                     }
                 }
                 pairs.push((nv, nv)); // the constant
+            }
+            Families::Design => {
+                for a in 0..p {
+                    for b in a..p {
+                        fam_of[a * nv + b] = pairs.len();
+                        pairs.push((a, b));
+                    }
+                }
+                pairs.push((nv, nv));
             }
             Families::Response | Families::ResponseAndSquare => {
                 for a in 0..p {
@@ -873,6 +894,7 @@ impl MomentTable {
         let (p, d) = (prob.p, prob.d);
         let (x, ee, bb) = (prob.x, prob.e, prob.b);
         let (centre, half, pairs) = (&self.centre[..], &self.half[..], &self.pairs[..]);
+        let with_y = pairs.iter().any(|&(a, b)| a == p || b == p);
         // V = (X_1..X_p, y, 1)
         let mut v = [0.0f64; 8];
         v[p + 1] = 1.0;
@@ -888,12 +910,14 @@ impl MomentTable {
             for (mm, vm) in v[..p].iter_mut().enumerate() {
                 *vm = x[t - 1 - mm];
             }
-            // y_t = x_t - sum b_m e_{t-m} (as VcProblem::y)
-            let mut y = x[t];
-            for (mm, bm) in bb.iter().enumerate() {
-                y -= bm * ee[t - mm - 1];
+            // y_t = x_t - sum b_m e_{t-m} (as VcProblem::y), when a family holds it
+            if with_y {
+                let mut y = x[t];
+                for (mm, bm) in bb.iter().enumerate() {
+                    y -= bm * ee[t - mm - 1];
+                }
+                v[p] = y;
             }
-            v[p] = y;
             let row = &mut m[e * width..(e + 1) * width];
             for (chunk, &(a, b)) in row.chunks_exact_mut(D1).zip(pairs) {
                 let val = v[a] * v[b];
@@ -1163,6 +1187,18 @@ impl MomentTable {
     /// from the part of each neighbouring grid point's window inside the cell (the
     /// whole cell, or the run from the grid point to the window's edge).
     pub fn rss_trace(&self, grid: &[f64], fit: &GridFit) -> (f64, f64) {
+        self.rss_trace_parts(grid, fit, true)
+    }
+
+    /// The smoother's trace alone ([`MomentTable::rss_trace`]'s, the same bits): it
+    /// needs only the design's families (any table, [`Families::Design`] included)
+    /// and `fit`'s inverses S_g^-1, not its values.
+    pub fn trace(&self, grid: &[f64], fit: &GridFit) -> f64 {
+        self.rss_trace_parts(grid, fit, false).1
+    }
+
+    /// RSS (0 unless `with_rss`) and trace.
+    fn rss_trace_parts(&self, grid: &[f64], fit: &GridFit, with_rss: bool) -> (f64, f64) {
         let p = self.p;
         let n = 2 * p;
         let d1 = self.deg + 1;
@@ -1192,33 +1228,38 @@ impl MomentTable {
                     c => (c - 1, Some(c)),
                 };
                 let (f0, l0) = (cells.first[c], cells.last[c]);
-                // the whole cell anchored at the edge nearest u_k
-                let whole_at_k = if c == 0 {
-                    self.suffix(&cells, f0)
-                } else {
-                    self.prefix(&cells, l0)
-                };
-                let mut r = vec![0.0; width];
-                self.add_piece(whole_at_k, grid[k], 2, &binom, &mut r);
-                let mom = |f: usize, s: usize| r[f * d1 + s];
-                let fa = &fit.f[k * p..(k + 1) * p];
-                let fb: Vec<f64> = match k1 {
-                    Some(k1) => (0..p)
-                        .map(|m| (fit.f[k1 * p + m] - fa[m]) / (grid[k1] - grid[k]))
-                        .collect(),
-                    None => vec![0.0; p],
-                };
-                let mut rss = mom(self.fam(p, p), 0);
-                for a in 0..p {
-                    let fy = self.fam(a, p);
-                    rss -= 2.0 * (fa[a] * mom(fy, 0) + fb[a] * mom(fy, 1));
-                    for b in 0..p {
-                        let f = self.fam(a, b);
-                        rss += fa[a] * fa[b] * mom(f, 0)
-                            + (fa[a] * fb[b] + fb[a] * fa[b]) * mom(f, 1)
-                            + fb[a] * fb[b] * mom(f, 2);
+                let rss = if with_rss {
+                    // the whole cell anchored at the edge nearest u_k
+                    let whole_at_k = if c == 0 {
+                        self.suffix(&cells, f0)
+                    } else {
+                        self.prefix(&cells, l0)
+                    };
+                    let mut r = vec![0.0; width];
+                    self.add_piece(whole_at_k, grid[k], 2, &binom, &mut r);
+                    let mom = |f: usize, s: usize| r[f * d1 + s];
+                    let fa = &fit.f[k * p..(k + 1) * p];
+                    let fb: Vec<f64> = match k1 {
+                        Some(k1) => (0..p)
+                            .map(|m| (fit.f[k1 * p + m] - fa[m]) / (grid[k1] - grid[k]))
+                            .collect(),
+                        None => vec![0.0; p],
+                    };
+                    let mut rss = mom(self.fam(p, p), 0);
+                    for a in 0..p {
+                        let fy = self.fam(a, p);
+                        rss -= 2.0 * (fa[a] * mom(fy, 0) + fb[a] * mom(fy, 1));
+                        for b in 0..p {
+                            let f = self.fam(a, b);
+                            rss += fa[a] * fa[b] * mom(f, 0)
+                                + (fa[a] * fb[b] + fb[a] * fa[b]) * mom(f, 1)
+                                + fb[a] * fb[b] * mom(f, 2);
+                        }
                     }
-                }
+                    rss
+                } else {
+                    0.0
+                };
                 // trace: (grid point, interpolation weight in powers of U - u_g, piece)
                 let mut targets: Vec<(usize, Vec<f64>, Option<Piece>)> = Vec::with_capacity(2);
                 // window of g inside the cell to its right, [u_g, u_g + h); None when
@@ -1590,6 +1631,50 @@ mod tests {
                 let refreshed = all.with_response(&prob2, index, (-2.0, 2.0));
                 assert_eq!(bits(&refreshed), bits(&fresh), "p = {p}");
             }
+        }
+    }
+
+    #[test]
+    fn a_design_table_gives_the_full_tables_trace_and_standard_errors() {
+        // the final step's table: the design's families alone, degree 10. Its local
+        // systems, trace and standard-error factors must be the full table's, bit for
+        // bit (they do not depend on y), and its pass must not read the residuals
+        let (x, e) = series(200_000, 5);
+        let grid: Vec<f64> = (0..31).map(|k| -0.45 + 0.03 * k as f64).collect();
+        let h = 0.12;
+        for p in [1, 2, 3] {
+            let prob = VcProblem::new(&x, &e, &[-0.4], p, 1);
+            let ix = IntervalIndex::build(&prob, breakpoints(&grid, &[h])).unwrap();
+            let full = MomentTable::build_indexed(&prob, &ix, -2.0, 2.0, 10, Families::All);
+            let fit = full.fit_ladder(&grid, &[h]).remove(0);
+            assert!(fit.all_ok());
+            // other residuals: the design table is the same
+            let e_other: Vec<f64> = e.iter().map(|v| 3.0 * v - 1.0).collect();
+            let prob_other = VcProblem {
+                e: &e_other,
+                b: &[0.7],
+                ..prob
+            };
+            let design =
+                MomentTable::build_indexed(&prob_other, &ix, -2.0, 2.0, 10, Families::Design);
+            assert_eq!(design.nfam, p * (p + 1) / 2 + 1);
+            let dfit = design.local_systems(&grid, h).design_fit();
+            assert_eq!(dfit.status, fit.status);
+            let sinv = |f: &GridFit| f.s_inv.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(sinv(&dfit), sinv(&fit), "p = {p}");
+            let (_, trace) = full.rss_trace(&grid, &fit);
+            assert_eq!(
+                design.trace(&grid, &dfit).to_bits(),
+                trace.to_bits(),
+                "p = {p}"
+            );
+            assert_eq!(full.trace(&grid, &fit).to_bits(), trace.to_bits());
+            let se = |v: Vec<f64>| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                se(design.se_factors(&grid, &dfit)),
+                se(full.se_factors(&grid, &fit)),
+                "p = {p}"
+            );
         }
     }
 
