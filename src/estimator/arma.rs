@@ -383,7 +383,9 @@ fn pass_rows<const P: usize, const Q: usize, const K: usize>(
     sums: &mut PassSums<K>,
 ) {
     let PassState { xh, eh, dh } = st;
-    let PassSums { rss, jtj, jte } = sums;
+    // the sums in locals (registers), J'J's upper triangle only: its lower one is the
+    // same products in the same order (de_i de_j = de_j de_i), mirrored at the end
+    let (mut rss, mut jtj, mut jte) = (sums.rss, sums.jtj, sums.jte);
     for t in rows {
         let xt = x[t];
         let mut s = xt;
@@ -402,9 +404,9 @@ fn pass_rows<const P: usize, const Q: usize, const K: usize>(
             de[j] = v;
         }
         if t >= start {
-            *rss += s * s;
+            rss += s * s;
             for i in 0..K {
-                for j in 0..K {
+                for j in i..K {
                     jtj[i][j] += de[i] * de[j];
                 }
                 jte[i] -= de[i] * s;
@@ -425,6 +427,12 @@ fn pass_rows<const P: usize, const Q: usize, const K: usize>(
             dh[0] = de;
         }
     }
+    for i in 0..K {
+        for j in 0..i {
+            jtj[i][j] = jtj[j][i];
+        }
+    }
+    (sums.rss, sums.jtj, sums.jte) = (rss, jtj, jte);
 }
 
 /// [`arma_pass`] for any order.

@@ -311,12 +311,11 @@ pub fn residuals_indexed(
     let warm = p.max(d).max(index.start()).min(x.len());
     w_head(x, d, grid, coef, &mut e[..warm]);
     let cells = index.grid_cells(grid);
-    let segs = || CellSegments::new(grid, coef, &cells);
     match p {
-        1 => w_indexed::<1>(x, d, &segs(), index, e, warm),
-        2 => w_indexed::<2>(x, d, &segs(), index, e, warm),
-        3 => w_indexed::<3>(x, d, &segs(), index, e, warm),
-        4 => w_indexed::<4>(x, d, &segs(), index, e, warm),
+        1 => w_indexed::<1>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+        2 => w_indexed::<2>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+        3 => w_indexed::<3>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+        4 => w_indexed::<4>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
         _ => {
             let cell = |t: usize, _u: f64| cells[index.interval(t)];
             w_rows(x, d, grid, coef, e, warm, &cell);
@@ -325,58 +324,65 @@ pub fn residuals_indexed(
     ma_filter_in_place(e, b);
 }
 
-/// f on each interval of an [`IntervalIndex`] as `(u - base) / width` times `diff`
+/// f on one interval of an [`IntervalIndex`] as `(u - base) / width` times `diff`
 /// plus `fa`: the operands of [`eval_cell`]'s interpolation, read instead of
 /// recomputed. Below the grid `fa` = f at the first point and `diff` = 0 (the same
-/// value: fa + lam * 0 = fa for finite lam), above it the last point's.
-struct CellSegments {
-    /// Per interval: base, width, then p values of fa and p of diff.
-    rows: Vec<f64>,
-    p: usize,
+/// value: fa + lam * 0 = fa for finite lam), above it the last point's. P is known at
+/// compile time, so a row's operands are read without bounds checks.
+struct CellSegment<const P: usize> {
+    base: f64,
+    width: f64,
+    fa: [f64; P],
+    diff: [f64; P],
 }
 
-impl CellSegments {
-    fn new(grid: &[f64], coef: &GridFit, cells: &[u32]) -> Self {
-        let p = coef.p;
-        let g = grid.len();
-        let w = 2 + 2 * p;
-        let mut rows = vec![0.0; cells.len() * w];
-        for (e, &c) in cells.iter().enumerate() {
-            let r = &mut rows[e * w..(e + 1) * w];
+/// The [`CellSegment`] of every interval, from the grid cell of each (`cells`).
+fn cell_segments<const P: usize>(
+    grid: &[f64],
+    coef: &GridFit,
+    cells: &[u32],
+) -> Vec<CellSegment<P>> {
+    debug_assert_eq!(coef.p, P);
+    let g = grid.len();
+    cells
+        .iter()
+        .map(|&c| {
             let (k, inside) = match c {
                 BELOW_GRID => (0, false),
                 ABOVE_GRID => (g - 1, false),
                 k => (k as usize, true),
             };
-            r[0] = grid[k];
-            r[1] = if inside { grid[k + 1] - grid[k] } else { 1.0 };
-            for m in 0..p {
-                let fa = coef.f[k * p + m];
-                r[2 + m] = fa;
-                r[2 + p + m] = if inside {
-                    coef.f[(k + 1) * p + m] - fa
+            let mut seg = CellSegment {
+                base: grid[k],
+                width: if inside { grid[k + 1] - grid[k] } else { 1.0 },
+                fa: [0.0; P],
+                diff: [0.0; P],
+            };
+            for m in 0..P {
+                let fa = coef.f[k * P + m];
+                seg.fa[m] = fa;
+                seg.diff[m] = if inside {
+                    coef.f[(k + 1) * P + m] - fa
                 } else {
                     0.0
                 };
             }
-        }
-        CellSegments { rows, p }
-    }
+            seg
+        })
+        .collect()
 }
 
 /// w_t for rows `warm..` with p known at compile time, chunks in parallel.
 fn w_indexed<const P: usize>(
     x: &[f64],
     d: usize,
-    segs: &CellSegments,
+    segs: &[CellSegment<P>],
     index: &IntervalIndex,
     e: &mut [f64],
     warm: usize,
 ) {
     use rayon::prelude::*;
-    debug_assert_eq!(segs.p, P);
     const CHUNK: usize = 1 << 16;
-    let width = 2 + 2 * P;
     e[warm..]
         .par_chunks_mut(CHUNK)
         .enumerate()
@@ -384,13 +390,12 @@ fn w_indexed<const P: usize>(
             let t0 = warm + c * CHUNK;
             for (i, w) in out.iter_mut().enumerate() {
                 let t = t0 + i;
-                let k = index.interval(t);
-                let r = &segs.rows[k * width..(k + 1) * width];
+                let r = &segs[index.interval(t)];
                 let u = x[t - d];
-                let lam = (u - r[0]) / r[1];
+                let lam = (u - r.base) / r.width;
                 let mut s = x[t];
                 for m in 0..P {
-                    s -= (r[2 + m] + lam * r[2 + P + m]) * x[t - m - 1];
+                    s -= (r.fa[m] + lam * r.diff[m]) * x[t - m - 1];
                 }
                 *w = s;
             }
