@@ -289,10 +289,13 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
 pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
     let lookup = IntervalLookup::new(grid);
     let warm = coef.p.max(d).min(x.len());
-    w_head(x, d, grid, coef, &mut e[..warm]);
     let cell = |_t: usize, u: f64| grid_cell(grid, &lookup, u);
-    w_rows(x, d, grid, coef, e, warm, &cell);
-    ma_filter_in_place(e, b);
+    let fill = |e: &mut [f64]| {
+        w_head(x, d, grid, coef, &mut e[..warm]);
+        w_rows(x, d, grid, coef, e, warm, &cell);
+    };
+    fill(e);
+    ma_filter_rss(e, b, usize::MAX, fill);
 }
 
 /// [`residuals`] with the grid cell of every row from `start` on read from `index`
@@ -309,19 +312,22 @@ pub fn residuals_indexed(
 ) {
     let p = coef.p;
     let warm = p.max(d).max(index.start()).min(x.len());
-    w_head(x, d, grid, coef, &mut e[..warm]);
     let cells = index.grid_cells(grid);
-    match p {
-        1 => w_indexed::<1>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
-        2 => w_indexed::<2>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
-        3 => w_indexed::<3>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
-        4 => w_indexed::<4>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
-        _ => {
-            let cell = |t: usize, _u: f64| cells[index.interval(t)];
-            w_rows(x, d, grid, coef, e, warm, &cell);
+    let fill = |e: &mut [f64]| {
+        w_head(x, d, grid, coef, &mut e[..warm]);
+        match p {
+            1 => w_indexed::<1>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+            2 => w_indexed::<2>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+            3 => w_indexed::<3>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+            4 => w_indexed::<4>(x, d, &cell_segments(grid, coef, &cells), index, e, warm),
+            _ => {
+                let cell = |t: usize, _u: f64| cells[index.interval(t)];
+                w_rows(x, d, grid, coef, e, warm, &cell);
+            }
         }
-    }
-    ma_filter_in_place(e, b);
+    };
+    fill(e);
+    ma_filter_rss(e, b, usize::MAX, fill);
 }
 
 /// f on one interval of an [`IntervalIndex`] as `(u - base) / width` times `diff`
@@ -498,18 +504,32 @@ fn eval_with(coef: &GridFit, grid: &[f64], lookup: &IntervalLookup, u: f64, out:
 }
 
 /// Turns w (in `buf`) into the residuals e_t = w_t - sum b_m e_{t-m} in place, zeros
-/// before the first sample: e_t needs only earlier e, already in place.
-fn ma_filter_in_place(buf: &mut [f64], b: &[f64]) {
-    ma_filter_rss(buf, b, usize::MAX);
-}
-
-/// [`ma_filter_in_place`], returning the RSS over t >= `start` (summed in the order of
-/// [`rss_from`], so the same bits).
-fn ma_filter_rss(buf: &mut [f64], b: &[f64], start: usize) -> f64 {
+/// before the first sample (e_t needs only earlier e, already in place), and returns
+/// their RSS over t >= `start` ([`rss_from`]'s sum, the same bits). For q = 1, 2 on
+/// series of two [`FILTER_CHUNK`]s or more the recursion runs in chunks, in parallel,
+/// with every e_t exact ([`ma_filter_chunked`]); when a chunk cannot be made exact
+/// (b near the edge of invertibility) `refill` puts w back into `buf` and the
+/// recursion runs serially.
+fn ma_filter_rss(buf: &mut [f64], b: &[f64], start: usize, refill: impl FnOnce(&mut [f64])) -> f64 {
+    let chunked = |buf: &mut [f64]| match b.len() {
+        1 => ma_filter_chunked::<1>(buf, b, start),
+        2 => ma_filter_chunked::<2>(buf, b, start),
+        _ => None,
+    };
+    if buf.len() >= 2 * FILTER_CHUNK && b.len() <= 2 && !b.is_empty() {
+        if let Some(rss) = chunked(buf) {
+            return rss;
+        }
+        refill(buf);
+    }
     match b.len() {
-        0 => rss_from(buf, start.min(buf.len())),
-        1 => ma_filter_fixed::<1>(buf, b, start),
-        2 => ma_filter_fixed::<2>(buf, b, start),
+        0 => {}
+        1 => {
+            filter_rows::<1>(buf, &[b[0]], 0, &mut [0.0], start);
+        }
+        2 => {
+            filter_rows::<2>(buf, &[b[0], b[1]], 0, &mut [0.0; 2], start);
+        }
         _ => {
             let q = b.len().min(buf.len());
             for t in 0..q {
@@ -528,25 +548,38 @@ fn ma_filter_rss(buf: &mut [f64], b: &[f64], start: usize) -> f64 {
                 }
                 buf[t] = s;
             }
-            rss_from(buf, start.min(buf.len()))
         }
     }
+    rss_from(buf, start.min(buf.len()))
 }
 
-/// [`ma_filter_rss`] for q known at compile time: the last q residuals in registers
-/// (zeros before the first sample; subtracting b_m * 0 leaves the sums as above).
-fn ma_filter_fixed<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -> f64 {
-    let mut bb = [0.0f64; Q];
-    bb.copy_from_slice(b);
-    let mut eh = [0.0f64; Q];
+/// Rows per chunk of the parallel MA filter, and of the RSS's sum on series of two
+/// chunks or more ([`rss_from`]).
+pub const FILTER_CHUNK: usize = 1 << 18;
+
+/// Rows at the head of each chunk that are re-run from the true state
+/// ([`ma_filter_chunked`]); the RSS sums them apart from the rest of their chunk.
+pub const FILTER_LEAD: usize = 1 << 12;
+
+/// The MA recursion over `rows` (row t0 first) from the lags `eh` (left at the state
+/// after them), e_t in place; returns sum e_t^2 over rows t >= `start`. The last q
+/// residuals are kept in registers (zeros before the first sample: subtracting
+/// b_m * 0 leaves every value as the general loop's).
+fn filter_rows<const Q: usize>(
+    rows: &mut [f64],
+    b: &[f64; Q],
+    t0: usize,
+    eh: &mut [f64; Q],
+    start: usize,
+) -> f64 {
     let mut rss = 0.0;
-    for (t, v) in buf.iter_mut().enumerate() {
+    for (i, v) in rows.iter_mut().enumerate() {
         let mut s = *v;
         for m in 0..Q {
-            s -= bb[m] * eh[m];
+            s -= b[m] * eh[m];
         }
         *v = s;
-        if t >= start {
+        if t0 + i >= start {
             rss += s * s;
         }
         for m in (1..Q).rev() {
@@ -557,8 +590,86 @@ fn ma_filter_fixed<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -> 
     rss
 }
 
+/// [`ma_filter_rss`] in chunks of [`FILTER_CHUNK`] rows, in parallel, every e_t the
+/// serial recursion's, bit for bit (as `arma_pass` does for its passes): each chunk
+/// first runs from a zero MA state (chunk 0 from the true one), keeping a copy of its
+/// first [`FILTER_LEAD`] values of w and recording its state after them; then, chunk
+/// after chunk, those rows re-run from the true state (the previous chunk's end). The
+/// zero start's error decays like rho^t (rho the largest root of the MA
+/// polynomial); once the two states agree to the bit every later row is the same
+/// computation, so the chunk's values, end state and sum are exact. None when they
+/// do not agree (rho near 1): `buf` then holds neither w nor e. The RSS is summed per
+/// chunk (its lead rows, then the rest) and the chunks in order, as [`rss_from`].
+fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -> Option<f64> {
+    use rayon::prelude::*;
+    let mut bb = [0.0f64; Q];
+    bb.copy_from_slice(b);
+    let heads: Vec<Vec<f64>> = buf
+        .chunks(FILTER_CHUNK)
+        .skip(1)
+        .map(|c| c[..FILTER_LEAD.min(c.len())].to_vec())
+        .collect();
+    // (state after the lead, end state, sum over the lead, sum over the rest)
+    type Part<const Q: usize> = ([f64; Q], [f64; Q], f64, f64);
+    let parts: Vec<Part<Q>> = buf
+        .par_chunks_mut(FILTER_CHUNK)
+        .enumerate()
+        .map(|(c, rows)| {
+            let t0 = c * FILTER_CHUNK;
+            let lead = FILTER_LEAD.min(rows.len());
+            let mut eh = [0.0f64; Q];
+            let (head, rest) = rows.split_at_mut(lead);
+            let head_sum = filter_rows(head, &bb, t0, &mut eh, start);
+            let at_lead = eh;
+            let rest_sum = filter_rows(rest, &bb, t0 + lead, &mut eh, start);
+            (at_lead, eh, head_sum, rest_sum)
+        })
+        .collect();
+    let mut rss = 0.0;
+    rss += parts[0].2 + parts[0].3;
+    let mut state = parts[0].1;
+    for (c, (w_head, part)) in heads.iter().zip(&parts[1..]).enumerate() {
+        let t0 = (c + 1) * FILTER_CHUNK;
+        let rows = &mut buf[t0..t0 + w_head.len()];
+        rows.copy_from_slice(w_head);
+        let mut eh = state;
+        let head_sum = filter_rows(rows, &bb, t0, &mut eh, start);
+        let same = eh
+            .iter()
+            .zip(&part.0)
+            .all(|(u, v)| u.to_bits() == v.to_bits());
+        if !same {
+            return None;
+        }
+        rss += head_sum + part.3;
+        state = part.1;
+    }
+    Some(rss)
+}
+
+/// Sum of e_t^2 over t >= `start`: in order on series shorter than two
+/// [`FILTER_CHUNK`]s; else per chunk (its first [`FILTER_LEAD`] rows, then the rest,
+/// added) and the chunks in order, the order [`ma_filter_chunked`] sums in.
 fn rss_from(e: &[f64], start: usize) -> f64 {
-    e[start..].iter().map(|v| v * v).sum()
+    let sq = |rows: &[f64], t0: usize| -> f64 {
+        let mut s = 0.0;
+        for (i, v) in rows.iter().enumerate() {
+            if t0 + i >= start {
+                s += v * v;
+            }
+        }
+        s
+    };
+    if e.len() < 2 * FILTER_CHUNK {
+        return sq(e, 0);
+    }
+    let mut rss = 0.0;
+    for (c, rows) in e.chunks(FILTER_CHUNK).enumerate() {
+        let t0 = c * FILTER_CHUNK;
+        let lead = FILTER_LEAD.min(rows.len());
+        rss += sq(&rows[..lead], t0) + sq(&rows[lead..], t0 + lead);
+    }
+    rss
 }
 
 /// Fills failed grid points by linear interpolation between the nearest Ok points
@@ -1051,7 +1162,7 @@ pub fn ma_step(
     buf: &mut [f64],
     start: usize,
     b0: &[f64],
-    refill: impl FnOnce(&mut [f64]),
+    mut refill: impl FnMut(&mut [f64]),
 ) -> (Vec<f64>, f64) {
     let q = b0.len();
     let (rss0, jtj, jte) = arma_pass(buf, start, &[], b0);
@@ -1060,14 +1171,14 @@ pub fn ma_step(
         None => b0.to_vec(),
     };
     if ma_invertible(&b1) {
-        let rss1 = ma_filter_rss(buf, &b1, start);
+        let rss1 = ma_filter_rss(buf, &b1, start, &mut refill);
         if rss1 <= rss0 * (1.0 + FLAT_RSS) {
             return (b1, rss1);
         }
         refill(buf);
     }
     let b = ma_cls(buf, start, b0);
-    let rss = ma_filter_rss(buf, &b, start);
+    let rss = ma_filter_rss(buf, &b, start, &mut refill);
     (b, rss)
 }
 
@@ -1618,8 +1729,9 @@ mod tests {
             panic!("no refill near the optimum")
         });
         let mut e = w.clone();
-        ma_filter_in_place(&mut e, &b);
+        let rss_e = ma_filter_rss(&mut e, &b, 1, |_| unreachable!("q = 1, N below two chunks"));
         assert_eq!(buf, e);
+        assert_eq!(rss.to_bits(), rss_e.to_bits());
         assert_eq!(rss.to_bits(), rss_from(&e, 1).to_bits());
         // far from it: one step still lowers the RSS, and the returned RSS is the one
         // at the returned b; had the step raised it, ma_step would refill w and run
@@ -1631,6 +1743,62 @@ mod tests {
             let (r_new, _, _) = arma_pass(&w, 1, &[], &b);
             assert!(r_new < r_far, "{b:?}");
             assert_eq!(rss.to_bits(), r_new.to_bits());
+        }
+    }
+
+    /// The serial MA recursion, the general loop (the chunked filter's slow twin).
+    fn serial_filter(w: &[f64], b: &[f64]) -> Vec<f64> {
+        let mut e = w.to_vec();
+        for t in 0..e.len() {
+            let mut s = e[t];
+            for (m, bm) in b.iter().enumerate() {
+                if t > m {
+                    s -= bm * e[t - m - 1];
+                }
+            }
+            e[t] = s;
+        }
+        e
+    }
+
+    #[test]
+    fn chunked_ma_filter_is_the_serial_recursion_bit_for_bit() {
+        // three chunks and a short fourth: every e_t the serial recursion's, the RSS
+        // rss_from's (its chunked order) and within rounding of a plain sum, for 1 and
+        // 2 threads; b near the edge of invertibility (0.9999^4096 = 0.66: the chunk
+        // states cannot agree) refills w and runs serially, with the same results
+        let n = 3 * FILTER_CHUNK + 12_345;
+        let w = uniform(n, 21);
+        for b in [vec![-0.6], vec![0.5, -0.3], vec![0.9999], vec![-1.2, 0.36]] {
+            let want = serial_filter(&w, &b);
+            let plain: f64 = want[2..].iter().map(|v| v * v).sum();
+            let near_edge = b == [0.9999];
+            let mut outs = Vec::new();
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let mut buf = w.clone();
+                let mut refills = 0;
+                let rss = pool.install(|| {
+                    ma_filter_rss(&mut buf, &b, 2, |v: &mut [f64]| {
+                        refills += 1;
+                        v.copy_from_slice(&w)
+                    })
+                });
+                assert_eq!(refills, usize::from(near_edge), "b = {b:?}");
+                assert!(
+                    buf.iter()
+                        .zip(&want)
+                        .all(|(u, v)| u.to_bits() == v.to_bits()),
+                    "b = {b:?}"
+                );
+                assert_eq!(rss.to_bits(), rss_from(&want, 2).to_bits(), "b = {b:?}");
+                assert!((rss - plain).abs() <= 1e-12 * plain, "{rss} vs {plain}");
+                outs.push(rss.to_bits());
+            }
+            assert_eq!(outs[0], outs[1]);
         }
     }
 }
