@@ -267,19 +267,26 @@ fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64])
     let n = rows.len();
     let stride = n.div_ceil(1_000_000).max(1);
     let mut v: Vec<f64> = rows.step_by(stride).map(u).collect();
-    // order statistics by selection (the values a full sort would put there)
-    qs.iter()
-        .map(|q| {
-            let pos = q * (v.len() - 1) as f64;
-            let (i, frac) = (pos.floor() as usize, pos - pos.floor());
-            let (_, vi, right) = v.select_nth_unstable_by(i, f64::total_cmp);
-            let vi = *vi;
-            match right.iter().min_by(|a, b| a.total_cmp(b)) {
-                Some(&next) => vi + frac * (next - vi),
-                None => vi,
-            }
-        })
-        .collect()
+    // order statistics by selection (the values a full sort would put there); after
+    // selecting rank i every larger rank lies in v[i + 1..], so quantiles taken in
+    // increasing order select within what is left of the last one
+    let mut order: Vec<usize> = (0..qs.len()).collect();
+    order.sort_by(|a, b| qs[*a].total_cmp(&qs[*b]));
+    let mut out = vec![f64::NAN; qs.len()];
+    let mut from = 0;
+    for k in order {
+        let pos = qs[k] * (v.len() - 1) as f64;
+        let (i, frac) = (pos.floor() as usize, pos - pos.floor());
+        let i = i.max(from);
+        let (_, vi, right) = v[from..].select_nth_unstable_by(i - from, f64::total_cmp);
+        let vi = *vi;
+        out[k] = match right.iter().min_by(|a, b| a.total_cmp(b)) {
+            Some(&next) => vi + frac * (next - vi),
+            None => vi,
+        };
+        from = i;
+    }
+    out
 }
 
 /// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
@@ -1340,16 +1347,17 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         0.0
     };
     let x: Vec<f64> = series.iter().map(|v| v - mean).collect();
-    if x.iter().any(|v| !v.is_finite()) {
+    // the extremes and the NaN check in one pass (f64::min and max skip NaN; an
+    // infinite value shows as an infinite extreme)
+    let (xmin, xmax, nan) = x.iter().fold(
+        (f64::INFINITY, f64::NEG_INFINITY, false),
+        |(a, b, nan), v| (a.min(*v), b.max(*v), nan | v.is_nan()),
+    );
+    if nan || !xmin.is_finite() || !xmax.is_finite() {
         return Err(Error::Usage(
             "the channel holds NaN or infinite values".into(),
         ));
     }
-    let (xmin, xmax) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(*v), b.max(*v))
-        });
     let range = xmax - xmin;
     if range.is_nan() || range <= 0.0 {
         return Err(Error::Usage(
@@ -1799,6 +1807,36 @@ mod tests {
                 outs.push(rss.to_bits());
             }
             assert_eq!(outs[0], outs[1]);
+        }
+    }
+
+    #[test]
+    fn quantiles_by_selection_equal_those_of_a_full_sort() {
+        // increasing, decreasing and repeated levels, with ties in the data
+        let v: Vec<f64> = uniform(10_001, 4)
+            .iter()
+            .map(|u| (u * 50.0).round())
+            .collect();
+        let mut sorted = v.clone();
+        sorted.sort_by(f64::total_cmp);
+        let by_sort = |q: f64| {
+            let pos = q * (sorted.len() - 1) as f64;
+            let (i, frac) = (pos.floor() as usize, pos - pos.floor());
+            match sorted.get(i + 1) {
+                Some(next) => sorted[i] + frac * (next - sorted[i]),
+                None => sorted[i],
+            }
+        };
+        for qs in [
+            vec![0.1, 0.9],
+            vec![0.9, 0.1],
+            vec![0.0, 0.5, 0.5, 1.0],
+            vec![0.33],
+        ] {
+            let got = quantiles(|t| v[t], 0..v.len(), &qs);
+            for (q, g) in qs.iter().zip(&got) {
+                assert_eq!(g.to_bits(), by_sort(*q).to_bits(), "q = {q} of {qs:?}");
+            }
         }
     }
 }
