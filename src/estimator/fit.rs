@@ -240,7 +240,9 @@ pub struct FittedFarma {
     pub trace: f64,
     /// GCV = (RSS/m) / (1 - trace/m)^2, m = N - max(p,q,d), of the returned model:
     /// its own RSS (`rss`) and the smoother's trace at its bandwidth (NaN where a
-    /// grid point has no local fit there).
+    /// grid point has no local fit there). The GCV table's rows are the ladder's
+    /// criterion instead (the RSS of each rung's smoother on that ladder's
+    /// residuals), so the chosen row's value differs from this one slightly.
     pub gcv: f64,
     pub gcv_table: Vec<GcvRow>,
     /// Whether the ladder was extended beyond the paper's 21 bandwidths.
@@ -611,6 +613,7 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
     use rayon::prelude::*;
     let mut bb = [0.0f64; Q];
     bb.copy_from_slice(b);
+    let n = buf.len();
     let heads: Vec<Vec<f64>> = buf
         .chunks(FILTER_CHUNK)
         .skip(1)
@@ -641,6 +644,11 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
         rows.copy_from_slice(w_head);
         let mut eh = state;
         let head_sum = filter_rows(rows, &bb, t0, &mut eh, start);
+        if t0 + w_head.len() == n {
+            // a last chunk of its lead rows only: re-run from the true state, exact
+            rss += head_sum + part.3;
+            break;
+        }
         let same = eh
             .iter()
             .zip(&part.0)
@@ -658,12 +666,11 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
 /// [`FILTER_CHUNK`]s; else per chunk (its first [`FILTER_LEAD`] rows, then the rest,
 /// added) and the chunks in order, the order [`ma_filter_chunked`] sums in.
 fn rss_from(e: &[f64], start: usize) -> f64 {
+    // rows t0.. from `start` on (the same additions as a test per row)
     let sq = |rows: &[f64], t0: usize| -> f64 {
         let mut s = 0.0;
-        for (i, v) in rows.iter().enumerate() {
-            if t0 + i >= start {
-                s += v * v;
-            }
+        for v in &rows[start.saturating_sub(t0).min(rows.len())..] {
+            s += v * v;
         }
         s
     };
@@ -1231,7 +1238,7 @@ pub fn arma_cls_within(
         {
             break;
         }
-        if predicted_decrease(&step, &jte) < enough * rss {
+        if enough > 0.0 && predicted_decrease(&step, &jte) < enough * rss {
             break;
         }
         // below the RSS's resolution (see ma_cls): take the step if the RSS did not
@@ -1270,8 +1277,9 @@ pub fn arma_cls_within(
 }
 
 /// The linear ARMA(p,q) the FARMA fit starts from (and nests): conditional least
-/// squares ([`fit_arma`]) on the first [`START_MAX`] samples of `x`, refined on every
-/// sample by [`arma_cls`] (rows t >= `start`) when the series is longer. The workflow's
+/// squares ([`fit_arma`]) on the first [`START_MAX`] samples of `x`, refined on longer
+/// prefixes and then on every sample by [`arma_cls_within`] (rows t >= `start`, to
+/// [`START_ENOUGH`]) when the series is longer. The workflow's
 /// ARMA baseline is this same fit, so a FARMA RSS can be compared with it. None when
 /// the design is singular.
 ///
@@ -1323,7 +1331,8 @@ struct Iterate {
 pub const PATIENCE: usize = 2;
 
 /// Samples the linear ARMA start is first fitted on (the first ones); on longer series
-/// it is then refined on every sample by the streaming [`arma_cls`].
+/// it is then refined on longer prefixes and on every sample by the streaming
+/// [`arma_cls_within`] ([`linear_start`]).
 pub const START_MAX: usize = 1 << 14;
 
 /// Fits a FARMA model to `series`.
@@ -1775,9 +1784,16 @@ mod tests {
         // rss_from's (its chunked order) and within rounding of a plain sum, for 1 and
         // 2 threads; b near the edge of invertibility (0.9999^4096 = 0.66: the chunk
         // states cannot agree) refills w and runs serially, with the same results
-        let n = 3 * FILTER_CHUNK + 12_345;
-        let w = uniform(n, 21);
-        for b in [vec![-0.6], vec![0.5, -0.3], vec![0.9999], vec![-1.2, 0.36]] {
+        // (and a last chunk of 100 rows, fewer than the lead: exact from its re-run,
+        // no refill even for b = 0.99, whose zero start needs thousands of rows)
+        for (n, b) in [
+            (3 * FILTER_CHUNK + 12_345, vec![-0.6]),
+            (3 * FILTER_CHUNK + 12_345, vec![0.5, -0.3]),
+            (3 * FILTER_CHUNK + 12_345, vec![0.9999]),
+            (3 * FILTER_CHUNK + 12_345, vec![-1.2, 0.36]),
+            (2 * FILTER_CHUNK + 100, vec![0.99]),
+        ] {
+            let w = uniform(n, 21);
             let want = serial_filter(&w, &b);
             let plain: f64 = want[2..].iter().map(|v| v * v).sum();
             let near_edge = b == [0.9999];

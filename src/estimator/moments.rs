@@ -987,6 +987,11 @@ impl MomentTable {
             "a full table"
         );
         assert_eq!(prob.p, self.p);
+        assert_eq!(
+            self.nfam,
+            (self.p + 1) * (self.p + 2) / 2 + 1,
+            "a table of every family"
+        );
         let fams = Families::ResponseAndSquare;
         let fresh = match index {
             Some(ix) => {
@@ -1191,8 +1196,8 @@ impl MomentTable {
     }
 
     /// The smoother's trace alone ([`MomentTable::rss_trace`]'s, the same bits): it
-    /// needs only the design's families (any table, [`Families::Design`] included)
-    /// and `fit`'s inverses S_g^-1, not its values.
+    /// needs only the design's families (an [`Families::All`] or [`Families::Design`]
+    /// table) and `fit`'s inverses S_g^-1, not its values.
     pub fn trace(&self, grid: &[f64], fit: &GridFit) -> f64 {
         self.rss_trace_parts(grid, fit, false).1
     }
@@ -1200,6 +1205,10 @@ impl MomentTable {
     /// RSS (0 unless `with_rss`) and trace.
     fn rss_trace_parts(&self, grid: &[f64], fit: &GridFit, with_rss: bool) -> (f64, f64) {
         let p = self.p;
+        assert!(
+            self.pairs.contains(&(0, 0)) && (!with_rss || self.pairs.contains(&(p, p))),
+            "the trace needs the design's families, the RSS every family"
+        );
         let n = 2 * p;
         let d1 = self.deg + 1;
         let width = self.nfam * d1;
