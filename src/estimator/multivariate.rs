@@ -498,6 +498,8 @@ pub struct Fitted2 {
     pub rss: f64,
     pub sigma2: f64,
     pub trace: f64,
+    /// GCV = (RSS/m) / (1 - trace/m)^2 of the returned model, from its own RSS
+    /// (`rss`) and the smoother's trace at its bandwidths, as the 1-D fit's.
     pub gcv: f64,
     pub gcv_table: Vec<Gcv2Row>,
     pub ladder_extended: bool,
@@ -826,8 +828,9 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     };
     let (final_fit, rt) = sm.at(h);
     let m = (n - pp) as f64;
-    let (frss, trace) = rt.unwrap_or((f64::NAN, f64::NAN));
-    let gcv = (frss / m) / (1.0 - trace / m).powi(2);
+    // the returned model's GCV, from its own RSS (as the 1-D fit's)
+    let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
+    let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let sigma2 = rss / m;
     let se: Vec<f64> = se_factors2(&prob, &index, &grid, &final_fit)
         .iter()
