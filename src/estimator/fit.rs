@@ -37,6 +37,8 @@
 //! [`PATIENCE`] rule (`converged` is true when either rule stopped the alternation,
 //! false when `max_iter` did).
 
+use std::ops::Range;
+
 use super::arma::{arma_pass, arma_residuals, fit_arma, lagged_normal, ma_invertible};
 use super::direct::{self, DirectIndex};
 use super::linalg::{normal_equations, spd_solve_inverse};
@@ -520,25 +522,10 @@ fn eval_with(coef: &GridFit, grid: &[f64], lookup: &IntervalLookup, u: f64, out:
 /// (b near the edge of invertibility) `refill` puts w back into `buf` and the
 /// recursion runs serially.
 fn ma_filter_rss(buf: &mut [f64], b: &[f64], start: usize, refill: impl FnOnce(&mut [f64])) -> f64 {
-    let chunked = |buf: &mut [f64]| match b.len() {
-        1 => ma_filter_chunked::<1>(buf, b, start),
-        2 => ma_filter_chunked::<2>(buf, b, start),
-        _ => None,
-    };
-    if buf.len() >= 2 * FILTER_CHUNK && b.len() <= 2 && !b.is_empty() {
-        if let Some(rss) = chunked(buf) {
-            return rss;
-        }
-        refill(buf);
-    }
     match b.len() {
-        0 => {}
-        1 => {
-            filter_rows::<1>(buf, &[b[0]], 0, &mut [0.0], start);
-        }
-        2 => {
-            filter_rows::<2>(buf, &[b[0], b[1]], 0, &mut [0.0; 2], start);
-        }
+        0 => rss_from(buf, start),
+        1 => ma_filter_fixed::<1>(buf, b, start, refill),
+        2 => ma_filter_fixed::<2>(buf, b, start, refill),
         _ => {
             let q = b.len().min(buf.len());
             for t in 0..q {
@@ -557,9 +544,36 @@ fn ma_filter_rss(buf: &mut [f64], b: &[f64], start: usize, refill: impl FnOnce(&
                 }
                 buf[t] = s;
             }
+            rss_from(buf, start)
         }
     }
-    rss_from(buf, start.min(buf.len()))
+}
+
+/// [`ma_filter_rss`] for q known at compile time: in parallel chunks on long series
+/// ([`ma_filter_chunked`]), else (or after `refill`) serially, the RSS summed on the
+/// way in [`rss_from`]'s order.
+fn ma_filter_fixed<const Q: usize>(
+    buf: &mut [f64],
+    b: &[f64],
+    start: usize,
+    refill: impl FnOnce(&mut [f64]),
+) -> f64 {
+    let mut bb = [0.0f64; Q];
+    bb.copy_from_slice(b);
+    if buf.len() >= 2 * FILTER_CHUNK {
+        if let Some(rss) = ma_filter_chunked(buf, &bb, start) {
+            return rss;
+        }
+        refill(buf);
+    }
+    let mut eh = [0.0f64; Q];
+    let mut rss = 0.0;
+    for (head, rest) in rss_groups(buf.len()) {
+        let (h0, r0) = (head.start, rest.start);
+        let head_sum = filter_rows(&mut buf[head], &bb, h0, &mut eh, start);
+        rss += head_sum + filter_rows(&mut buf[rest], &bb, r0, &mut eh, start);
+    }
+    rss
 }
 
 /// Rows per chunk of the parallel MA filter, and of the RSS's sum on series of two
@@ -609,10 +623,8 @@ fn filter_rows<const Q: usize>(
 /// computation, so the chunk's values, end state and sum are exact. None when they
 /// do not agree (rho near 1): `buf` then holds neither w nor e. The RSS is summed per
 /// chunk (its lead rows, then the rest) and the chunks in order, as [`rss_from`].
-fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -> Option<f64> {
+fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], bb: &[f64; Q], start: usize) -> Option<f64> {
     use rayon::prelude::*;
-    let mut bb = [0.0f64; Q];
-    bb.copy_from_slice(b);
     let n = buf.len();
     let heads: Vec<Vec<f64>> = buf
         .chunks(FILTER_CHUNK)
@@ -629,9 +641,9 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
             let lead = FILTER_LEAD.min(rows.len());
             let mut eh = [0.0f64; Q];
             let (head, rest) = rows.split_at_mut(lead);
-            let head_sum = filter_rows(head, &bb, t0, &mut eh, start);
+            let head_sum = filter_rows(head, bb, t0, &mut eh, start);
             let at_lead = eh;
-            let rest_sum = filter_rows(rest, &bb, t0 + lead, &mut eh, start);
+            let rest_sum = filter_rows(rest, bb, t0 + lead, &mut eh, start);
             (at_lead, eh, head_sum, rest_sum)
         })
         .collect();
@@ -643,17 +655,14 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
         let rows = &mut buf[t0..t0 + w_head.len()];
         rows.copy_from_slice(w_head);
         let mut eh = state;
-        let head_sum = filter_rows(rows, &bb, t0, &mut eh, start);
-        if t0 + w_head.len() == n {
-            // a last chunk of its lead rows only: re-run from the true state, exact
-            rss += head_sum + part.3;
-            break;
-        }
+        let head_sum = filter_rows(rows, bb, t0, &mut eh, start);
+        // a last chunk of its lead rows only is exact from this re-run alone
+        let lead_only = t0 + w_head.len() == n;
         let same = eh
             .iter()
             .zip(&part.0)
             .all(|(u, v)| u.to_bits() == v.to_bits());
-        if !same {
+        if !(same || lead_only) {
             return None;
         }
         rss += head_sum + part.3;
@@ -662,26 +671,38 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], b: &[f64], start: usize) -
     Some(rss)
 }
 
-/// Sum of e_t^2 over t >= `start`: in order on series shorter than two
-/// [`FILTER_CHUNK`]s; else per chunk (its first [`FILTER_LEAD`] rows, then the rest,
-/// added) and the chunks in order, the order [`ma_filter_chunked`] sums in.
+/// How a sum of squares over n rows is grouped, the same wherever an RSS of
+/// residuals is summed ([`rss_from`], the MA filters): a series shorter than two
+/// [`FILTER_CHUNK`]s in one sequential sum (one group, its rest empty); a longer one
+/// per chunk of [`FILTER_CHUNK`] rows, its first [`FILTER_LEAD`] rows and then the
+/// rest, the chunk's (lead + rest) added to the total chunk after chunk (the order
+/// [`ma_filter_chunked`] sums in). Yields (lead rows, rest rows) per group.
+fn rss_groups(n: usize) -> impl Iterator<Item = (Range<usize>, Range<usize>)> {
+    let (chunk, lead) = if n < 2 * FILTER_CHUNK {
+        (n.max(1), n)
+    } else {
+        (FILTER_CHUNK, FILTER_LEAD)
+    };
+    (0..n).step_by(chunk).map(move |s| {
+        let end = (s + chunk).min(n);
+        let mid = (s + lead).min(end);
+        (s..mid, mid..end)
+    })
+}
+
+/// Sum of e_t^2 over t >= `start`, grouped by [`rss_groups`].
 fn rss_from(e: &[f64], start: usize) -> f64 {
-    // rows t0.. from `start` on (the same additions as a test per row)
-    let sq = |rows: &[f64], t0: usize| -> f64 {
+    // rows r from `start` on
+    let sq = |r: Range<usize>| -> f64 {
         let mut s = 0.0;
-        for v in &rows[start.saturating_sub(t0).min(rows.len())..] {
+        for v in &e[r.start.max(start).min(r.end)..r.end] {
             s += v * v;
         }
         s
     };
-    if e.len() < 2 * FILTER_CHUNK {
-        return sq(e, 0);
-    }
     let mut rss = 0.0;
-    for (c, rows) in e.chunks(FILTER_CHUNK).enumerate() {
-        let t0 = c * FILTER_CHUNK;
-        let lead = FILTER_LEAD.min(rows.len());
-        rss += sq(&rows[..lead], t0) + sq(&rows[lead..], t0 + lead);
+    for (head, rest) in rss_groups(e.len()) {
+        rss += sq(head) + sq(rest);
     }
     rss
 }
@@ -763,18 +784,9 @@ impl<'a> Smoother<'a> {
                 cache.index_for(&self.prob, self.grid, h);
                 let index = cache.any_index();
                 // degree 6 for the left-hand sides, 5 for the right-hand sides alone
-                let build = |families, deg| match index {
-                    Some(ix) => {
-                        MomentTable::build_indexed(&self.prob, ix, span.0, span.1, deg, families)
-                    }
-                    None => MomentTable::build_families(
-                        &self.prob,
-                        breakpoints(self.grid, &[h]),
-                        span.0,
-                        span.1,
-                        deg,
-                        families,
-                    ),
+                let breaks = || breakpoints(self.grid, &[h]);
+                let build = |families, deg| {
+                    MomentTable::build_over(&self.prob, index, breaks, span, deg, families)
                 };
                 if let Some(sys) = cache.systems.as_ref().filter(|s| s.h == h) {
                     return build(Families::Response, 5).fit_response(sys);
@@ -927,12 +939,14 @@ impl<'a> Smoother<'a> {
                 let all: Vec<f64> = (lo..=hi + ahead).map(|j| ladder_h(j, range)).collect();
                 let breaks = breakpoints(self.grid, &all);
                 let index = IntervalIndex::build(&self.prob, breaks.clone());
-                let table = match &index {
-                    Some(ix) => {
-                        MomentTable::build_indexed(&self.prob, ix, span.0, span.1, 6, Families::All)
-                    }
-                    None => MomentTable::build(&self.prob, breaks, span.0, span.1, 6),
-                };
+                let table = MomentTable::build_over(
+                    &self.prob,
+                    index.as_ref(),
+                    || breaks,
+                    span,
+                    6,
+                    Families::All,
+                );
                 let rungs = (hi + ahead - lo + 1) as usize;
                 LadderCache {
                     js: (lo, hi + ahead),
@@ -1284,11 +1298,12 @@ pub fn arma_cls_within(
 /// the design is singular.
 ///
 /// The refinement runs on prefixes of N / [`REFINE_RATIO`]^k samples, k = ..., 1, 0
-/// (those longer than [`START_MAX`]), shortest first: each prefix's optimum is within about 1/sqrt(its length) of the
-/// next one's, so the passes over every sample start close to their optimum and
-/// need fewer steps (on the bench's FARMA(2,1,1) series, 5 passes over every sample
-/// from the first fit, 3 from the prefix's), while all the prefixes' passes together
-/// cost less than one over every sample.
+/// (those longer than [`START_MAX`]), shortest first: each prefix's optimum is within
+/// about 1/sqrt(its length) of the next one's, so the passes over every sample start
+/// close to their optimum and need fewer steps, while all the prefixes' passes
+/// together cost less than one over every sample. On the bench's FARMA(2,1,1) series
+/// at 1e7 samples (timing prints, BENCHMARKS.md): 5 passes over every sample from a
+/// fit on the first 2^16, 4 from the prefixes, 2 with [`START_ENOUGH`] as well.
 pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<f64>, Vec<f64>)> {
     let m = fit_arma(&x[..x.len().min(START_MAX)], p, q)?;
     let (mut a, mut b) = (m.ar, m.ma);
@@ -1624,17 +1639,10 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         FitPath::Fast => {
             // one table of the design's families to degree 10 (K^2 for the standard
             // errors): the local systems' inverses, the trace, the standard errors
-            let table = match cache.index_for(&prob, &grid, h) {
-                Some(ix) => MomentTable::build_indexed(&prob, ix, xmin, xmax, 10, Families::Design),
-                None => MomentTable::build_families(
-                    &prob,
-                    breakpoints(&grid, &[h]),
-                    xmin,
-                    xmax,
-                    10,
-                    Families::Design,
-                ),
-            };
+            let index = cache.index_for(&prob, &grid, h);
+            let breaks = || breakpoints(&grid, &[h]);
+            let table =
+                MomentTable::build_over(&prob, index, breaks, (xmin, xmax), 10, Families::Design);
             let f = table.local_systems(&grid, h).design_fit();
             let trace = f.all_ok().then(|| table.trace(&grid, &f));
             (trace, table.se_factors(&grid, &f))

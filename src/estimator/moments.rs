@@ -390,6 +390,24 @@ impl MomentTable {
         Self::build_with(prob, breaks, Some(index), (umin, umax), deg, families)
     }
 
+    /// The table of `families` over `index`'s breakpoints when there is one (each
+    /// row's interval read from it, [`MomentTable::build_indexed`]), else over
+    /// `breaks()` ([`MomentTable::build_families`]): the same table either way
+    /// when `breaks()` are the index's.
+    pub fn build_over(
+        prob: &VcProblem,
+        index: Option<&IntervalIndex>,
+        breaks: impl FnOnce() -> Vec<f64>,
+        (umin, umax): (f64, f64),
+        deg: usize,
+        families: Families,
+    ) -> MomentTable {
+        match index {
+            Some(ix) => Self::build_indexed(prob, ix, umin, umax, deg, families),
+            None => Self::build_families(prob, breaks(), umin, umax, deg, families),
+        }
+    }
+
     fn build_with(
         prob: &VcProblem,
         breaks: Vec<f64>,
@@ -686,27 +704,16 @@ impl MomentTable {
         binom: &[[f64; 13]; 13],
     ) -> (Vec<f64>, u64) {
         let mut whole = WholeCells::new(self, g);
-        self.grown_window(cells, &mut whole, h, smax, binom)
+        self.grown_window(cells, &mut whole, h, smax, binom, None)
     }
 
     /// Window (g, h) from `whole`, the whole cells already summed for a narrower
     /// window of the same grid point: adds the cells that (g, h) now holds whole
     /// (left ones from the nearest outwards, then right ones), and returns the whole
-    /// cells plus its two edge runs, with the sample count.
+    /// cells plus its two edge runs, with the sample count. Every family of the table,
+    /// or the families `fams` only when given (`whole` made for them,
+    /// [`WholeCells::for_fams`]): the same bits for those families.
     fn grown_window(
-        &self,
-        cells: &Cells,
-        whole: &mut WholeCells,
-        h: f64,
-        smax: usize,
-        binom: &[[f64; 13]; 13],
-    ) -> (Vec<f64>, u64) {
-        self.grown_window_fams(cells, whole, h, smax, binom, None)
-    }
-
-    /// [`MomentTable::grown_window`] for the families `fams` only when given (`whole`
-    /// made for them, [`WholeCells::for_fams`]): the same bits for those families.
-    fn grown_window_fams(
         &self,
         cells: &Cells,
         whole: &mut WholeCells,
@@ -993,16 +1000,12 @@ impl MomentTable {
             "a table of every family"
         );
         let fams = Families::ResponseAndSquare;
-        let fresh = match index {
-            Some(ix) => {
-                assert!(
-                    ix.breaks == self.breaks,
-                    "an index over the same breakpoints"
-                );
-                Self::build_indexed(prob, ix, umin, umax, self.deg, fams)
-            }
-            None => Self::build_families(prob, self.breaks.clone(), umin, umax, self.deg, fams),
-        };
+        assert!(
+            index.is_none_or(|ix| ix.breaks == self.breaks),
+            "an index over the same breakpoints"
+        );
+        let breaks = || self.breaks.clone();
+        let fresh = Self::build_over(prob, index, breaks, (umin, umax), self.deg, fams);
         assert!(fresh.centre == self.centre && fresh.half == self.half);
         let d1 = self.deg + 1;
         let mut m = self.m.clone();
@@ -1114,7 +1117,7 @@ impl MomentTable {
                 let mut out: Vec<Option<Point>> = vec![None; hs.len()];
                 for &j in &order {
                     let h = hs[j];
-                    let (acc, count) = self.grown_window(&cells, &mut whole, h, 6, &binom);
+                    let (acc, count) = self.grown_window(&cells, &mut whole, h, 6, &binom, None);
                     let a_of = kernel_contraction(&acc, d1, h, &BIWEIGHT);
                     let point = (
                         self.local_lhs(&a_of),
@@ -1171,8 +1174,7 @@ impl MomentTable {
                 let mut out: Vec<Vec<f64>> = vec![Vec::new(); systems.len()];
                 for &j in &order {
                     let h = systems[j].h;
-                    let (acc, _) =
-                        self.grown_window_fams(&cells, &mut whole, h, 6, &binom, Some(&fams));
+                    let (acc, _) = self.grown_window(&cells, &mut whole, h, 6, &binom, Some(&fams));
                     // row a of acc holds X_a y
                     out[j] = local_rhs_of(p, &kernel_contraction(&acc, d1, h, &BIWEIGHT), |a| a);
                 }
