@@ -36,7 +36,7 @@ impl<'a> SimBase<'a> {
     }
 
     /// Signals of components `comps` of channel `channel` of `spec`, for every replica:
-    /// out[r][j] is component comps[j] in replica r.
+    /// out\[r\]\[j\] is component comps\[j\] in replica r.
     pub fn component_signals(
         &self,
         spec: &Spec,

@@ -56,7 +56,7 @@ fn lagged_ls(
     normal_equations(&ata, &aty, k)
 }
 
-/// The normal equations (A'A row-major, A'y) of [`lagged_ls`]'s regression, summed
+/// The normal equations (A'A row-major, A'y) of `lagged_ls`'s regression, summed
 /// over rows t in `rows` in order.
 pub fn lagged_normal(
     y: &[f64],

@@ -577,11 +577,11 @@ fn ma_filter_fixed<const Q: usize>(
 }
 
 /// Rows per chunk of the parallel MA filter, and of the RSS's sum on series of two
-/// chunks or more ([`rss_from`]).
+/// chunks or more (`rss_from`).
 pub const FILTER_CHUNK: usize = 1 << 18;
 
 /// Rows at the head of each chunk that are re-run from the true state
-/// ([`ma_filter_chunked`]); the RSS sums them apart from the rest of their chunk.
+/// (`ma_filter_chunked`); the RSS sums them apart from the rest of their chunk.
 pub const FILTER_LEAD: usize = 1 << 12;
 
 /// The MA recursion over `rows` (row t0 first) from the lags `eh` (left at the state

@@ -1,7 +1,7 @@
 //! The Biweight (quartic) kernel K(w) = 15/16 (1 - w^2)^2 on |w| <= 1, zero outside
 //! (Silverman 1986, Table 3.1; the kernel of the FARMA paper).
 
-/// Coefficients of K(w) as a polynomial on |w| <= 1: K(w) = sum_r BIWEIGHT[r] w^r.
+/// Coefficients of K(w) as a polynomial on |w| <= 1: K(w) = sum_r BIWEIGHT\[r\] w^r.
 pub const BIWEIGHT: [f64; 5] = [15.0 / 16.0, 0.0, -30.0 / 16.0, 0.0, 15.0 / 16.0];
 
 /// K(w).

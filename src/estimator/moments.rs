@@ -8,9 +8,9 @@
 //! The breakpoints (every grid point and every window edge u_g +- h_j) cut the index
 //! axis into elementary intervals; each window and each cell between grid points is an
 //! exact union of intervals. The pass accumulates, for each interval e with centre c_e
-//! and half-width s_e, M_e[ab][i] = sum_{t in e} V_a V_b v^i with v = (U_t - c_e)/s_e
+//! and half-width s_e, M_e\[ab\]\[i\] = sum_{t in e} V_a V_b v^i with v = (U_t - c_e)/s_e
 //! (|v| <= 1, no cancellation), i = 0..deg. Moments about any point u follow exactly
-//! from the binomial theorem: sum V_a V_b (U - u)^s = sum_i C(s,i) s_e^i (c_e - u)^(s-i) M_e[ab][i].
+//! from the binomial theorem: sum V_a V_b (U - u)^s = sum_i C(s,i) s_e^i (c_e - u)^(s-i) M_e\[ab\]\[i\].
 //! Sums of intervals are only ever added, never differenced (no prefix-sum
 //! cancellation between far intervals): inside each cell between grid points the runs
 //! of intervals from either edge are summed once (`Cells`), a window is its two edge
@@ -53,7 +53,7 @@ pub enum Families {
 
 /// Moment tables over the elementary intervals of `breaks`.
 pub struct MomentTable {
-    /// Sorted, distinct breakpoints; interval e covers [breaks[e-1], breaks[e]).
+    /// Sorted, distinct breakpoints; interval e covers [breaks[e-1], breaks\[e\]).
     pub breaks: Vec<f64>,
     centre: Vec<f64>,
     half: Vec<f64>,
@@ -1085,7 +1085,7 @@ impl MomentTable {
     /// Local-linear fits at every grid point for every bandwidth in `hs`. Every
     /// `u_g`, `u_g - h` and `u_g + h` must be a breakpoint. For one grid point the
     /// windows of all bandwidths are nested: the whole cells inside them are summed
-    /// once, from the nearest outwards on either side ([`WholeCells`]), and each
+    /// once, from the nearest outwards on either side (`WholeCells`), and each
     /// window adds its two edge runs. The fit at one h has the same bits whatever the
     /// other bandwidths in `hs` (tested), so a ladder can be fitted rung by rung.
     pub fn fit_ladder(&self, grid: &[f64], hs: &[f64]) -> Vec<GridFit> {
@@ -1417,7 +1417,7 @@ impl IntervalIndex {
     }
 
     /// For each interval, the grid cell its values lie in, for `grid` (every grid
-    /// point a breakpoint): k when grid[k] <= U < grid[k+1], `BELOW_GRID` below the
+    /// point a breakpoint): k when grid\[k\] <= U < grid[k+1], `BELOW_GRID` below the
     /// first grid point and `ABOVE_GRID` at or above the last.
     pub fn grid_cells(&self, grid: &[f64]) -> Vec<u32> {
         let g = grid.len();

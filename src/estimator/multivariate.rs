@@ -10,7 +10,7 @@
 //! [u_k - h_k, u_k + h_k) in each coordinate (half-open as in the 1-D path).
 //!
 //! - Grid: G1 x G2 points, each coordinate uniform over its central quantiles
-//!   (0.01, 0.99); point g = i G2 + j is (grid1[i], grid2[j]).
+//!   (0.01, 0.99); point g = i G2 + j is (grid1\[i\], grid2\[j\]).
 //! - Gather: a kiddo 2-D KD-tree over the index values scaled by s_k = range_k / 2;
 //!   a support is gathered with a Chebyshev (L-infinity) radius max(h_1/s_1, h_2/s_2)
 //!   in scaled units, which covers the box, then filtered to the box exactly.
@@ -27,7 +27,7 @@
 //!   (distance in scaled units, ties to the lower index) and flagged.
 //! - The alternation (ARMA start, f-step, Gauss-Newton b-step, residual recursion,
 //!   GCV on the first f-step and again after convergence) is the one of
-//!   [`super::fit`], written here for the 2-D smoother: fit.rs's loop is built around
+//!   [`super::fit`](fn@super::fit), written here for the 2-D smoother: fit.rs's loop is built around
 //!   its 1-D smoother and is being restructured for speed; `ma_cls` and `fit_arma`
 //!   are shared. Index values before the first sample: x is 0 (as in 1-D), z is z_0.
 
@@ -90,7 +90,7 @@ impl Vc2Problem<'_> {
     }
 }
 
-/// The 2-D grid: point g = i * n2 + j is (g1[i], g2[j]).
+/// The 2-D grid: point g = i * n2 + j is (g1\[i\], g2\[j\]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid2 {
     pub g1: Vec<f64>,

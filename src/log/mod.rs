@@ -1,5 +1,5 @@
 //! Logs: reading a uniformly sampled multi-channel series from CSV, Parquet or Arrow IPC
-//! into a [`Store`](crate::store::Store), with its time base, and the policies for bad
+//! into a [`Store`], with its time base, and the policies for bad
 //! values and irregular sampling.
 //!
 //! [`ingest`] converts a file into a store; [`open_log`] gives any command a store for

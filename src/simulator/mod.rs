@@ -5,7 +5,7 @@
 //!   parsing, validation with errors that name the key, and writing a spec back out.
 //! - [`generate`]: the generator, every component kind, deterministic per seed and
 //!   independent of the thread count.
-//! - [`write`]: writing a simulated log (Parquet, farma store, CSV) atomically.
+//! - [`write`](mod@write): writing a simulated log (Parquet, farma store, CSV) atomically.
 
 pub mod generate;
 pub mod spec;

@@ -34,7 +34,7 @@
 //!   MA is stationary, so nothing is wrong with simulating one. The inline FARMA f_m
 //!   are nonlinear and are not checked for stability.
 //! - Inline FARMA `f`: `f[m-1]` holds the polynomial coefficients of f_m in ascending
-//!   powers, f_m(u) = f[m-1][0] + f[m-1][1] u + f[m-1][2] u^2 + ...
+//!   powers, f_m(u) = f[m-1]\[0\] + f[m-1]\[1\] u + f[m-1]\[2\] u^2 + ...
 //! - `cross_axis` adds `gain` times the `from` channel's own signal (its components
 //!   other than cross_axis), so couplings in both directions are allowed (a
 //!   misalignment matrix); one cross_axis per source channel.
@@ -87,14 +87,14 @@ pub struct ChannelSpec {
 /// Units: `u` is the rate unit of the log; IEEE Std 952 meanings in the module doc.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Component {
-    /// A constant bias `value` [u] (any sign).
+    /// A constant bias `value` \[u\] (any sign).
     ConstantBias { value: f64 },
     /// Angle random walk: white rate noise with ADEV(tau) = n / sqrt(tau); `n` [u sqrt(s)] >= 0.
     WhiteNoise { n: f64 },
     /// Angle quantization noise: ADEV(tau) = sqrt(3) q / tau; `q` [u s] >= 0; the angle
     /// quantum is sqrt(12) q.
     Quantization { q: f64 },
-    /// Bias instability (flicker): a flat ADEV floor of about 0.664 b; `b` [u] >= 0.
+    /// Bias instability (flicker): a flat ADEV floor of about 0.664 b; `b` \[u\] >= 0.
     /// `tau_min_s`, `tau_max_s` (> 0, min < max) bound the flicker approximation.
     BiasInstability {
         b: f64,
@@ -106,17 +106,17 @@ pub enum Component {
     /// Rate ramp: ADEV(tau) = r tau / sqrt(2); `r` [u / s] (any sign).
     RateRamp { r: f64 },
     /// First-order Gauss-Markov (exponentially correlated) noise: stationary standard
-    /// deviation `sigma` [u] >= 0, correlation time `tau_s` [s] > 0.
+    /// deviation `sigma` \[u\] >= 0, correlation time `tau_s` \[s\] > 0.
     GaussMarkov { sigma: f64, tau_s: f64 },
-    /// amplitude sin(2 pi freq_hz t + phase_rad): `amplitude` [u] >= 0,
-    /// 0 <= `freq_hz` < sample_rate_hz / 2, `phase_rad` [rad].
+    /// amplitude sin(2 pi freq_hz t + phase_rad): `amplitude` \[u\] >= 0,
+    /// 0 <= `freq_hz` < sample_rate_hz / 2, `phase_rad` \[rad\].
     Sinusoid {
         amplitude: f64,
         freq_hz: f64,
         phase_rad: f64,
     },
     /// Linear ARMA x_t = sum_m ar[m-1] x_{t-m} + e_t + sum_m ma[m-1] e_{t-m}, with
-    /// innovation standard deviation `sigma` [u] >= 0; the AR part must be stationary.
+    /// innovation standard deviation `sigma` \[u\] >= 0; the AR part must be stationary.
     Arma {
         ar: Vec<f64>,
         ma: Vec<f64>,
@@ -125,17 +125,17 @@ pub enum Component {
     /// A FARMA(p,q,d) model: fitted by `farma fit`, or inline.
     Farma(FarmaModel),
     /// Bias sum_j coeffs[j-1] (T - reference_c)^j; `coeffs` [u/degC, u/degC^2, ...]
-    /// (non-empty), `reference_c` [degC] (default: the mean temperature).
+    /// (non-empty), `reference_c` \[degC\] (default: the mean temperature).
     TemperatureBias {
         coeffs: Vec<f64>,
         reference_c: Option<f64>,
     },
     /// Bias proportional to dT/dt (the Shupe effect): `coeff` [u per degC/s], the
-    /// temperature smoothed over `smoothing_s` [s] >= 0 before differencing.
+    /// temperature smoothed over `smoothing_s` \[s\] >= 0 before differencing.
     ThermalRate { coeff: f64, smoothing_s: f64 },
-    /// Warm-up bias amplitude exp(-t / tau_s): `amplitude` [u] (any sign), `tau_s` [s] > 0.
+    /// Warm-up bias amplitude exp(-t / tau_s): `amplitude` \[u\] (any sign), `tau_s` \[s\] > 0.
     Warmup { amplitude: f64, tau_s: f64 },
-    /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` [u] >= 0.
+    /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` \[u\] >= 0.
     Outliers { rate_hz: f64, scale: f64 },
     /// The scale of the channel's `of` noise component varies with temperature:
     /// scale = 1 + slope (T - T_ref); `slope` [1/degC].
@@ -153,8 +153,8 @@ pub enum FarmaModel {
         channel: Option<String>,
     },
     /// Inline x_t = sum_m f_m(x_{t-d}) x_{t-m} + e_t + sum_m ma[m-1] e_{t-m}, with
-    /// f_m(u) = sum_j f[m-1][j] u^j (ascending powers), innovation standard deviation
-    /// `sigma` [u] >= 0. `f` has p entries (each non-empty), `ma` has q, d >= 1.
+    /// f_m(u) = sum_j f[m-1]\[j\] u^j (ascending powers), innovation standard deviation
+    /// `sigma` \[u\] >= 0. `f` has p entries (each non-empty), `ma` has q, d >= 1.
     Inline {
         p: usize,
         q: usize,

@@ -39,7 +39,7 @@ pub struct LjungBox {
 }
 
 /// Ljung-Box Q at each of `lags` (each > model_df), from autocorrelations `r`
-/// (r[0] = r_1) of a series of length n.
+/// (r\[0\] = r_1) of a series of length n.
 pub fn ljung_box(r: &[f64], n: usize, lags: &[usize], model_df: usize) -> Vec<LjungBox> {
     let nf = n as f64;
     lags.iter()

@@ -4,8 +4,8 @@
 //! The series is cut into K equal segments (the remainder dropped at the end) and a
 //! statistic y_i of each is taken (the mean, or the mean square). A reverse
 //! arrangement is a pair i < j with y_i > y_j; A is their number. For K independent,
-//! identically distributed y_i, E[A] = K (K - 1) / 4 and
-//! Var[A] = K (2K + 5) (K - 1) / 72; z = (A - E[A]) / sqrt(Var[A]) and the two-sided
+//! identically distributed y_i, E\[A\] = K (K - 1) / 4 and
+//! Var\[A\] = K (2K + 5) (K - 1) / 72; z = (A - E\[A\]) / sqrt(Var\[A\]) and the two-sided
 //! p-value 2 (1 - Phi(|z|)) (a trend in either direction rejects). A is counted by a
 //! merge sort in O(K log K), twin-tested against the O(K^2) definition.
 

@@ -16,18 +16,18 @@ fn add_by_index(out: &mut [f64], f: impl Fn(usize) -> f64 + Sync) {
     });
 }
 
-/// constant_bias: `value` [u] at every sample.
+/// constant_bias: `value` \[u\] at every sample.
 pub fn constant_bias(out: &mut [f64], value: f64) {
     add_by_index(out, |_| value);
 }
 
-/// rate_ramp: r t_k [u]. IEEE Std 952-1997 Annex C: a rate ramp R gives
+/// rate_ramp: r t_k \[u\]. IEEE Std 952-1997 Annex C: a rate ramp R gives
 /// ADEV(tau) = R tau / sqrt(2).
 pub fn rate_ramp(out: &mut [f64], r: f64, rate_hz: f64) {
     add_by_index(out, |k| r * (k as f64 / rate_hz));
 }
 
-/// sinusoid: amplitude sin(2 pi freq_hz t_k + phase_rad) [u].
+/// sinusoid: amplitude sin(2 pi freq_hz t_k + phase_rad) \[u\].
 pub fn sinusoid(out: &mut [f64], amplitude: f64, freq_hz: f64, phase_rad: f64, rate_hz: f64) {
     let w = 2.0 * std::f64::consts::PI * freq_hz;
     add_by_index(out, |k| {
@@ -35,7 +35,7 @@ pub fn sinusoid(out: &mut [f64], amplitude: f64, freq_hz: f64, phase_rad: f64, r
     });
 }
 
-/// warmup: amplitude exp(-t_k / tau_s) [u] (contracts.md section 2).
+/// warmup: amplitude exp(-t_k / tau_s) \[u\] (contracts.md section 2).
 pub fn warmup(out: &mut [f64], amplitude: f64, tau_s: f64, rate_hz: f64) {
     add_by_index(out, |k| amplitude * (-(k as f64 / rate_hz) / tau_s).exp());
 }

@@ -83,7 +83,7 @@ fn add_white(out: &mut [f64], sd: f64, key: &StreamKey) {
 /// gauss_markov: the interval averages (module doc) of the first-order Gauss-Markov
 /// process (Ornstein-Uhlenbeck; Brown and Hwang, "Introduction to Random Signals and
 /// Applied Kalman Filtering", 4th ed., section 2.9) of stationary standard deviation
-/// `sigma` [u] and autocorrelation sigma^2 exp(-|lag| / tau_s), whose end values
+/// `sigma` \[u\] and autocorrelation sigma^2 exp(-|lag| / tau_s), whose end values
 /// follow the exact discretisation x_k = phi x_{k-1} + sigma sqrt(1 - phi^2) w_k,
 /// phi = exp(-dt / tau_s). x_{-1} is drawn from the stationary law N(0, sigma^2), so the
 /// process is stationary from the first sample. The Allan variance is
@@ -132,7 +132,7 @@ pub const BI_MARGIN_HIGH: f64 = 100.0;
 /// between `tau_min_s` and `tau_max_s`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlickerBank {
-    /// (T_i, s_i): the correlation time [s] and standard deviation [u] of each process.
+    /// (T_i, s_i): the correlation time \[s\] and standard deviation \[u\] of each process.
     pub processes: Vec<(f64, f64)>,
     /// n^2 [u^2 s] of the white noise standing for the spectrum above the bank: the
     /// processes of correlation time below T_low = tau_min_s / [`BI_MARGIN_LOW`].
@@ -140,7 +140,7 @@ pub struct FlickerBank {
 }
 
 impl FlickerBank {
-    /// The exact Allan variance [u^2] of the bank's interval averages at tau [s]:
+    /// The exact Allan variance [u^2] of the bank's interval averages at tau \[s\]:
     /// sum_i s_i^2 g(tau / T_i) + white_n2 / tau.
     pub fn avar(&self, tau_s: f64) -> f64 {
         use crate::stats::noise_terms::gauss_markov_g;

@@ -26,7 +26,7 @@ pub fn white_noise(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey) {
 
 /// quantization: the rate read from a quantized angle. The angle error e_k is white,
 /// uniform on [-Q/2, Q/2) with the angle quantum Q = sqrt(12) q (variance q^2), and
-/// the rate sample is (e_k - e_{k-1}) / dt [u]. Then the angle error is white with
+/// the rate sample is (e_k - e_{k-1}) / dt \[u\]. Then the angle error is white with
 /// variance q^2, its second difference over m samples has variance 6 q^2, and the
 /// Allan variance is 6 q^2 / (2 tau^2): ADEV(tau) = sqrt(3) q / tau exactly at every
 /// tau = m dt (IEEE Std 952-1997 Annex C, quantization noise). The integrated angle
@@ -55,7 +55,7 @@ pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
 
 /// outliers: at each sample, with probability rate_hz / sample_rate_hz independently
 /// (a Bernoulli process, `rate_hz` outliers per second on average), a spike
-/// scale * N(0, 1) [u] is added. Positions come from geometric gaps drawn per chunk
+/// scale * N(0, 1) \[u\] is added. Positions come from geometric gaps drawn per chunk
 /// (memoryless, so restarting at each chunk start is exact).
 pub fn outliers(out: &mut [f64], rate_hz: f64, scale: f64, sample_rate_hz: f64, key: &StreamKey) {
     let p = (rate_hz / sample_rate_hz).min(1.0);

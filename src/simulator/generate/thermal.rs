@@ -10,7 +10,7 @@ pub fn mean_c(temp_c: &[f64]) -> f64 {
     temp_c.iter().sum::<f64>() / temp_c.len() as f64
 }
 
-/// temperature_bias: sum_j coeffs[j-1] (T_k - reference_c)^j [u], by Horner's rule.
+/// temperature_bias: sum_j coeffs[j-1] (T_k - reference_c)^j \[u\], by Horner's rule.
 pub fn temperature_bias(out: &mut [f64], coeffs: &[f64], reference_c: f64, temp_c: &[f64]) {
     out.par_iter_mut()
         .zip(temp_c.par_iter())
@@ -57,7 +57,7 @@ pub fn smooth(temp_c: &[f64], h: usize) -> Vec<f64> {
         .collect()
 }
 
-/// thermal_rate: coeff * dS/dt [u], S the temperature smoothed over `smoothing_s`
+/// thermal_rate: coeff * dS/dt \[u\], S the temperature smoothed over `smoothing_s`
 /// ([`smooth`], half-width [`smoothing_half_width`]), dS/dt by the central difference
 /// (S_{k+1} - S_{k-1}) rate_hz / 2, one-sided at the two ends (0 for one sample). The
 /// Shupe effect of a fibre-optic gyro: a bias proportional to the rate of change of

@@ -25,7 +25,7 @@
 //! confidence. Deviations come out in the units of the rate series.
 //!
 //! Speed: the fast path ([`fast`]) forms the phase once with a compensated parallel scan
-//! ([`phase`]) and evaluates each tau in O(N), in parallel over fixed blocks (results
+//! ([`phase`](mod@phase)) and evaluates each tau in O(N), in parallel over fixed blocks (results
 //! independent of the thread count). [`slow`] holds the definitions summed directly, the
 //! twins the fast path is tested against. [`avar`] reproduces the R package avar's
 //! estimator, which differs slightly (see there).

@@ -105,10 +105,10 @@ pub fn compensated_sum(len: usize, f: impl Fn(usize) -> f64 + Sync) -> DoubleDou
 const LANES: usize = 4;
 const SUB: usize = BLOCK / LANES;
 
-/// Writes the running sum out[0] = 0, out[k + 1] = out[k] + f(k) for k in
+/// Writes the running sum out\[0\] = 0, out[k + 1] = out\[k\] + f(k) for k in
 /// 0..out.len() - 1, compensated as described in the module documentation: each value
 /// is the double-double offset of its sub-block plus a TwoSum-compensated running sum,
-/// rounded once. Sub-blocks of [`SUB`] terms are scanned [`LANES`] at a time.
+/// rounded once. Sub-blocks of `SUB` terms are scanned `LANES` at a time.
 pub fn compensated_prefix(out: &mut [f64], f: impl Fn(usize) -> f64 + Sync) {
     if out.is_empty() {
         return;

@@ -27,7 +27,7 @@
 //! Correlation between taus: overlapping estimates at neighbouring taus share data. The
 //! fit uses octave taus only (m = 1, 2, 4, ...), where the correlation of neighbours is
 //! moderate, and fits them as if independent (the estimate); the uncertainty then
-//! allows for their correlation (see [`sandwich_cov`], correlations measured by Monte
+//! allows for their correlation (see `sandwich_cov`, correlations measured by Monte
 //! Carlo). Without that step the reported uncertainties were too small: in the tests
 //! (tests/noise_terms.rs) three of 21 coefficients fell 3.1 to 3.3 of them from the
 //! truth, and a rate random walk often took a spurious ramp beside it. Any remaining
@@ -36,7 +36,7 @@
 //! (the moment estimate of the dispersion, McCullagh and Nelder).
 //!
 //! Uncertainty: the covariance of the squared coefficients (and of ln T for the hump)
-//! is the sandwich of [`sandwich_cov`] times the dispersion; a coefficient's standard
+//! is the sandwich of `sandwich_cov` times the dispersion; a coefficient's standard
 //! uncertainty follows by the delta method, u(c) = u(c^2) / (2 c), and u(T) = T u(ln T).
 
 use super::model::Term;

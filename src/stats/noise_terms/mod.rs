@@ -11,8 +11,8 @@
 //!
 //! Units: u is the rate unit of the log (deg/s, deg/h, rad/s ...), tau in seconds; the
 //! coefficients are those of contracts.md section 2 (white_noise n [u sqrt(s)],
-//! quantization q [u s], bias_instability b [u], rate_random_walk k [u / sqrt(s)],
-//! rate_ramp r [u / s], gauss_markov sigma [u] and tau_s [s]).
+//! quantization q [u s], bias_instability b \[u\], rate_random_walk k [u / sqrt(s)],
+//! rate_ramp r [u / s], gauss_markov sigma \[u\] and tau_s \[s\]).
 //!
 //! Decisions:
 //! - The fit always uses the overlapping AVAR at octave taus m = 1, 2, 4, ... up to
@@ -46,7 +46,7 @@ pub struct Options {
     pub candidates: Vec<Term>,
     /// Penalty per parameter on the deviance (default None: ln(number of taus), BIC).
     pub penalty: Option<f64>,
-    /// Fit only taus >= this [s] (default: all). Real sensors filter and decimate
+    /// Fit only taus >= this \[s\] (default: all). Real sensors filter and decimate
     /// internally, which bends the Allan curve at the first few taus; with their very
     /// large EDF those points would otherwise dominate the fit.
     pub tau_min_s: Option<f64>,
@@ -78,7 +78,7 @@ pub struct Identified {
     pub coef: Estimate,
     /// The squared coefficient, the parameter the fit is linear in.
     pub coef_sq: Estimate,
-    /// Gauss-Markov correlation time T [s] (the hump only).
+    /// Gauss-Markov correlation time T \[s\] (the hump only).
     pub corr_time_s: Option<Estimate>,
 }
 
@@ -122,7 +122,7 @@ pub struct Identification {
     pub penalty: f64,
     /// Every feasible subset, best criterion first (at most 10 kept).
     pub candidates: Vec<Candidate>,
-    /// Number of rate samples, sample rate [Hz].
+    /// Number of rate samples, sample rate \[Hz\].
     pub n_samples: usize,
     pub rate_hz: f64,
 }
@@ -133,7 +133,7 @@ impl Identification {
         self.terms.iter().find(|t| t.term == term)
     }
 
-    /// The model's AVAR at tau [s].
+    /// The model's AVAR at tau \[s\].
     pub fn model_avar(&self, tau_s: f64) -> f64 {
         self.terms
             .iter()

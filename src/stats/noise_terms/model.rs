@@ -1,5 +1,5 @@
 //! The Allan variance of each IEEE Std 952 noise term, as a function of the averaging
-//! time tau [s]: AVAR(tau) = coefficient^2 * basis(tau).
+//! time tau \[s\]: AVAR(tau) = coefficient^2 * basis(tau).
 //!
 //! Sources: IEEE Std 952-1997, Annex C (C.1-C.6: quantization, angle random walk, bias
 //! instability, rate random walk, rate ramp, exponentially correlated (Markov) noise);
@@ -11,10 +11,10 @@
 //! |---|---|---|
 //! | quantization | Q [u s] | 3 Q^2 / tau^2 |
 //! | white noise (angle random walk) | N [u sqrt(s)] | N^2 / tau |
-//! | bias instability | B [u] | (2 ln 2 / pi) B^2 (the flat floor; ADEV 0.664 B) |
+//! | bias instability | B \[u\] | (2 ln 2 / pi) B^2 (the flat floor; ADEV 0.664 B) |
 //! | rate random walk | K [u / sqrt(s)] | K^2 tau / 3 |
 //! | rate ramp | R [u / s] | R^2 tau^2 / 2 |
-//! | first-order Gauss-Markov | sigma [u], T [s] | sigma^2 g(tau / T) |
+//! | first-order Gauss-Markov | sigma \[u\], T \[s\] | sigma^2 g(tau / T) |
 //!
 //! Gauss-Markov (autocovariance sigma^2 exp(-|s| / T)): with the angle structure
 //! function D(s) = E[(theta(t+s) - theta(t))^2] = 2 sigma^2 (T s - T^2 (1 - e^{-s/T})),

@@ -17,7 +17,7 @@ pub struct Wls {
     pub cov: Vec<f64>,
 }
 
-/// Solves min sum_i w[i] (b[i] - a[i] . c)^2 for `a` with rows of equal length k >= 1,
+/// Solves min sum_i w\[i\] (b\[i\] - a\[i\] . c)^2 for `a` with rows of equal length k >= 1,
 /// n >= k rows. None when the scaled design is rank deficient (a column of zeros, or
 /// columns dependent to within 1e-12 relative).
 pub fn solve(a: &[Vec<f64>], b: &[f64], w: &[f64]) -> Option<Wls> {
