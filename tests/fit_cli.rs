@@ -115,3 +115,68 @@ fn fit_rejects_bad_requests_with_exit_2() {
     }
     assert!(!out.join("coef.parquet").exists());
 }
+
+/// The outputs of a run are one set: a run that fails while writing leaves the folder
+/// as it was, and a run that succeeds removes the files of an earlier run that it
+/// does not write (no folder mixes two runs).
+#[test]
+fn fit_outputs_replace_the_folder_as_one_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let out = dir.path().join("o");
+    let fit = |channel: &str, extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            channel,
+            "--grid",
+            "41",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        farma(&args, dir.path())
+    };
+    let o = fit("gyro_x", &["--residuals", "--save-state"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let names = [
+        "coef.parquet",
+        "params.parquet",
+        "gcv.parquet",
+        "residuals.parquet",
+        "state.parquet",
+    ];
+    let read = |n: &str| std::fs::read(out.join(n)).ok();
+    let first: Vec<Option<Vec<u8>>> = names.iter().map(|n| read(n)).collect();
+    assert!(first.iter().all(|b| b.is_some()));
+    // a folder where params.parquet goes: the run fails at the commit, before any
+    // file is replaced, and leaves no temporary file
+    std::fs::remove_file(out.join("params.parquet")).unwrap();
+    std::fs::create_dir(out.join("params.parquet")).unwrap();
+    let o = fit("gyro_y", &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("params.parquet"), "{}", stderr(&o));
+    for (n, b) in names.iter().zip(&first) {
+        if *n != "params.parquet" {
+            assert_eq!(&read(n), b, "{n} changed by a failed run");
+        }
+    }
+    let left: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(left.iter().all(|n| !n.ends_with(".tmp")), "{left:?}");
+    // the folder out of the way: the new run replaces the set, and the earlier run's
+    // residuals and state (which this run does not write) are gone
+    std::fs::remove_dir(out.join("params.parquet")).unwrap();
+    let o = fit("gyro_y", &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("removed"), "{}", stderr(&o));
+    for n in &names[..3] {
+        assert!(read(n).is_some(), "{n}");
+    }
+    assert_ne!(read("coef.parquet"), first[0]);
+    assert!(read("residuals.parquet").is_none());
+    assert!(read("state.parquet").is_none());
+}

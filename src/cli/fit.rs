@@ -9,9 +9,10 @@ use rayon::prelude::*;
 use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table, residual_table};
+use super::update::STATE_FILE;
 use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 
 #[derive(Args, Debug)]
 pub struct FitArgs {
@@ -70,6 +71,27 @@ pub struct FitArgs {
     /// One JSON object per channel on stdout (JSON Lines).
     #[arg(long)]
     pub json: bool,
+}
+
+/// The files `farma fit` (and `farma update`) can write into its output folder: a
+/// run removes those of an earlier run that it does not write.
+pub(super) const FIT_OUTPUTS: [&str; 5] = [
+    "coef.parquet",
+    "params.parquet",
+    "gcv.parquet",
+    "residuals.parquet",
+    STATE_FILE,
+];
+
+/// The metadata of state.parquet: the run's, and the state format's version (what
+/// [`crate::estimator::update::write_state`] writes).
+pub(super) fn state_metadata(md: &[(&'static str, String)]) -> Vec<(&'static str, String)> {
+    let mut md = md.to_vec();
+    md.push((
+        "farma_state_version",
+        crate::estimator::update::STATE_VERSION.to_string(),
+    ));
+    md
 }
 
 pub(super) fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
@@ -133,7 +155,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         })
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();
-    ensure_dir(&a.output)?;
+    let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &FittedFarma)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
@@ -143,16 +165,12 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", store.sample_rate_hz().to_string()),
     ];
-    let coef_path = a.output.join("coef.parquet");
-    write_parquet(&coef_path, &coef_table(&refs)?, &md)?;
-    write_parquet(&a.output.join("params.parquet"), &params_table(&refs)?, &md)?;
-    write_parquet(&a.output.join("gcv.parquet"), &gcv_table(&refs)?, &md)?;
+    let coef_path = out.path("coef.parquet");
+    out.parquet("coef.parquet", &coef_table(&refs)?, &md)?;
+    out.parquet("params.parquet", &params_table(&refs)?, &md)?;
+    out.parquet("gcv.parquet", &gcv_table(&refs)?, &md)?;
     if a.residuals {
-        write_parquet(
-            &a.output.join("residuals.parquet"),
-            &residual_table(&refs)?,
-            &md,
-        )?;
+        out.parquet("residuals.parquet", &residual_table(&refs)?, &md)?;
     }
     if a.save_state {
         let states: Vec<_> = fits
@@ -166,7 +184,14 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             })
             .collect::<Result<_>>()?;
         let refs: Vec<_> = states.iter().collect();
-        crate::estimator::update::write_state(&a.output.join("state.parquet"), &refs, &md)?;
+        let table = crate::estimator::update::state_table(&refs)?;
+        out.parquet(STATE_FILE, &table, &state_metadata(&md))?;
+    }
+    for stale in out.commit(&FIT_OUTPUTS)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
     }
     for (n, m) in &fits {
         eprintln!(

@@ -15,7 +15,7 @@ use crate::estimator::multivariate::{
 };
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
-use crate::output::{batch, ensure_dir, write_parquet};
+use crate::output::{OutputSet, batch};
 
 /// The second index channel of `--index`, or None for the 1-D index (`lag`).
 pub fn second_index(spec: Option<&str>) -> Result<Option<String>> {
@@ -128,7 +128,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         })
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();
-    ensure_dir(&a.output)?;
+    let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &Fitted2)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
@@ -141,14 +141,10 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         ("index2", index2.clone()),
         ("index2_lag", d2.to_string()),
     ];
-    let coef_path = a.output.join("coef.parquet");
-    write_parquet(&coef_path, &coef_table2(&refs)?, &md)?;
-    write_parquet(
-        &a.output.join("params.parquet"),
-        &params_table2(&refs, &index2)?,
-        &md,
-    )?;
-    write_parquet(&a.output.join("gcv.parquet"), &gcv_table2(&refs)?, &md)?;
+    let coef_path = out.path("coef.parquet");
+    out.parquet("coef.parquet", &coef_table2(&refs)?, &md)?;
+    out.parquet("params.parquet", &params_table2(&refs, &index2)?, &md)?;
+    out.parquet("gcv.parquet", &gcv_table2(&refs)?, &md)?;
     if a.residuals {
         let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
         for (n, m) in &fits {
@@ -163,7 +159,13 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             ("t", Arc::new(Int64Array::from(t))),
             ("residual", Arc::new(Float64Array::from(r))),
         ])?;
-        write_parquet(&a.output.join("residuals.parquet"), &table, &md)?;
+        out.parquet("residuals.parquet", &table, &md)?;
+    }
+    for stale in out.commit(&super::fit::FIT_OUTPUTS)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
     }
     for (n, m) in &fits {
         eprintln!(

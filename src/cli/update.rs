@@ -12,10 +12,11 @@ use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
-    Updated, read_state, update, update_params_table, update_residual_table, write_state,
+    Updated, read_state, state_table, update, update_params_table, update_residual_table,
 };
+use super::fit::{FIT_OUTPUTS, state_metadata};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 
 /// The state file in a model folder.
 pub const STATE_FILE: &str = "state.parquet";
@@ -99,7 +100,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         })
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();
-    ensure_dir(&a.output)?;
+    let mut out = OutputSet::new(&a.output)?;
     let items: Vec<(String, &Updated)> = ups.iter().map(|(n, u)| (n.clone(), u)).collect();
     let models: Vec<(String, &FittedFarma)> =
         ups.iter().map(|(n, u)| (n.clone(), &u.model)).collect();
@@ -118,23 +119,21 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         ("model", a.model_dir.display().to_string()),
         ("forgetting", a.forgetting.to_string()),
     ];
-    let coef_path = a.output.join("coef.parquet");
-    write_parquet(&coef_path, &coef_table(&models)?, &out_md)?;
-    write_parquet(
-        &a.output.join("params.parquet"),
-        &update_params_table(&items)?,
-        &out_md,
-    )?;
-    write_parquet(&a.output.join("gcv.parquet"), &gcv_table(&models)?, &out_md)?;
+    let coef_path = out.path("coef.parquet");
+    out.parquet("coef.parquet", &coef_table(&models)?, &out_md)?;
+    out.parquet("params.parquet", &update_params_table(&items)?, &out_md)?;
+    out.parquet("gcv.parquet", &gcv_table(&models)?, &out_md)?;
     if a.residuals {
-        write_parquet(
-            &a.output.join("residuals.parquet"),
-            &update_residual_table(&items)?,
-            &out_md,
-        )?;
+        out.parquet("residuals.parquet", &update_residual_table(&items)?, &out_md)?;
     }
     let refs: Vec<_> = ups.iter().map(|(_, u)| &u.state).collect();
-    write_state(&a.output.join(STATE_FILE), &refs, &out_md)?;
+    out.parquet(STATE_FILE, &state_table(&refs)?, &state_metadata(&out_md))?;
+    for stale in out.commit(&FIT_OUTPUTS)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
+    }
     for (n, u) in &ups {
         let m = &u.model;
         eprintln!(

@@ -39,7 +39,7 @@
 
 use std::ops::Range;
 
-use super::arma::{arma_pass, arma_residuals, fit_arma, lagged_normal, ma_invertible};
+use super::arma::{arma_pass, fit_arma, lagged_normal, ma_invertible};
 use super::direct::{self, DirectIndex};
 use super::linalg::{normal_equations, spd_solve_inverse};
 use super::moments::{
@@ -1318,6 +1318,34 @@ pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<
     Some((a, b))
 }
 
+/// The linear ARMA (a, b)'s residuals into `e`, e_t = x_t - sum a_m x_{t-m} -
+/// sum b_m e_{t-m} with zeros before the first sample (the values of
+/// [`super::arma::arma_residuals`], in the same operations), and their RSS over t >= `start` in
+/// [`rss_from`]'s order: w_t = x_t - sum a_m x_{t-m} in parallel, then the MA filter
+/// ([`ma_filter_rss`], in parallel chunks for q = 1, 2).
+fn arma_residuals_rss(x: &[f64], a: &[f64], b: &[f64], start: usize, e: &mut [f64]) -> f64 {
+    use rayon::prelude::*;
+    let fill = |buf: &mut [f64]| {
+        buf.par_chunks_mut(FILTER_CHUNK)
+            .enumerate()
+            .for_each(|(c, rows)| {
+                let t0 = c * FILTER_CHUNK;
+                for (i, v) in rows.iter_mut().enumerate() {
+                    let t = t0 + i;
+                    let mut s = x[t];
+                    for (m, am) in a.iter().enumerate() {
+                        if t > m {
+                            s -= am * x[t - m - 1];
+                        }
+                    }
+                    *v = s;
+                }
+            })
+    };
+    fill(e);
+    ma_filter_rss(e, b, start, fill)
+}
+
 /// [`linear_start`] stops refining once the Gauss-Newton model predicts less than
 /// this relative RSS decrease ([`arma_cls_within`]): its RSS is then within about
 /// 1e-10 of the linear ARMA's least one, far below the alternation's tolerance
@@ -1429,12 +1457,11 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         coef.status[k] = PointStatus::Ok;
         coef.f[k * p..(k + 1) * p].copy_from_slice(&a0);
     }
-    let mut e = vec![0.0; n];
     // constant f_m = a_m: the linear ARMA's recursion, the same operations as
     // `residuals` with every grid value a_m (interpolating between equal values
     // gives a_m itself), without finding cells
-    arma_residuals(&x, &a0, &b, &mut e);
-    let mut rss = rss_from(&e, pp);
+    let mut e = vec![0.0; n];
+    let mut rss = arma_residuals_rss(&x, &a0, &b, pp, &mut e);
     let mut rss_history = vec![rss];
     timings.start_s = lap();
     // The best iterate by global RSS, the linear start being iterate 0 (see the end).
@@ -1485,7 +1512,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         };
         filled = fill_failed(&mut fit_h, &grid).ok_or_else(|| {
             Error::Usage(format!(
-                "no grid point has a local fit at bandwidth {h:.6e}: the data are too sparse"
+                "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular (too few distinct index values near each grid point: a quantised channel, or a spike that stretches the range; `farma prep` removes outliers)"
             ))
         })?;
         coef = fit_h;
@@ -1831,6 +1858,34 @@ mod tests {
                 outs.push(rss.to_bits());
             }
             assert_eq!(outs[0], outs[1]);
+        }
+    }
+
+    #[test]
+    fn the_starts_parallel_residuals_are_the_serial_recursions_bit_for_bit() {
+        // one chunk (serial filter) and several chunks with a short last one
+        for n in [5_000, 3 * FILTER_CHUNK + 123] {
+            let w = uniform(n, 17);
+            let orders: [(&[f64], &[f64]); 5] = [
+                (&[0.36, -0.2], &[-0.48]),
+                (&[0.5], &[0.3, -0.2]),
+                (&[0.2, 0.1, -0.1], &[0.1, 0.05, 0.02]),
+                (&[0.4, -0.1], &[]),
+                (&[], &[0.6]),
+            ];
+            for (a, b) in orders {
+                let start = a.len().max(b.len()).max(1);
+                let mut want = vec![0.0; n];
+                super::super::arma::arma_residuals(&w, a, b, &mut want);
+                let rss_want = rss_from(&want, start);
+                let mut got = vec![f64::NAN; n];
+                let rss = arma_residuals_rss(&w, a, b, start, &mut got);
+                assert!(
+                    got.iter().zip(&want).all(|(u, v)| u.to_bits() == v.to_bits()),
+                    "n = {n}, a = {a:?}, b = {b:?}"
+                );
+                assert_eq!(rss.to_bits(), rss_want.to_bits(), "n = {n}, a = {a:?}, b = {b:?}");
+            }
         }
     }
 

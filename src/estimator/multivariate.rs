@@ -771,7 +771,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
         };
         filled = fill_failed2(&mut fit_h, &grid, half).ok_or_else(|| {
             Error::Usage(format!(
-                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): the data are too sparse",
+                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular (too few distinct index values near each grid point: a quantised channel, or a spike that stretches the range; `farma prep` removes outliers)",
                 h.0, h.1
             ))
         })?;

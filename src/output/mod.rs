@@ -4,7 +4,7 @@
 //! Every file is written to a temporary file in the target's folder and renamed into
 //! place, so a reader never sees half a file and a failed run leaves nothing behind.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use arrow_array::{ArrayRef, RecordBatch};
@@ -55,6 +55,19 @@ pub fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Writes `batch` to `path` as zstd Parquet with key-value metadata, atomically.
 pub fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(&str, String)]) -> Result<()> {
+    let tmp = stage_parquet(path, batch, metadata)?;
+    tmp.persist(path)
+        .map_err(|e| Error::output_io(path, e.error))?;
+    Ok(())
+}
+
+/// `batch` written as zstd Parquet with key-value metadata (and `farma_version`) to a
+/// temporary file in `path`'s folder, for a rename to `path`.
+fn stage_parquet(
+    path: &Path,
+    batch: &RecordBatch,
+    metadata: &[(&str, String)],
+) -> Result<tempfile::TempPath> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => std::path::PathBuf::from("."),
@@ -84,7 +97,81 @@ pub fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(&str, String
         .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
     w.close()
         .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
-    tmp.persist(path)
-        .map_err(|e| Error::output_io(path, e.error))?;
-    Ok(())
+    Ok(tmp.into_temp_path())
+}
+
+/// The files of one run, written together into one folder: each is first written
+/// to a temporary file there, and only once every one is written are they renamed
+/// into place ([`OutputSet::commit`]). A run that fails before leaves the folder as
+/// it was (the temporary files are removed when the set is dropped); the files of
+/// an earlier run that this one does not write are removed at the commit, so the
+/// folder never holds files of two runs.
+pub struct OutputSet {
+    dir: PathBuf,
+    staged: Vec<(PathBuf, tempfile::TempPath)>,
+}
+
+impl OutputSet {
+    /// A set writing into `dir` (created with its parents). Fails when `dir` is a
+    /// file.
+    pub fn new(dir: &Path) -> Result<Self> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::output_io(
+                dir,
+                std::io::Error::other("exists and is not a folder"),
+            ));
+        }
+        ensure_dir(dir)?;
+        Ok(OutputSet {
+            dir: dir.to_path_buf(),
+            staged: Vec::new(),
+        })
+    }
+
+    /// The path of file `name` in the set's folder.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+
+    /// Writes `batch` as Parquet file `name` of the set (see [`write_parquet`]), in
+    /// place only at the commit.
+    pub fn parquet(
+        &mut self,
+        name: &str,
+        batch: &RecordBatch,
+        metadata: &[(&str, String)],
+    ) -> Result<()> {
+        let path = self.path(name);
+        let tmp = stage_parquet(&path, batch, metadata)?;
+        self.staged.push((path, tmp));
+        Ok(())
+    }
+
+    /// Renames every file of the set into place, after checking that none of their
+    /// names is taken by a folder, then removes those of `outputs` (the names this
+    /// kind of run can write) that the set does not hold. Returns the removed paths.
+    pub fn commit(self, outputs: &[&str]) -> Result<Vec<PathBuf>> {
+        for (path, _) in &self.staged {
+            if path.is_dir() {
+                return Err(Error::output_io(
+                    path,
+                    std::io::Error::other("a folder of this name is in the way"),
+                ));
+            }
+        }
+        let written: Vec<PathBuf> = self.staged.iter().map(|(p, _)| p.clone()).collect();
+        for (path, tmp) in self.staged {
+            tmp.persist(&path)
+                .map_err(|e| Error::output_io(&path, e.error))?;
+        }
+        let mut removed = Vec::new();
+        for name in outputs {
+            let path = self.dir.join(name);
+            if !written.contains(&path) && path.is_file() {
+                std::fs::remove_file(&path).map_err(|e| Error::output_io(&path, e))?;
+                removed.push(path);
+            }
+        }
+        Ok(removed)
+    }
 }
