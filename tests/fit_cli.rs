@@ -96,6 +96,18 @@ fn fit_rejects_bad_requests_with_exit_2() {
             "--bandwidth",
         ),
         (
+            vec!["fit", l, "--channel", "gyro_x", "--grid", "5001", "-o", o],
+            "--grid: 3 to 5000 points",
+        ),
+        (
+            vec!["fit", l, "--channel", "gyro_x", "--tol", "inf", "-o", o],
+            "--tol must be finite",
+        ),
+        (
+            vec!["fit", l, "--channel", "gyro_x", "-o", l],
+            "exists and is not a folder",
+        ),
+        (
             vec![
                 "fit",
                 fixture("bad/gap.csv").to_str().unwrap(),

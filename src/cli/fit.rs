@@ -116,6 +116,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         return super::fit_index2::run(a, second, progress);
     }
     let (p, q, d) = parse_order(&a.order)?;
+    OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let params = FarmaParams {

@@ -44,6 +44,7 @@ fn parse_pair(s: &str) -> Result<(usize, usize)> {
 
 pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let (p, q, d) = parse_order(&a.order)?;
+    OutputSet::check(&a.output)?;
     if a.save_state {
         return Err(Error::Usage(
             "--save-state: online updates (farma update) support the 1-D index only; drop --save-state or the second --index channel".into(),

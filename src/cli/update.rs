@@ -50,6 +50,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
             a.forgetting
         )));
     }
+    OutputSet::check(&a.output)?;
     if !a.model_dir.is_dir() {
         return Err(Error::Usage(format!(
             "{}: MODEL_DIR is not a folder (the output folder of farma fit --save-state)",

@@ -112,20 +112,27 @@ pub struct OutputSet {
 }
 
 impl OutputSet {
-    /// A set writing into `dir` (created with its parents). Fails when `dir` is a
-    /// file.
+    /// A set writing into `dir` (created with its parents). Fails (a usage error)
+    /// when `dir` is a file.
     pub fn new(dir: &Path) -> Result<Self> {
-        if dir.exists() && !dir.is_dir() {
-            return Err(Error::output_io(
-                dir,
-                std::io::Error::other("exists and is not a folder"),
-            ));
-        }
+        Self::check(dir)?;
         ensure_dir(dir)?;
         Ok(OutputSet {
             dir: dir.to_path_buf(),
             staged: Vec::new(),
         })
+    }
+
+    /// A usage error when `dir` exists and is not a folder: for a run to check
+    /// before its work (nothing is created).
+    pub fn check(dir: &Path) -> Result<()> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::Usage(format!(
+                "-o {}: exists and is not a folder",
+                dir.display()
+            )));
+        }
+        Ok(())
     }
 
     /// The path of file `name` in the set's folder.
