@@ -208,6 +208,7 @@ fn fit_never_ends_above_its_linear_start() {
     );
     // ... and it is that linear start: constant f, its b, its residuals
     assert!(m.coef.f.iter().all(|f| *f == ar[0]));
+    assert!(m.coef.slope.iter().all(|s| *s == 0.0), "{:?}", m.coef.slope);
     assert_eq!(m.b, ma);
     assert!((m.rss - rss0).abs() <= 1e-12 * rss0);
     // with the linear model's degrees of freedom: p for f, not a smoother's trace

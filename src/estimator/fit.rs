@@ -1464,6 +1464,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     for k in 0..g {
         coef.status[k] = PointStatus::Ok;
         coef.f[k * p..(k + 1) * p].copy_from_slice(&a0);
+        // constant f_m: slope 0 (no local system: n_support and kernel_mass 0, cond
+        // NaN, as the note of a returned start says)
+        coef.slope[k * p..(k + 1) * p].fill(0.0);
     }
     // constant f_m = a_m: the linear ARMA's recursion, the same operations as
     // `residuals` with every grid value a_m (interpolating between equal values
@@ -1631,8 +1634,13 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     if went_back {
         notes.push(if best.index == 0 {
             format!(
-                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m; trace p = {p}, the linear model's; h = {h:.6e} is the bandwidth GCV last chose)",
-                best.rss
+                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m, slope 0, no local systems: n_support and kernel_mass 0, cond NaN; trace p = {p}, the linear model's; h = {h:.6e} is the bandwidth {})",
+                best.rss,
+                if prm.bandwidth.is_some() {
+                    "fixed by --bandwidth"
+                } else {
+                    "GCV last chose"
+                }
             )
         } else {
             format!(
