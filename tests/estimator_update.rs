@@ -302,3 +302,181 @@ fn two_updates_equal_one_and_the_state_file_round_trips() {
     assert!(update(&st, &[], 1.0).is_err());
     assert!(update(&st, &[1.0, f64::NAN], 1.0).is_err());
 }
+
+/// A state file with one field of channel "gyro" edited: read_state must reject it
+/// with an error (exit 2) naming the file, the channel and the field, and `update`
+/// on the edited state must return an error, never panic.
+#[test]
+fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
+    let x = simulate(2000, 21);
+    let m = fitted(&x, 1);
+    let st = state_from_fit("gyro", &x, &m);
+    let new = simulate(300, 22);
+    type Edit = Box<dyn Fn(&mut ChannelState)>;
+    let cases: Vec<(&str, Edit, &str)> = vec![
+        ("mean NaN", Box::new(|s| s.mean = f64::NAN), "'mean'"),
+        ("mean inf", Box::new(|s| s.mean = f64::INFINITY), "'mean'"),
+        ("mean 1e300", Box::new(|s| s.mean = 1e300), "'mean'"),
+        (
+            "x_tail NaN",
+            Box::new(|s| s.x_tail[1] = f64::NAN),
+            "'x_tail'",
+        ),
+        (
+            "e_tail NaN",
+            Box::new(|s| s.e_tail[0] = f64::NAN),
+            "'e_tail'",
+        ),
+        ("b NaN", Box::new(|s| s.b[0] = f64::NAN), "'b'"),
+        (
+            "grid inf",
+            Box::new(|s| *s.grid.last_mut().unwrap() = f64::INFINITY),
+            "'grid'",
+        ),
+        ("gram NaN", Box::new(|s| s.gram[5] = f64::NAN), "'gram'"),
+        ("rss negative", Box::new(|s| s.rss = -1.0), "'rss'"),
+        ("rows zero", Box::new(|s| s.rows = 0.0), "'rows'"),
+        (
+            "forgetting NaN",
+            Box::new(|s| s.forgetting = f64::NAN),
+            "'forgetting'",
+        ),
+        (
+            "forgetting 2",
+            Box::new(|s| s.forgetting = 2.0),
+            "'forgetting'",
+        ),
+        ("n zero", Box::new(|s| s.n = 0), "'n'"),
+        ("n below the tails", Box::new(|s| s.n = 2), "'n'"),
+        (
+            "kernel mass negative",
+            Box::new(|s| s.kernel_mass[3] = -1.0),
+            "'kernel_mass'",
+        ),
+        (
+            "n_support above n",
+            Box::new(|s| s.n_support[3] = 1 << 40),
+            "'n_support'",
+        ),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (what, edit, field) in &cases {
+        let mut bad = st.clone();
+        edit(&mut bad);
+        let path = dir.path().join("state.parquet");
+        write_state(&path, &[&bad], &[]).unwrap();
+        let err = read_state(&path).expect_err(what).to_string();
+        assert!(
+            err.contains("state.parquet") && err.contains("'gyro'") && err.contains(field),
+            "{what}: {err}"
+        );
+        let e = read_state(&path).unwrap_err();
+        assert_eq!(e.exit_code(), 2, "{what}: {err}");
+        // the library entry point checks too (no panic on a NaN index value)
+        assert!(
+            update(&bad, &new, 1.0).is_err(),
+            "{what}: update accepted it"
+        );
+    }
+    // two rows for one channel
+    let path = dir.path().join("dup.parquet");
+    let mut other = st.clone();
+    other.mean += 1.0;
+    write_state(&path, &[&st, &other], &[]).unwrap();
+    let err = read_state(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("dup.parquet") && err.contains("'gyro'") && err.contains("more than one"),
+        "{err}"
+    );
+    // the unedited state still reads back
+    write_state(&path, &[&st], &[]).unwrap();
+    assert_eq!(read_state(&path).unwrap().0[0], st);
+}
+
+/// New samples far off the model's scale make the RLS recursions non-finite: the
+/// update must fail naming the problem, not return NaN coefficients.
+#[test]
+fn update_on_samples_far_off_the_models_scale_fails_instead_of_returning_nan() {
+    let x = simulate(3000, 31);
+    let m = fitted(&x[..2000], 1);
+    let st = state_from_fit("gyro", &x[..2000], &m);
+    for scale in [1e12, 1e20, 1e100] {
+        let new: Vec<f64> = x[2000..].iter().map(|v| v * scale).collect();
+        match update(&st, &new, 1.0) {
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains("non-finite") && msg.contains("scale"), "{msg}");
+                assert_eq!(e.exit_code(), 2);
+            }
+            Ok(u) => {
+                // a finite result is allowed only if it is finite everywhere
+                let m = &u.model;
+                assert!(
+                    m.b.iter().all(|v| v.is_finite())
+                        && m.sigma2.is_finite()
+                        && m.coef.f.iter().all(|v| v.is_finite())
+                        && u.state.check().is_ok(),
+                    "scale {scale}: non-finite model returned: b = {:?}, sigma2 = {}",
+                    m.b,
+                    m.sigma2
+                );
+                assert!(!m.notes.is_empty(), "scale {scale}: no note");
+            }
+        }
+    }
+    // an overflow of new - mean is an error too
+    let mut st2 = st.clone();
+    st2.mean = -1e308;
+    st2.grid.iter_mut().for_each(|g| *g *= 1e300);
+    let r = update(&st2, &[1.7e308, 1.7e308], 1.0);
+    assert!(r.is_err());
+}
+
+/// Strong forgetting leaves the local fits too few samples: the update says so in its
+/// notes (and sigma^2's rise); mild forgetting and none add no such note.
+#[test]
+fn strong_forgetting_and_a_level_shift_are_noted() {
+    let x = simulate(3000, 41);
+    let m = fitted(&x[..2000], 1);
+    let st = state_from_fit("gyro", &x[..2000], &m);
+    let new = &x[2000..];
+    let strong = update(&st, new, 0.9).unwrap();
+    let notes = strong.model.notes.join("\n");
+    assert!(notes.contains("forgetting factor 0.9"), "{notes}");
+    assert!(notes.contains("effective memory"), "{notes}");
+    for lam in [1.0, 0.999] {
+        let u = update(&st, new, lam).unwrap();
+        assert!(
+            u.model
+                .notes
+                .iter()
+                .all(|n| !n.contains("forgetting factor")
+                    && !n.contains("sigma2 rose")
+                    && !n.contains("not invertible")
+                    && !n.contains("outside the reach")),
+            "lambda {lam}: {:?}",
+            u.model.notes
+        );
+    }
+    // sigma^2 rise: a new log with ten times the noise
+    let loud: Vec<f64> = new.iter().map(|v| 30.0 * v).collect();
+    let u = update(&st, &loud, 1.0).unwrap();
+    assert!(
+        u.model.notes.iter().any(|n| n.contains("sigma2 rose")),
+        "{:?}",
+        u.model.notes
+    );
+    // a level shift far beyond the grid: noted, and a non-invertible b noted if any
+    let shift = x[..2000].iter().fold(0.0f64, |a, v| a.max(v.abs())) * 10.0;
+    let shifted: Vec<f64> = new.iter().map(|v| v + shift).collect();
+    let u = update(&st, &shifted, 1.0).unwrap();
+    let notes = u.model.notes.join("\n");
+    assert!(notes.contains("outside the reach"), "{notes}");
+    let invertible = farma::estimator::arma::ma_invertible(&u.model.b);
+    assert_eq!(
+        notes.contains("not invertible"),
+        !invertible,
+        "b = {:?}: {notes}",
+        u.model.b
+    );
+}

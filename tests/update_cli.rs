@@ -226,3 +226,77 @@ fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
     assert!(!out.join("coef.parquet").exists());
     assert!(!out.join("state.parquet").exists());
 }
+
+/// A state.parquet with a NaN mean exits 2 naming the file, the channel and the field
+/// (it panicked); new samples 1e20 times the model's scale exit 2 and write nothing
+/// (they wrote NaN coefficients with exit 0).
+#[test]
+fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
+    use farma::estimator::update::{read_state, write_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = d.join("model");
+    let o = farma(
+        &[
+            "fit",
+            s(&old),
+            "--channel",
+            "gyro_x,gyro_y",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "21",
+            "--save-state",
+            "-o",
+            s(&model),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // the state with a NaN mean for gyro_x
+    let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
+    states[0].mean = f64::NAN;
+    let bad = d.join("bad");
+    std::fs::create_dir(&bad).unwrap();
+    let md: Vec<(&str, String)> = md
+        .iter()
+        .filter(|(k, _)| k != "farma_state_version")
+        .map(|(k, v)| (k.as_str(), v.clone()))
+        .collect();
+    let refs: Vec<_> = states.iter().collect();
+    write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+    let out = d.join("out");
+    let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("state.parquet") && err.contains("'gyro_x'") && err.contains("'mean'"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // gyro_x times 1e20
+    let text = std::fs::read_to_string(&new).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let col = header.split(',').position(|c| c == "gyro_x").unwrap();
+    let mut scaled = format!("{header}\n");
+    for l in lines {
+        let mut f: Vec<String> = l.split(',').map(String::from).collect();
+        f[col] = format!("{:e}", f[col].parse::<f64>().unwrap() * 1e20);
+        scaled.push_str(&f.join(","));
+        scaled.push('\n');
+    }
+    let big = d.join("big.csv");
+    std::fs::write(&big, scaled).unwrap();
+    let r = farma(&["update", s(&model), s(&big), "-o", s(&out)], d);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("'gyro_x'") && err.contains("non-finite") && err.contains("scale"),
+        "{err}"
+    );
+    assert!(!out.join("state.parquet").exists());
+    assert!(!out.join("coef.parquet").exists());
+}

@@ -7,9 +7,9 @@ use clap::Args;
 use rayon::prelude::*;
 
 use super::LogArgs;
+use super::update::STATE_FILE;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table, residual_table};
-use super::update::STATE_FILE;
 use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit};
 use crate::log::Progress;
 use crate::output::OutputSet;

@@ -8,13 +8,13 @@ use clap::Args;
 use rayon::prelude::*;
 
 use super::LogArgs;
+use super::fit::{FIT_OUTPUTS, state_metadata};
 use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
     Updated, read_state, state_table, update, update_params_table, update_residual_table,
 };
-use super::fit::{FIT_OUTPUTS, state_metadata};
 use crate::log::Progress;
 use crate::output::OutputSet;
 
@@ -125,7 +125,11 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     out.parquet("params.parquet", &update_params_table(&items)?, &out_md)?;
     out.parquet("gcv.parquet", &gcv_table(&models)?, &out_md)?;
     if a.residuals {
-        out.parquet("residuals.parquet", &update_residual_table(&items)?, &out_md)?;
+        out.parquet(
+            "residuals.parquet",
+            &update_residual_table(&items)?,
+            &out_md,
+        )?;
     }
     let refs: Vec<_> = ups.iter().map(|(_, u)| &u.state).collect();
     out.parquet(STATE_FILE, &state_table(&refs)?, &state_metadata(&out_md))?;

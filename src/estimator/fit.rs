@@ -1897,10 +1897,16 @@ mod tests {
                 let mut got = vec![f64::NAN; n];
                 let rss = arma_residuals_rss(&w, a, b, start, &mut got);
                 assert!(
-                    got.iter().zip(&want).all(|(u, v)| u.to_bits() == v.to_bits()),
+                    got.iter()
+                        .zip(&want)
+                        .all(|(u, v)| u.to_bits() == v.to_bits()),
                     "n = {n}, a = {a:?}, b = {b:?}"
                 );
-                assert_eq!(rss.to_bits(), rss_want.to_bits(), "n = {n}, a = {a:?}, b = {b:?}");
+                assert_eq!(
+                    rss.to_bits(),
+                    rss_want.to_bits(),
+                    "n = {n}, a = {a:?}, b = {b:?}"
+                );
             }
         }
     }

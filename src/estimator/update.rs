@@ -127,10 +127,11 @@ impl ChannelState {
             .collect()
     }
 
-    /// Checks the shapes (a state read from a file may be corrupt).
+    /// Checks the shapes, that every number is finite and that the values are possible
+    /// for a fitted (or updated) channel (a state read from a file may be corrupt or
+    /// edited). The message names the field and what is wrong.
     pub fn check(&self) -> std::result::Result<(), String> {
         let (p, q, g) = (self.p, self.q, self.grid.len());
-        let n = 2 * p;
         let lag = self.lag();
         let bad = |what: &str| {
             Err(format!(
@@ -143,26 +144,140 @@ impl ChannelState {
                 self.d
             ));
         }
-        if self.gram.len() != g * n * n || self.gram2.len() != g * n * n {
+        // sizes with checked arithmetic: a corrupt p or q must not overflow
+        let n = p.checked_mul(2);
+        let nn = n
+            .and_then(|n| n.checked_mul(n))
+            .and_then(|v| v.checked_mul(g));
+        let nc = n
+            .zip(q.checked_add(1))
+            .and_then(|(n, c)| n.checked_mul(c))
+            .and_then(|v| v.checked_mul(g));
+        let qq = q.checked_mul(q);
+        let (Some(nn), Some(nc), Some(qq)) = (nn, nc, qq) else {
+            return Err(format!("p = {p}, q = {q}: impossible model order"));
+        };
+        if self.gram.len() != nn || self.gram2.len() != nn {
             return bad("gram");
         }
-        if self.cross.len() != g * n * (1 + q) {
+        if self.cross.len() != nc {
             return bad("cross");
         }
         if self.kernel_mass.len() != g || self.n_support.len() != g {
             return bad("kernel_mass / n_support");
         }
-        if self.b.len() != q || self.b_gram.len() != q * q || self.b_rhs.len() != q {
+        if self.b.len() != q || self.b_gram.len() != qq || self.b_rhs.len() != q {
             return bad("b / b_gram / b_rhs");
         }
         if self.x_tail.len() != lag || self.e_tail.len() != lag {
             return bad("x_tail / e_tail");
         }
-        if !(self.bandwidth.is_finite() && self.bandwidth > 0.0) {
-            return Err(format!("bandwidth {} is not positive", self.bandwidth));
+        let scalars = [
+            ("mean", self.mean),
+            ("bandwidth", self.bandwidth),
+            ("rss", self.rss),
+            ("rows", self.rows),
+            ("forgetting", self.forgetting),
+        ];
+        for (name, v) in scalars {
+            if !v.is_finite() {
+                return Err(format!("field '{name}' is {v}, not a finite number"));
+            }
+        }
+        let lists: [(&str, &[f64]); 10] = [
+            ("grid", &self.grid),
+            ("gram", &self.gram),
+            ("cross", &self.cross),
+            ("gram2", &self.gram2),
+            ("kernel_mass", &self.kernel_mass),
+            ("b", &self.b),
+            ("b_gram", &self.b_gram),
+            ("b_rhs", &self.b_rhs),
+            ("x_tail", &self.x_tail),
+            ("e_tail", &self.e_tail),
+        ];
+        for (name, v) in lists {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(format!(
+                    "field '{name}' holds {} at index {i} (of {}), not a finite number",
+                    v[i],
+                    v.len()
+                ));
+            }
+        }
+        if self.bandwidth <= 0.0 {
+            return Err(format!(
+                "field 'bandwidth' is {}, not positive",
+                self.bandwidth
+            ));
         }
         if !self.grid.windows(2).all(|w| w[0] < w[1]) {
-            return Err("grid is not strictly increasing".into());
+            return Err("field 'grid' is not strictly increasing".into());
+        }
+        let (lo, hi) = (self.grid[0] + self.mean, self.grid[g - 1] + self.mean);
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(format!(
+                "field 'mean' = {:e} does not fit the grid [{:e}, {:e}] (centred units): the grid points coincide or overflow in channel units",
+                self.mean,
+                self.grid[0],
+                self.grid[g - 1]
+            ));
+        }
+        if !(self.forgetting > 0.0 && self.forgetting <= 1.0) {
+            return Err(format!(
+                "field 'forgetting' is {}, not in (0, 1]",
+                self.forgetting
+            ));
+        }
+        if self.n <= lag as u64 {
+            return Err(format!(
+                "field 'n' is {}: a fitted channel has more than max(p, q, d) = {lag} samples (the length of x_tail / e_tail)",
+                self.n
+            ));
+        }
+        let n_rows = self.n - lag as u64;
+        if self.rss < 0.0 {
+            return Err(format!("field 'rss' is {}, negative", self.rss));
+        }
+        // rows = N - lag after a fit, discounted (never above N - lag) by updates
+        if !(self.rows > 0.0 && self.rows <= n_rows as f64 * (1.0 + 1e-12)) {
+            return Err(format!(
+                "field 'rows' is {}, not in (0, n - max(p, q, d) = {n_rows}]",
+                self.rows
+            ));
+        }
+        if let Some(i) = self.n_support.iter().position(|c| *c > n_rows) {
+            return Err(format!(
+                "field 'n_support' is {} at grid point {i}, above the {n_rows} rows of n = {}",
+                self.n_support[i], self.n
+            ));
+        }
+        // Biweight weights lie in [0, 15/16]: 0 <= kernel mass <= samples in the support
+        if let Some(i) = (0..g).find(|i| {
+            let m = self.kernel_mass[*i];
+            !(m >= 0.0 && m <= self.n_support[*i] as f64 * (1.0 + 1e-9))
+        }) {
+            return Err(format!(
+                "field 'kernel_mass' is {} at grid point {i}, not in [0, n_support = {}]",
+                self.kernel_mass[i], self.n_support[i]
+            ));
+        }
+        let n = 2 * p;
+        let diag = |name: &str, v: &[f64], k: usize| -> std::result::Result<(), String> {
+            for (blk, m) in v.chunks(k * k).enumerate() {
+                if let Some(i) = (0..k).find(|i| m[i * k + i] < 0.0) {
+                    return Err(format!(
+                        "field '{name}' has the negative diagonal entry {} (block {blk}, row {i}): not a Gram matrix",
+                        m[i * k + i]
+                    ));
+                }
+            }
+            Ok(())
+        };
+        diag("gram", &self.gram, n)?;
+        diag("gram2", &self.gram2, n)?;
+        if q > 0 {
+            diag("b_gram", &self.b_gram, q)?;
         }
         Ok(())
     }
@@ -405,6 +520,14 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
     let mut st = state.clone();
     let mut xs = st.x_tail.clone();
     xs.extend(new.iter().map(|v| v - st.mean));
+    if let Some(i) = xs.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Usage(format!(
+            "new sample {} ({:e}) minus the model's mean {:e} is not a finite number: the new samples do not fit the model's scale",
+            i - lag,
+            new[i - lag],
+            st.mean
+        )));
+    }
     let mut es = st.e_tail.clone();
     es.resize(lag + nn, 0.0);
     let mut ws = vec![0.0; nn];
@@ -460,7 +583,8 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
         let t = lag + k;
         let u = xs[t - d];
         // 1. current f at U_t: linear between the tracked points, constant beyond
-        if u <= tg[0] {
+        // (written so that a NaN u takes this branch: never an index below 0)
+        if u.is_nan() || u <= tg[0] {
             f_at(&theta, ti[0], &b, &mut f);
         } else if u >= tg[tg.len() - 1] {
             f_at(&theta, ti[ti.len() - 1], &b, &mut f);
@@ -620,6 +744,7 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
             }
         }
     }
+    check_result(&st, state, new, &coef, &se, sigma2, &es)?;
     let filled = super::fit::fill_failed(&mut coef, &st.grid)
         .ok_or_else(|| Error::Usage("no grid point has a local fit after the update".into()))?;
     let mut notes = Vec::new();
@@ -637,6 +762,7 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
             "{newly} grid point(s) without a fit before the update have one now (solved from the accumulated normal equations)"
         ));
     }
+    notes.extend(update_notes(state, &st, &coef, sigma2, &xs[lag..]));
     let model = FittedFarma {
         p,
         q,
@@ -671,6 +797,132 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
         w: ws,
         first_t,
     })
+}
+
+/// An error unless the update's results are finite numbers: b, sigma^2, f, slopes and
+/// standard errors of the fitted points (the others are filled from these), the residuals and the new state
+/// (which is written to continue later, and which [`read_state`] would reject).
+/// Non-finite numbers come from new samples far off the model's scale (the RLS
+/// covariance recursions lose all precision), so the message gives their range
+/// against the model's grid.
+fn check_result(
+    st: &ChannelState,
+    before: &ChannelState,
+    new: &[f64],
+    coef: &GridFit,
+    se: &[f64],
+    sigma2: f64,
+    es: &[f64],
+) -> Result<()> {
+    let p = st.p;
+    let all = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    let ok_points = |v: &[f64]| {
+        (0..st.n_grid()).all(|g| coef.status[g] != PointStatus::Ok || all(&v[g * p..(g + 1) * p]))
+    };
+    let what = if !all(&st.b) {
+        Some("MA coefficients b".to_string())
+    } else if !(sigma2.is_finite() && sigma2 >= 0.0) {
+        Some(format!("sigma2 ({sigma2})"))
+    } else if !ok_points(&coef.f) {
+        Some("coefficient functions f".to_string())
+    } else if !ok_points(&coef.slope) {
+        Some("slopes of f".to_string())
+    } else if !ok_points(se) {
+        Some("standard errors of f".to_string())
+    } else if !all(es) {
+        Some("residuals".to_string())
+    } else {
+        st.check().err().map(|m| format!("state ({m})"))
+    };
+    let Some(what) = what else {
+        return Ok(());
+    };
+    let (lo, hi) = new
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let g = &before.grid;
+    Err(Error::Usage(format!(
+        "the update produced non-finite {what}: the new samples do not fit the model's scale (they span [{lo:e}, {hi:e}], the model's grid spans [{:e}, {:e}] with bandwidth {:e}, channel units); refit on the new log",
+        g[0] + before.mean,
+        g[g.len() - 1] + before.mean,
+        before.bandwidth
+    )))
+}
+
+/// A share of new samples beyond the grid +- h above this gets a note.
+const OUTSIDE_SHARE: f64 = 0.05;
+/// sigma^2 after an update above this multiple of sigma^2 before it gets a note.
+const SIGMA2_RISE: f64 = 10.0;
+/// A grid point whose discounted kernel mass (its effective samples after forgetting)
+/// is below this multiple of its 2p unknowns gets counted in the forgetting note.
+const MASS_PER_UNKNOWN: f64 = 5.0;
+
+/// Notes on an update whose result is suspect: too short a memory for the local fits
+/// (forgetting), a large rise of sigma^2, a non-invertible b. Nothing here changes a
+/// number of the model.
+/// `xs` holds the new samples, centred.
+fn update_notes(
+    before: &ChannelState,
+    st: &ChannelState,
+    coef: &GridFit,
+    sigma2: f64,
+    xs: &[f64],
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    let (g, h) = (&st.grid, st.bandwidth);
+    let (lo, hi) = (g[0] - h, g[g.len() - 1] + h);
+    let out = xs.iter().filter(|v| !(lo <= **v && **v <= hi)).count();
+    if out as f64 > OUTSIDE_SHARE * xs.len() as f64 {
+        notes.push(format!(
+            "{out} of {} new sample(s) lie outside the reach of the model's grid [{:e}, {:e}] (grid +- bandwidth, channel units): f is extrapolated as a constant there; a level or scale change?",
+            xs.len(),
+            lo + st.mean,
+            hi + st.mean
+        ));
+    }
+    let lam = st.forgetting;
+    let unknowns = 2 * st.p;
+    if lam < 1.0 {
+        let need = MASS_PER_UNKNOWN * unknowns as f64;
+        let low = (0..st.n_grid())
+            .filter(|g| coef.status[*g] == PointStatus::Ok && st.kernel_mass[*g] < need)
+            .count();
+        let ok = coef
+            .status
+            .iter()
+            .filter(|s| **s == PointStatus::Ok)
+            .count();
+        if low > 0 {
+            let mut mass = st.kernel_mass.clone();
+            mass.sort_by(f64::total_cmp);
+            notes.push(format!(
+                "forgetting factor {lam}: the effective memory 1/(1 - lambda) = {:.1} sample(s) leaves {low} of {ok} fitted grid point(s) with an effective kernel mass below {need} ({MASS_PER_UNKNOWN} per unknown of their {unknowns}-unknown local systems; median mass over the grid {:.3}): their f rest on too few samples and may be far off; use a forgetting factor closer to 1",
+                1.0 / (1.0 - lam),
+                mass[mass.len() / 2]
+            ));
+        }
+    }
+    let before_s2 = before.rss / before.rows;
+    if before_s2 > 0.0 && sigma2 > SIGMA2_RISE * before_s2 {
+        let why = if lam < 1.0 {
+            "the new samples do not follow the model, or the forgetting factor leaves the local fits too few samples"
+        } else {
+            "the new samples do not follow the model (a level or scale change?); consider a refit"
+        };
+        notes.push(format!(
+            "sigma2 rose from {before_s2:.6e} to {sigma2:.6e} ({:.3e} times) over the update: {why}",
+            sigma2 / before_s2
+        ));
+    }
+    if st.q > 0 && !super::arma::ma_invertible(&st.b) {
+        notes.push(format!(
+            "the updated MA coefficients b = {:?} are not invertible (a root of 1 + b_1 z + ... on or inside the unit circle; a fit never gives one): the new samples do not follow the model (a level shift?); consider a refit",
+            st.b
+        ));
+    }
+    notes
 }
 
 fn lf(builder: &mut ListBuilder<Float64Builder>, v: &[f64]) {
@@ -840,9 +1092,39 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 .as_any()
                 .downcast_ref::<Float64Array>()
                 .ok_or_else(|| wrong(name))?;
+            if l.is_null(row) || v.null_count() > 0 {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "channel '{}': field '{name}' holds a missing (null) value",
+                        channel.value(row)
+                    ),
+                ));
+            }
             Ok(v.values().to_vec())
         };
         for row in 0..b.num_rows() {
+            let scalars: [(&str, &dyn Array); 10] = [
+                ("channel", channel),
+                ("p", p),
+                ("q", q),
+                ("d", d),
+                ("mean", mean),
+                ("bandwidth", bw),
+                ("n", n),
+                ("rss", rss),
+                ("rows", rows),
+                ("forgetting", lam),
+            ];
+            if let Some((name, _)) = scalars.iter().find(|(_, a)| a.is_null(row)) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "channel '{}' (row {row}): field '{name}' is missing (null)",
+                        channel.value(row)
+                    ),
+                ));
+            }
             let usz =
                 |a: &Int64Array, name: &str| usize::try_from(a.value(row)).map_err(|_| wrong(name));
             let ns = nsup.value(row);
@@ -850,6 +1132,15 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 .as_any()
                 .downcast_ref::<UInt64Array>()
                 .ok_or_else(|| wrong("n_support"))?;
+            if nsup.is_null(row) || ns.null_count() > 0 {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "channel '{}': field 'n_support' holds a missing (null) value",
+                        channel.value(row)
+                    ),
+                ));
+            }
             let s = ChannelState {
                 channel: channel.value(row).to_string(),
                 p: usz(p, "p")?,
@@ -875,6 +1166,15 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
             };
             s.check()
                 .map_err(|m| Error::format(path, format!("channel '{}': {m}", s.channel)))?;
+            if out.iter().any(|o: &ChannelState| o.channel == s.channel) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "channel '{}': field 'channel': the channel has more than one state row",
+                        s.channel
+                    ),
+                ));
+            }
             out.push(s);
         }
     }
