@@ -34,23 +34,20 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-#[test]
-fn fit_save_state_then_update_writes_tables_independent_of_threads() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 3000, None);
-    let new = slice_log(d, "new.csv", 3000, 4000, None);
+/// `farma fit OLD --channel gyro_x,gyro_y --order ORDER --grid GRID --save-state -o
+/// MODEL` in `d`, which must succeed; returns MODEL.
+fn fit_state(d: &Path, old: &Path, order: &str, grid: &str) -> PathBuf {
     let model = d.join("model");
     let o = farma(
         &[
             "fit",
-            s(&old),
+            s(old),
             "--channel",
             "gyro_x,gyro_y",
             "--order",
-            "2,1,1",
+            order,
             "--grid",
-            "31",
+            grid,
             "--save-state",
             "-o",
             s(&model),
@@ -58,6 +55,16 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
         d,
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    model
+}
+
+#[test]
+fn fit_save_state_then_update_writes_tables_independent_of_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 3000, None);
+    let new = slice_log(d, "new.csv", 3000, 4000, None);
+    let model = fit_state(d, &old, "2,1,1", "31");
     assert!(model.join("state.parquet").exists());
     let run = |threads: &str, out: &str, extra: &[&str]| {
         let mut args = vec!["--threads", threads, "update", s(&model), s(&new), "-o"];
@@ -133,24 +140,7 @@ fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
     let old = slice_log(d, "old.csv", 0, 2000, None);
     let new = slice_log(d, "new.csv", 2000, 2500, None);
     let no_y = slice_log(d, "no_y.csv", 2000, 2500, Some("gyro_y"));
-    let model = d.join("model");
-    let o = farma(
-        &[
-            "fit",
-            s(&old),
-            "--channel",
-            "gyro_x,gyro_y",
-            "--order",
-            "1,1,1",
-            "--grid",
-            "21",
-            "--save-state",
-            "-o",
-            s(&model),
-        ],
-        d,
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let model = fit_state(d, &old, "1,1,1", "21");
     let no_state = d.join("no_state");
     std::fs::create_dir(&no_state).unwrap();
     let corrupt = d.join("corrupt");
@@ -237,24 +227,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
     let new = slice_log(d, "new.csv", 2000, 2500, None);
-    let model = d.join("model");
-    let o = farma(
-        &[
-            "fit",
-            s(&old),
-            "--channel",
-            "gyro_x,gyro_y",
-            "--order",
-            "1,1,1",
-            "--grid",
-            "21",
-            "--save-state",
-            "-o",
-            s(&model),
-        ],
-        d,
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let model = fit_state(d, &old, "1,1,1", "21");
     // the state with a NaN mean for gyro_x
     let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
     states[0].mean = f64::NAN;

@@ -10,7 +10,7 @@ use super::LogArgs;
 use super::update::STATE_FILE;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table, residual_table};
-use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit};
+use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit, update};
 use crate::log::Progress;
 use crate::output::OutputSet;
 
@@ -82,17 +82,6 @@ pub(super) const FIT_OUTPUTS: [&str; 5] = [
     "residuals.parquet",
     STATE_FILE,
 ];
-
-/// The metadata of state.parquet: the run's, and the state format's version (what
-/// [`crate::estimator::update::write_state`] writes).
-pub(super) fn state_metadata(md: &[(&'static str, String)]) -> Vec<(&'static str, String)> {
-    let mut md = md.to_vec();
-    md.push((
-        "farma_state_version",
-        crate::estimator::update::STATE_VERSION.to_string(),
-    ));
-    md
-}
 
 pub(super) fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
     let v: Vec<&str> = s.split(',').map(str::trim).collect();
@@ -176,17 +165,11 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     if a.save_state {
         let states: Vec<_> = fits
             .par_iter()
-            .map(|(n, m)| {
-                Ok(crate::estimator::update::state_from_fit(
-                    n,
-                    store.column(n)?,
-                    m,
-                ))
-            })
+            .map(|(n, m)| Ok(update::state_from_fit(n, store.column(n)?, m)))
             .collect::<Result<_>>()?;
         let refs: Vec<_> = states.iter().collect();
-        let table = crate::estimator::update::state_table(&refs)?;
-        out.parquet(STATE_FILE, &table, &state_metadata(&md))?;
+        let table = update::state_table(&refs)?;
+        out.parquet(STATE_FILE, &table, &update::state_metadata(&md))?;
     }
     for stale in out.commit(&FIT_OUTPUTS)? {
         eprintln!(

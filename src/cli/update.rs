@@ -8,12 +8,13 @@ use clap::Args;
 use rayon::prelude::*;
 
 use super::LogArgs;
-use super::fit::{FIT_OUTPUTS, state_metadata};
+use super::fit::FIT_OUTPUTS;
 use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
-    Updated, read_state, state_table, update, update_params_table, update_residual_table,
+    Updated, read_state, state_metadata, state_table, update, update_params_table,
+    update_residual_table,
 };
 use crate::log::Progress;
 use crate::output::OutputSet;

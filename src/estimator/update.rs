@@ -889,12 +889,12 @@ fn update_notes(
         let low = (0..st.n_grid())
             .filter(|g| coef.status[*g] == PointStatus::Ok && st.kernel_mass[*g] < need)
             .count();
-        let ok = coef
-            .status
-            .iter()
-            .filter(|s| **s == PointStatus::Ok)
-            .count();
         if low > 0 {
+            let ok = coef
+                .status
+                .iter()
+                .filter(|s| **s == PointStatus::Ok)
+                .count();
             let mut mass = st.kernel_mass.clone();
             mass.sort_by(f64::total_cmp);
             notes.push(format!(
@@ -1009,9 +1009,14 @@ pub fn state_table(states: &[&ChannelState]) -> Result<RecordBatch> {
 
 /// Writes the state file atomically (file metadata: `farma_state_version` and `md`).
 pub fn write_state(path: &Path, states: &[&ChannelState], md: &[(&str, String)]) -> Result<()> {
+    crate::output::write_parquet(path, &state_table(states)?, &state_metadata(md))
+}
+
+/// The key-value metadata of a state file: `md` and the state format's version.
+pub fn state_metadata<'a>(md: &[(&'a str, String)]) -> Vec<(&'a str, String)> {
     let mut md = md.to_vec();
     md.push(("farma_state_version", STATE_VERSION.to_string()));
-    crate::output::write_parquet(path, &state_table(states)?, &md)
+    md
 }
 
 /// Key-value metadata of a Parquet file.
@@ -1082,6 +1087,16 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
             get!("forgetting", Float64Array),
         );
         let nsup = get!("n_support", ListArray);
+        // a list field with a missing value (its own or one of its entries)
+        let null_in = |name: &str, row: usize| {
+            Error::format(
+                path,
+                format!(
+                    "channel '{}': field '{name}' holds a missing (null) value",
+                    channel.value(row)
+                ),
+            )
+        };
         let list = |name: &str, row: usize| -> Result<Vec<f64>> {
             let l = col(name)?
                 .as_any()
@@ -1093,13 +1108,7 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 .downcast_ref::<Float64Array>()
                 .ok_or_else(|| wrong(name))?;
             if l.is_null(row) || v.null_count() > 0 {
-                return Err(Error::format(
-                    path,
-                    format!(
-                        "channel '{}': field '{name}' holds a missing (null) value",
-                        channel.value(row)
-                    ),
-                ));
+                return Err(null_in(name, row));
             }
             Ok(v.values().to_vec())
         };
@@ -1133,13 +1142,7 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 .downcast_ref::<UInt64Array>()
                 .ok_or_else(|| wrong("n_support"))?;
             if nsup.is_null(row) || ns.null_count() > 0 {
-                return Err(Error::format(
-                    path,
-                    format!(
-                        "channel '{}': field 'n_support' holds a missing (null) value",
-                        channel.value(row)
-                    ),
-                ));
+                return Err(null_in("n_support", row));
             }
             let s = ChannelState {
                 channel: channel.value(row).to_string(),

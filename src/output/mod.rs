@@ -32,19 +32,25 @@ pub fn batch(columns: Vec<(&str, ArrayRef)>) -> Result<RecordBatch> {
         .map_err(|e| Error::Internal(format!("output table: {e}")))
 }
 
-/// Writes `text` to `path` atomically (a temporary file beside it, then a rename).
-pub fn write_text(path: &Path, text: &str) -> Result<()> {
-    use std::io::Write;
+/// A temporary file in `path`'s folder (`.farma-*.tmp`, removed unless renamed), so
+/// that a rename puts it in place atomically.
+fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
+        _ => PathBuf::from("."),
     };
-    let mut tmp = tempfile::Builder::new()
+    tempfile::Builder::new()
         .prefix(".farma-")
         .suffix(".tmp")
         .permissions(crate::store::output_permissions())
         .tempfile_in(&dir)
-        .map_err(|e| Error::output_io(path, e))?;
+        .map_err(|e| Error::output_io(path, e))
+}
+
+/// Writes `text` to `path` atomically (a temporary file beside it, then a rename).
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut tmp = temp_beside(path)?;
     tmp.write_all(text.as_bytes())
         .and_then(|_| tmp.flush())
         .map_err(|e| Error::output_io(path, e))?;
@@ -68,16 +74,7 @@ fn stage_parquet(
     batch: &RecordBatch,
     metadata: &[(&str, String)],
 ) -> Result<tempfile::TempPath> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".farma-")
-        .suffix(".tmp")
-        .permissions(crate::store::output_permissions())
-        .tempfile_in(&dir)
-        .map_err(|e| Error::output_io(path, e))?;
+    let tmp = temp_beside(path)?;
     let mut kv: Vec<KeyValue> = metadata
         .iter()
         .map(|(k, v)| KeyValue::new(k.to_string(), v.clone()))
