@@ -110,6 +110,36 @@ fn fit_rejects_bad_requests_with_exit_2() {
         (
             vec![
                 "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index-grid",
+                "5,5",
+                "-o",
+                o,
+            ],
+            "--index-grid only apply to a 2-D index",
+        ),
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--bandwidth",
+                "0.1",
+                "--bandwidth2",
+                "1",
+                "--index-lag",
+                "2",
+                "-o",
+                o,
+            ],
+            "--index-lag, --bandwidth2 only apply to a 2-D index",
+        ),
+        (
+            vec![
+                "fit",
                 fixture("bad/gap.csv").to_str().unwrap(),
                 "--channel",
                 "gyro_x",
@@ -191,4 +221,56 @@ fn fit_outputs_replace_the_folder_as_one_set() {
     assert_ne!(read("coef.parquet"), first[0]);
     assert!(read("residuals.parquet").is_none());
     assert!(read("state.parquet").is_none());
+}
+
+/// A log of several segments (`--gaps split`) is fitted as one series, with a
+/// warning that says so; `--threads` far above the cores is capped with a warning
+/// (and the same results).
+#[test]
+fn fit_warns_of_gaps_and_of_too_many_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    // the fixture's 4000 rows at 10 Hz, with a 5 s hole after row 2000
+    let mut text = String::new();
+    for (i, line) in src.lines().filter(|l| !l.starts_with('#')).enumerate() {
+        if i == 0 {
+            text.push_str(line);
+        } else {
+            let (t, rest) = line.split_once(',').unwrap();
+            let t: f64 = t.parse().unwrap();
+            let t = if i > 2000 { t + 5.0 } else { t };
+            text.push_str(&format!("{t},{rest}"));
+        }
+        text.push('\n');
+    }
+    let log = dir.path().join("gap.csv");
+    std::fs::write(&log, text).unwrap();
+    let l = log.to_str().unwrap();
+    let fit = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let out = out.to_str().unwrap();
+        let mut args: Vec<&str> = extra.to_vec();
+        args.extend_from_slice(&["fit", l, "--channel", "gyro_x", "--gaps", "split"]);
+        args.extend_from_slice(&["--grid", "41", "-o", out]);
+        farma(&args, dir.path())
+    };
+    let o = fit(&[], "a");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("2 segments (gaps): fitted as one series"),
+        "{}",
+        stderr(&o)
+    );
+    let o = fit(&["--threads", "100000"], "b");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--threads 100000 is far more than the"),
+        "{}",
+        stderr(&o)
+    );
+    for f in ["coef.parquet", "params.parquet", "gcv.parquet"] {
+        let a = std::fs::read(dir.path().join("a").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("b").join(f)).unwrap();
+        assert!(a == b, "{f} differs with capped threads");
+    }
 }

@@ -60,9 +60,9 @@ pub struct FitArgs {
     /// Lag of the second index channel (default: d).
     #[arg(long, value_name = "D2")]
     pub index_lag: Option<usize>,
-    /// Grid points per coordinate of a 2-D index.
-    #[arg(long, default_value = "21,21", value_name = "N1,N2")]
-    pub index_grid: String,
+    /// Grid points per coordinate of a 2-D index [default: 21,21].
+    #[arg(long, value_name = "N1,N2")]
+    pub index_grid: Option<String>,
     /// With a 2-D index and --bandwidth: the bandwidth of the second coordinate.
     #[arg(long, value_name = "H2")]
     pub bandwidth2: Option<f64>,
@@ -82,6 +82,40 @@ pub(super) const FIT_OUTPUTS: [&str; 5] = [
     "residuals.parquet",
     STATE_FILE,
 ];
+
+/// A log of several uniform segments (`--gaps split`) is fitted as one series: the
+/// lags and residuals of the first samples after a gap reach across it. Said on
+/// stderr (`adev`, `psd` and `acf` use the longest segment instead).
+pub(super) fn warn_gaps(store: &crate::store::Store, log: &std::path::Path) {
+    let segments = &store.meta().segments;
+    if segments.len() > 1 {
+        eprintln!(
+            "farma: warning: {}: {} segments (gaps): fitted as one series, the lags x_(t-m) and residuals of the first samples after each gap reach across it; for a fit without, cut the log at its gaps or use --gaps interpolate",
+            log.display(),
+            segments.len()
+        );
+    }
+}
+
+/// The options of a 2-D index are a usage error with the 1-D index (they would be
+/// silently ignored, and the user would read a 1-D model as the one asked for).
+fn reject_index2_options(a: &FitArgs) -> Result<()> {
+    let given: Vec<&str> = [
+        ("--index-lag", a.index_lag.is_some()),
+        ("--index-grid", a.index_grid.is_some()),
+        ("--bandwidth2", a.bandwidth2.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(name, set)| set.then_some(name))
+    .collect();
+    if given.is_empty() {
+        return Ok(());
+    }
+    Err(Error::Usage(format!(
+        "{} only apply to a 2-D index (--index lag,CHANNEL); the index here is x_(t-d) alone",
+        given.join(", ")
+    )))
+}
 
 pub(super) fn parse_order(s: &str) -> Result<(usize, usize, usize)> {
     let v: Vec<&str> = s.split(',').map(str::trim).collect();
@@ -105,8 +139,10 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         return super::fit_index2::run(a, second, progress);
     }
     let (p, q, d) = parse_order(&a.order)?;
+    reject_index2_options(&a)?;
     OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
+    warn_gaps(&store, &a.log);
     let names = store.select_channels(&a.channel)?;
     let params = FarmaParams {
         p,

@@ -66,9 +66,10 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             ));
         }
     };
-    let grid = parse_pair(&a.index_grid)?;
+    let grid = parse_pair(a.index_grid.as_deref().unwrap_or("21,21"))?;
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
+    super::fit::warn_gaps(&store, &a.log);
     let names = store.select_channels(&a.channel)?;
     let z = store.column(&index2).map_err(|e| match e {
         Error::Column { path, msg } => Error::Column {
