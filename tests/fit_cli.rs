@@ -274,3 +274,39 @@ fn fit_warns_of_gaps_and_of_too_many_threads() {
         assert!(a == b, "{f} differs with capped threads");
     }
 }
+
+/// A spike so large that the other samples are lost to rounding once the mean is
+/// taken out: exit 2, naming the channel's range and the likely cause.
+#[test]
+fn fit_names_a_spike_that_leaves_no_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_s,gyro_x\n");
+    for i in 0..400 {
+        let v = if i == 200 {
+            1e20
+        } else {
+            0.01 * ((i * 37 % 101) as f64 - 50.0)
+        };
+        text.push_str(&format!("{},{v}\n", i as f64 * 0.1));
+    }
+    let log = dir.path().join("spike.csv");
+    std::fs::write(&log, text).unwrap();
+    let out = dir.path().join("o");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("gyro_x"), "{err}");
+    assert!(err.contains("1.000000e20]"), "{err}");
+    assert!(err.contains("an outlier so large"), "{err}");
+    assert!(!out.exists());
+}

@@ -1433,7 +1433,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let (glo, ghi) = (qs[0], qs[1]);
     if ghi.is_nan() || ghi <= glo {
         return Err(Error::Usage(format!(
-            "the index values x_(t-{d}) take one value over the central quantiles: no grid to fit on"
+            "the index values x_(t-{d}) take one value over the central quantiles ({glo:.6e}): no grid to fit on (the channel ranges over [{:.6e}, {:.6e}]: a channel quantised to a few levels, or an outlier so large that the other values are lost to rounding once the mean is taken out; `farma prep` removes outliers)",
+            xmin + mean,
+            xmax + mean
         )));
     }
     let g = prm.grid_size;
