@@ -203,3 +203,66 @@ fn check_reads_a_fit_folder_and_scores_the_holdout() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+/// `-o` naming a file (not a folder) is a usage error found before the work: exit 2,
+/// nothing on stdout, the file untouched.
+#[test]
+fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let file = dir.path().join("taken");
+    std::fs::write(&file, "keep me").unwrap();
+    let o = farma(
+        &[
+            "select",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--orders",
+            "1,1,1",
+            "--grid",
+            "21",
+            "--bootstrap",
+            "0",
+            "-o",
+            file.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "", "the selection ran");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+
+    let model = dir.path().join("m");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "21",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = farma(
+        &[
+            "check",
+            model.to_str().unwrap(),
+            log.to_str().unwrap(),
+            "-o",
+            file.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "", "the check ran");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+}

@@ -187,4 +187,14 @@ fn prep_command_writes_the_clean_log_and_reports_and_rejects_bad_flags() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--segments"));
+    // -o naming a file: exit 2 before the work, the file untouched
+    let file = dir.path().join("taken");
+    std::fs::write(&file, "keep me").unwrap();
+    let o = farma(
+        &["prep", log.to_str().unwrap(), "-o", file.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
 }

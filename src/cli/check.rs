@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
 use crate::estimator::saved::{SavedFarma, load_saved};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 use crate::workflow::check::{
     HORIZONS, Linear, PolyFit, Predictor, poly_fit_curve, predict_holdout, residuals_of,
 };
@@ -140,7 +140,19 @@ fn model_channels(dir: &Path) -> Result<Vec<String>> {
     Ok(out)
 }
 
+/// The files `farma check -o` can write into its output folder: a run removes those
+/// of an earlier run that it does not write.
+pub(super) const CHECK_OUTPUTS: &[&str] = &[
+    "acf.parquet",
+    "ljung_box.parquet",
+    "prediction.parquet",
+    "poly.parquet",
+];
+
 pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
+    if let Some(dir) = &a.output {
+        OutputSet::check(dir)?;
+    }
     let store = a.log_args.open(&a.log, progress)?;
     let rate = store.sample_rate_hz();
     let names = match &a.channel {
@@ -261,25 +273,27 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         out.push((name.clone(), w, prediction, poly));
     }
     if let Some(dir) = &a.output {
-        ensure_dir(dir)?;
+        let mut set = OutputSet::new(dir)?;
         let md = vec![
             ("source", a.log.display().to_string()),
             ("model", a.model.display().to_string()),
         ];
         let ws: Vec<_> = out.iter().map(|o| (o.0.clone(), &o.1)).collect();
-        write_parquet(&dir.join("acf.parquet"), &acf_table(&ws)?, &md)?;
-        write_parquet(&dir.join("ljung_box.parquet"), &ljung_box_table(&ws)?, &md)?;
+        set.parquet("acf.parquet", &acf_table(&ws)?, &md)?;
+        set.parquet("ljung_box.parquet", &ljung_box_table(&ws)?, &md)?;
         let ps: Vec<_> = out
             .iter()
             .filter_map(|o| o.2.as_ref().map(|p| (o.0.clone(), p)))
             .collect();
-        write_parquet(
-            &dir.join("prediction.parquet"),
-            &prediction_table(&ps)?,
-            &md,
-        )?;
+        set.parquet("prediction.parquet", &prediction_table(&ps)?, &md)?;
         let pf: Vec<_> = out.iter().map(|o| (o.0.clone(), o.3.as_slice())).collect();
-        write_parquet(&dir.join("poly.parquet"), &poly_table(&pf)?, &md)?;
+        set.parquet("poly.parquet", &poly_table(&pf)?, &md)?;
+        for stale in set.commit(CHECK_OUTPUTS)? {
+            eprintln!(
+                "farma: removed {} (an earlier run's; this run does not write it)",
+                stale.display()
+            );
+        }
     }
     Ok(())
 }

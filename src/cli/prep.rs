@@ -10,7 +10,7 @@ use serde_json::json;
 use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 use crate::workflow::pauta::Replace;
 use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams, align, prep_channel};
 use crate::workflow::stationarity::SegmentStat;
@@ -102,12 +102,17 @@ pub fn prep_store(
     Ok((chans, dropped))
 }
 
+/// The files `farma prep` can write into its output folder: a run removes those of an
+/// earlier run that it does not write.
+pub(super) const PREP_OUTPUTS: &[&str] = &["clean.arrow", "prep.parquet", "replaced.parquet"];
+
 pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
+    OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let prm = a.prep.params();
     let (chans, dropped) = prep_store(&store, &names, &prm)?;
-    ensure_dir(&a.output)?;
+    let mut set = OutputSet::new(&a.output)?;
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
         ("source", a.log.display().to_string()),
@@ -115,13 +120,21 @@ pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", store.sample_rate_hz().to_string()),
     ];
-    write_prepared_store(&a.output.join("clean.arrow"), &store, &chans, dropped)?;
-    write_parquet(&a.output.join("prep.parquet"), &prep_table(&chans)?, &md)?;
-    write_parquet(
-        &a.output.join("replaced.parquet"),
+    set.file("clean.arrow", |p| {
+        write_prepared_store(p, &store, &chans, dropped)
+    })?;
+    set.parquet("prep.parquet", &prep_table(&chans)?, &md)?;
+    set.parquet(
+        "replaced.parquet",
         &replaced_table(&chans, store.sample_rate_hz())?,
         &md,
     )?;
+    for stale in set.commit(PREP_OUTPUTS)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
+    }
     for c in &chans {
         if a.json {
             println!("{}", prep_json(c, prm.alpha));

@@ -11,7 +11,7 @@ use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 use crate::workflow::analyze::select_with_constancy;
 use crate::workflow::constancy::Constancy;
 use crate::workflow::select::{PAPER_ORDERS, Selection, order_name, parse_orders};
@@ -150,7 +150,15 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
     o
 }
 
+/// The files `farma select -o` can write into its output folder: a run removes those
+/// of an earlier run that it does not write.
+pub(super) const SELECT_OUTPUTS: &[&str] =
+    &["select.parquet", "ftests.parquet", "constancy.parquet"];
+
 pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
+    if let Some(dir) = &a.output {
+        OutputSet::check(dir)?;
+    }
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let mut done = Vec::new();
@@ -176,23 +184,25 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
         done.push((n.clone(), sel, con));
     }
     if let Some(dir) = &a.output {
-        ensure_dir(dir)?;
+        let mut set = OutputSet::new(dir)?;
         let md = vec![
             ("source", a.log.display().to_string()),
             ("sample_rate_hz", store.sample_rate_hz().to_string()),
         ];
         let sels: Vec<(String, &Selection)> = done.iter().map(|(n, s, _)| (n.clone(), s)).collect();
-        write_parquet(&dir.join("select.parquet"), &select_table(&sels)?, &md)?;
-        write_parquet(&dir.join("ftests.parquet"), &ftest_table(&sels)?, &md)?;
+        set.parquet("select.parquet", &select_table(&sels)?, &md)?;
+        set.parquet("ftests.parquet", &ftest_table(&sels)?, &md)?;
         let cons: Vec<_> = done
             .iter()
             .filter_map(|(n, s, c)| c.as_ref().map(|c| (n.clone(), s.rows[s.selected].order, c)))
             .collect();
-        write_parquet(
-            &dir.join("constancy.parquet"),
-            &constancy_table(&cons)?,
-            &md,
-        )?;
+        set.parquet("constancy.parquet", &constancy_table(&cons)?, &md)?;
+        for stale in set.commit(SELECT_OUTPUTS)? {
+            eprintln!(
+                "farma: removed {} (an earlier run's; this run does not write it)",
+                stale.display()
+            );
+        }
     }
     Ok(())
 }

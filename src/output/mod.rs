@@ -151,6 +151,17 @@ impl OutputSet {
         Ok(())
     }
 
+    /// Stages file `name` of the set written by `write`, which is given the path of a
+    /// temporary file in the set's folder to write (or rename onto); in place only at
+    /// the commit.
+    pub fn file(&mut self, name: &str, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+        let path = self.path(name);
+        let tmp = temp_beside(&path)?.into_temp_path();
+        write(&tmp)?;
+        self.staged.push((path, tmp));
+        Ok(())
+    }
+
     /// Renames every file of the set into place, after checking that none of their
     /// names is taken by a folder, then removes those of `outputs` (the names this
     /// kind of run can write) that the set does not hold. Returns the removed paths.
