@@ -126,6 +126,24 @@ fn analyze_writes_every_table_and_a_summary() {
     }
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert!(summary.contains("######## gyro_z") && summary.contains("Ljung-Box"));
+    // written as one set: the 14 files and no temporary file left beside them
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 14);
+    // -o naming a file: exit 2 before the work, the file untouched
+    let taken = out.join("summary.txt");
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "-o",
+            taken.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&taken).unwrap(), summary);
     // a hold-out longer than half the log: exit 2, names the flag
     let o = farma(
         &[

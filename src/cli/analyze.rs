@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
 use crate::estimator::tables::{coef_table, gcv_table, params_table};
 use crate::log::Progress;
-use crate::output::{ensure_dir, write_parquet};
+use crate::output::OutputSet;
 use crate::workflow::analyze::{AnalyzeParams, ChannelAnalysis, analyze_channel};
 use crate::workflow::select::{Selection, order_name};
 use crate::workflow::tables::{
@@ -114,8 +114,28 @@ fn summary(a: &ChannelAnalysis, rate: f64) -> String {
     o
 }
 
+/// The files `farma analyze` writes into its output folder (a run removes those of
+/// an earlier run that it does not write).
+pub(super) const ANALYZE_OUTPUTS: &[&str] = &[
+    "clean.arrow",
+    "prep.parquet",
+    "replaced.parquet",
+    "select.parquet",
+    "ftests.parquet",
+    "constancy.parquet",
+    "coef.parquet",
+    "params.parquet",
+    "gcv.parquet",
+    "acf.parquet",
+    "ljung_box.parquet",
+    "prediction.parquet",
+    "poly.parquet",
+    "summary.txt",
+];
+
 pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
     let t0 = Instant::now();
+    OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate = store.sample_rate_hz();
@@ -156,7 +176,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();
     let dir = &a.output;
-    ensure_dir(dir)?;
+    let mut set = OutputSet::new(dir)?;
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
         ("source", a.log.display().to_string()),
@@ -164,19 +184,17 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", rate.to_string()),
     ];
-    write_prepared_store(&dir.join("clean.arrow"), &store, &chans, dropped)?;
-    write_parquet(&dir.join("prep.parquet"), &prep_table(&chans)?, &md)?;
-    write_parquet(
-        &dir.join("replaced.parquet"),
-        &replaced_table(&chans, rate)?,
-        &md,
-    )?;
+    set.file("clean.arrow", |p| {
+        write_prepared_store(p, &store, &chans, dropped)
+    })?;
+    set.parquet("prep.parquet", &prep_table(&chans)?, &md)?;
+    set.parquet("replaced.parquet", &replaced_table(&chans, rate)?, &md)?;
     let sels: Vec<(String, &Selection)> = results
         .iter()
         .map(|r| (r.name.clone(), &r.selection))
         .collect();
-    write_parquet(&dir.join("select.parquet"), &select_table(&sels)?, &md)?;
-    write_parquet(&dir.join("ftests.parquet"), &ftest_table(&sels)?, &md)?;
+    set.parquet("select.parquet", &select_table(&sels)?, &md)?;
+    set.parquet("ftests.parquet", &ftest_table(&sels)?, &md)?;
     let cons: Vec<_> = results
         .iter()
         .filter_map(|r| {
@@ -189,38 +207,30 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
             })
         })
         .collect();
-    write_parquet(
-        &dir.join("constancy.parquet"),
-        &constancy_table(&cons)?,
-        &md,
-    )?;
+    set.parquet("constancy.parquet", &constancy_table(&cons)?, &md)?;
     let models: Vec<(String, &FittedFarma)> = results
         .iter()
         .map(|r| (r.name.clone(), &r.selection.fits[r.selection.selected]))
         .collect();
-    write_parquet(&dir.join("coef.parquet"), &coef_table(&models)?, &md)?;
-    write_parquet(&dir.join("params.parquet"), &params_table(&models)?, &md)?;
-    write_parquet(&dir.join("gcv.parquet"), &gcv_table(&models)?, &md)?;
+    set.parquet("coef.parquet", &coef_table(&models)?, &md)?;
+    set.parquet("params.parquet", &params_table(&models)?, &md)?;
+    set.parquet("gcv.parquet", &gcv_table(&models)?, &md)?;
     let ws: Vec<_> = results
         .iter()
         .map(|r| (r.name.clone(), &r.check.whiteness))
         .collect();
-    write_parquet(&dir.join("acf.parquet"), &acf_table(&ws)?, &md)?;
-    write_parquet(&dir.join("ljung_box.parquet"), &ljung_box_table(&ws)?, &md)?;
+    set.parquet("acf.parquet", &acf_table(&ws)?, &md)?;
+    set.parquet("ljung_box.parquet", &ljung_box_table(&ws)?, &md)?;
     let ps: Vec<_> = results
         .iter()
         .filter_map(|r| r.check.prediction.as_ref().map(|p| (r.name.clone(), p)))
         .collect();
-    write_parquet(
-        &dir.join("prediction.parquet"),
-        &prediction_table(&ps)?,
-        &md,
-    )?;
+    set.parquet("prediction.parquet", &prediction_table(&ps)?, &md)?;
     let polys: Vec<_> = results
         .iter()
         .map(|r| (r.name.clone(), r.check.poly.as_slice()))
         .collect();
-    write_parquet(&dir.join("poly.parquet"), &poly_table(&polys)?, &md)?;
+    set.parquet("poly.parquet", &poly_table(&polys)?, &md)?;
     let mut text = format!(
         "farma analyze {} ({} channel(s), {} samples at {} Hz; {:.2} s)\n",
         a.log.display(),
@@ -233,8 +243,13 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         text += &format!("\n######## {}\n", r.name);
         text += &summary(r, rate);
     }
-    let sum_path = dir.join("summary.txt");
-    crate::output::write_text(&sum_path, &text)?;
+    set.file("summary.txt", |p| crate::output::write_text(p, &text))?;
+    for stale in set.commit(ANALYZE_OUTPUTS)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
+    }
     for r in &results {
         if a.json {
             let mut v = select_json(&r.name, &r.selection, r.constancy.as_ref());
