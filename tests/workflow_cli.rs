@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{farma, fixture, stderr, stdout};
+use common::{assert_refused_file_output, farma, fixture, stderr, stdout};
 
 #[test]
 fn select_json_has_the_contract_keys() {
@@ -141,9 +141,7 @@ fn analyze_writes_every_table_and_a_summary() {
         ],
         dir.path(),
     );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
-    assert_eq!(std::fs::read_to_string(&taken).unwrap(), summary);
+    assert_refused_file_output(&o, &taken, &summary);
     // a hold-out longer than half the log: exit 2, names the flag
     let o = farma(
         &[
@@ -247,10 +245,7 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
         ],
         dir.path(),
     );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
-    assert_eq!(stdout(&o), "", "the selection ran");
-    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+    assert_refused_file_output(&o, &file, "keep me");
 
     let model = dir.path().join("m");
     let o = farma(
@@ -279,8 +274,5 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
         ],
         dir.path(),
     );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not a folder"), "{}", stderr(&o));
-    assert_eq!(stdout(&o), "", "the check ran");
-    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+    assert_refused_file_output(&o, &file, "keep me");
 }

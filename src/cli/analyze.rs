@@ -20,7 +20,7 @@ use crate::workflow::analyze::{AnalyzeParams, ChannelAnalysis, analyze_channel};
 use crate::workflow::select::{Selection, order_name};
 use crate::workflow::tables::{
     acf_table, constancy_table, ftest_table, ljung_box_table, poly_table, prediction_table,
-    prep_table, replaced_table, select_table, write_prepared_store,
+    select_table,
 };
 
 #[derive(Args, Debug)]
@@ -184,11 +184,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", rate.to_string()),
     ];
-    set.file("clean.arrow", |p| {
-        write_prepared_store(p, &store, &chans, dropped)
-    })?;
-    set.parquet("prep.parquet", &prep_table(&chans)?, &md)?;
-    set.parquet("replaced.parquet", &replaced_table(&chans, rate)?, &md)?;
+    super::prep::stage_prep(&mut set, &store, (&chans, dropped), &md)?;
     let sels: Vec<(String, &Selection)> = results
         .iter()
         .map(|r| (r.name.clone(), &r.selection))
@@ -244,12 +240,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         text += &summary(r, rate);
     }
     set.file("summary.txt", |p| crate::output::write_text(p, &text))?;
-    for stale in set.commit(ANALYZE_OUTPUTS)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
+    super::commit_outputs(set, ANALYZE_OUTPUTS)?;
     for r in &results {
         if a.json {
             let mut v = select_json(&r.name, &r.selection, r.constancy.as_ref());

@@ -288,12 +288,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         set.parquet("prediction.parquet", &prediction_table(&ps)?, &md)?;
         let pf: Vec<_> = out.iter().map(|o| (o.0.clone(), o.3.as_slice())).collect();
         set.parquet("poly.parquet", &poly_table(&pf)?, &md)?;
-        for stale in set.commit(CHECK_OUTPUTS)? {
-            eprintln!(
-                "farma: removed {} (an earlier run's; this run does not write it)",
-                stale.display()
-            );
-        }
+        super::commit_outputs(set, CHECK_OUTPUTS)?;
     }
     Ok(())
 }

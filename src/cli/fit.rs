@@ -207,12 +207,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         let table = update::state_table(&refs)?;
         out.parquet(STATE_FILE, &table, &update::state_metadata(&md))?;
     }
-    for stale in out.commit(&FIT_OUTPUTS)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
+    super::commit_outputs(out, &FIT_OUTPUTS)?;
     for (n, m) in &fits {
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) b = {:?} sigma2 = {:.6e} h = {:.6e} trace = {:.2} iterations {} {}",

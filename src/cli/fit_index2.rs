@@ -163,12 +163,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         ])?;
         out.parquet("residuals.parquet", &table, &md)?;
     }
-    for stale in out.commit(&super::fit::FIT_OUTPUTS)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
+    super::commit_outputs(out, &super::fit::FIT_OUTPUTS)?;
     for (n, m) in &fits {
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",

@@ -145,6 +145,18 @@ pub fn main() -> i32 {
     }
 }
 
+/// Commits an output set ([`crate::output::OutputSet::commit`]) and says on stderr
+/// which files of an earlier run it removed.
+pub(crate) fn commit_outputs(set: crate::output::OutputSet, outputs: &[&str]) -> Result<()> {
+    for stale in set.commit(outputs)? {
+        eprintln!(
+            "farma: removed {} (an earlier run's; this run does not write it)",
+            stale.display()
+        );
+    }
+    Ok(())
+}
+
 /// `--threads` is capped at this many threads per available core.
 pub const MAX_THREADS_PER_CORE: usize = 4;
 

@@ -11,6 +11,7 @@ use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::log::Progress;
 use crate::output::OutputSet;
+use crate::store::Store;
 use crate::workflow::pauta::Replace;
 use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams, align, prep_channel};
 use crate::workflow::stationarity::SegmentStat;
@@ -79,7 +80,7 @@ pub struct PrepArgs {
 
 /// Prepares `names` of `store` in parallel, aligned to a common length.
 pub fn prep_store(
-    store: &crate::store::Store,
+    store: &Store,
     names: &[String],
     prm: &PrepParams,
 ) -> Result<(Vec<ChannelPrep>, usize)> {
@@ -106,6 +107,26 @@ pub fn prep_store(
 /// earlier run that it does not write.
 pub(super) const PREP_OUTPUTS: &[&str] = &["clean.arrow", "prep.parquet", "replaced.parquet"];
 
+/// Stages the prepared log (clean.arrow) and its two tables (prep.parquet,
+/// replaced.parquet) in `set`: the part of its folder `farma analyze` shares with
+/// `farma prep`.
+pub(super) fn stage_prep(
+    set: &mut OutputSet,
+    store: &Store,
+    (chans, dropped): (&[ChannelPrep], usize),
+    md: &[(&str, String)],
+) -> Result<()> {
+    set.file("clean.arrow", |p| {
+        write_prepared_store(p, store, chans, dropped)
+    })?;
+    set.parquet("prep.parquet", &prep_table(chans)?, md)?;
+    set.parquet(
+        "replaced.parquet",
+        &replaced_table(chans, store.sample_rate_hz())?,
+        md,
+    )
+}
+
 pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
     OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
@@ -120,21 +141,8 @@ pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", store.sample_rate_hz().to_string()),
     ];
-    set.file("clean.arrow", |p| {
-        write_prepared_store(p, &store, &chans, dropped)
-    })?;
-    set.parquet("prep.parquet", &prep_table(&chans)?, &md)?;
-    set.parquet(
-        "replaced.parquet",
-        &replaced_table(&chans, store.sample_rate_hz())?,
-        &md,
-    )?;
-    for stale in set.commit(PREP_OUTPUTS)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
+    stage_prep(&mut set, &store, (&chans, dropped), &md)?;
+    super::commit_outputs(set, PREP_OUTPUTS)?;
     for c in &chans {
         if a.json {
             println!("{}", prep_json(c, prm.alpha));

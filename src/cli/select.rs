@@ -197,12 +197,7 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
             .filter_map(|(n, s, c)| c.as_ref().map(|c| (n.clone(), s.rows[s.selected].order, c)))
             .collect();
         set.parquet("constancy.parquet", &constancy_table(&cons)?, &md)?;
-        for stale in set.commit(SELECT_OUTPUTS)? {
-            eprintln!(
-                "farma: removed {} (an earlier run's; this run does not write it)",
-                stale.display()
-            );
-        }
+        super::commit_outputs(set, SELECT_OUTPUTS)?;
     }
     Ok(())
 }

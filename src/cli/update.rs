@@ -134,12 +134,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     }
     let refs: Vec<_> = ups.iter().map(|(_, u)| &u.state).collect();
     out.parquet(STATE_FILE, &state_table(&refs)?, &state_metadata(&out_md))?;
-    for stale in out.commit(&FIT_OUTPUTS)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
+    super::commit_outputs(out, &FIT_OUTPUTS)?;
     for (n, u) in &ups {
         let m = &u.model;
         eprintln!(

@@ -31,6 +31,15 @@ pub fn farma(args: &[&str], cache: &Path) -> Output {
         .expect("run farma")
 }
 
+/// A run given `-o FILE` (a file, not a folder) was refused before its work: exit 2,
+/// "not a folder" on stderr, nothing on stdout, the file still holding `kept`.
+pub fn assert_refused_file_output(o: &Output, file: &Path, kept: &str) {
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+    assert!(stderr(o).contains("not a folder"), "{}", stderr(o));
+    assert_eq!(stdout(o), "", "the work ran");
+    assert_eq!(std::fs::read_to_string(file).unwrap(), kept);
+}
+
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
