@@ -12,10 +12,16 @@
 //!    h_j = 1.1^-j range/2 on the first f-step and again after convergence, extended
 //!    when the minimum sits at an end of the ladder;
 //! 3. b-step: with f fixed, w_t = x_t - sum f_m(U_t) x_{t-m} and b minimises
-//!    sum e_t^2, e_t = w_t - sum b_m e_{t-m}: one Gauss-Newton step from the previous
-//!    b, kept when it lowers the RSS, else Gauss-Newton with step halving to
-//!    convergence ([`ma_step`], `Arma`); or one least-squares regression of w on the
-//!    previous residuals (`Literal`);
+//!    sum e_t^2, e_t = w_t - sum b_m e_{t-m}, by Gauss-Newton from the b of the
+//!    f-step's response (`Arma`). One pass (`gn_b_step`, q <= 2) computes w, the
+//!    residuals at that b and the Gauss-Newton step from it: the iterate is (f, that
+//!    b), its residuals and RSS in hand, and a small step (predicted RSS decrease
+//!    below [`SMALL_STEP`] of the RSS) goes into the next f-step's response without a
+//!    pass of its own (the next iterate's RSS is its check, and the rule below returns
+//!    the iterate of least RSS). A larger step, or q > 2, is taken by [`ma_step`]: the
+//!    step kept when it lowers the RSS, else Gauss-Newton with step halving to
+//!    convergence, then the residuals at its b (the iterate is then (f, that b)).
+//!    `Literal`: one least-squares regression of w on the previous residuals;
 //! 4. residuals recomputed recursively (zeros before the first sample), f between grid
 //!    points by linear interpolation; repeat until the RSS settles: it changes by less
 //!    than `tol` relative (default 1e-6), or the least RSS so far has not been beaten
@@ -40,6 +46,7 @@
 use std::ops::Range;
 
 use super::arma::{arma_pass, fit_arma, lagged_normal, ma_invertible};
+use super::buffers;
 use super::direct::{self, DirectIndex};
 use super::linalg::{normal_equations, spd_solve_inverse};
 use super::moments::{
@@ -412,20 +419,74 @@ fn w_indexed<const P: usize>(
     e[warm..]
         .par_chunks_mut(CHUNK)
         .enumerate()
-        .for_each(|(c, out)| {
-            let t0 = warm + c * CHUNK;
-            for (i, w) in out.iter_mut().enumerate() {
-                let t = t0 + i;
-                let r = &segs[index.interval(t)];
-                let u = x[t - d];
-                let lam = (u - r.base) / r.width;
-                let mut s = x[t];
-                for m in 0..P {
-                    s -= (r.fa[m] + lam * r.diff[m]) * x[t - m - 1];
-                }
-                *w = s;
-            }
-        });
+        .for_each(|(c, out)| w_indexed_span(x, d, segs, index, warm + c * CHUNK, out));
+}
+
+/// w_t for rows t0..t0 + out.len() (all at or after the warm rows), into `out`.
+fn w_indexed_span<const P: usize>(
+    x: &[f64],
+    d: usize,
+    segs: &[CellSegment<P>],
+    index: &IntervalIndex,
+    t0: usize,
+    out: &mut [f64],
+) {
+    for (i, w) in out.iter_mut().enumerate() {
+        let t = t0 + i;
+        let r = &segs[index.interval(t)];
+        let u = x[t - d];
+        let lam = (u - r.base) / r.width;
+        let mut s = x[t];
+        for m in 0..P {
+            s -= (r.fa[m] + lam * r.diff[m]) * x[t - m - 1];
+        }
+        *w = s;
+    }
+}
+
+/// The w of [`residuals_indexed`] for any span of rows: `fill(t0, out)` writes w_t for
+/// rows t0..t0 + out.len() (the same operations, so the same bits: the warm rows one
+/// by one when the span starts at row 0, which it then covers). None for p > 4.
+fn w_indexed_filler<'a>(
+    x: &'a [f64],
+    d: usize,
+    grid: &'a [f64],
+    coef: &'a GridFit,
+    index: &'a IntervalIndex,
+) -> Option<impl Fn(usize, &mut [f64]) + Sync + 'a> {
+    let p = coef.p;
+    if p > 4 {
+        return None;
+    }
+    let warm = p.max(d).max(index.start()).min(x.len());
+    let cells = index.grid_cells(grid);
+    enum Segs {
+        P1(Vec<CellSegment<1>>),
+        P2(Vec<CellSegment<2>>),
+        P3(Vec<CellSegment<3>>),
+        P4(Vec<CellSegment<4>>),
+    }
+    let segs = match p {
+        1 => Segs::P1(cell_segments(grid, coef, &cells)),
+        2 => Segs::P2(cell_segments(grid, coef, &cells)),
+        3 => Segs::P3(cell_segments(grid, coef, &cells)),
+        _ => Segs::P4(cell_segments(grid, coef, &cells)),
+    };
+    Some(move |t0: usize, out: &mut [f64]| {
+        let head = if t0 == 0 { warm.min(out.len()) } else { 0 };
+        assert!(
+            t0 >= warm || head == warm,
+            "a span from row 0 covers the warm rows"
+        );
+        w_head(x, d, grid, coef, &mut out[..head]);
+        let (t1, rest) = (t0 + head, &mut out[head..]);
+        match &segs {
+            Segs::P1(sg) => w_indexed_span(x, d, sg, index, t1, rest),
+            Segs::P2(sg) => w_indexed_span(x, d, sg, index, t1, rest),
+            Segs::P3(sg) => w_indexed_span(x, d, sg, index, t1, rest),
+            Segs::P4(sg) => w_indexed_span(x, d, sg, index, t1, rest),
+        }
+    })
 }
 
 /// w_t = x_t - sum f_m(U_t) x_{t-m} for the first rows, `e.len()` of them, one by one
@@ -680,6 +741,229 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], bb: &[f64; Q], start: usiz
     Some(rss)
 }
 
+/// Writes w_t for rows t0..t0 + out.len() into `out` (`fill(t0, out)`).
+type SpanFill<'a> = dyn Fn(usize, &mut [f64]) + Sync + 'a;
+
+/// Gauss-Newton sums of the MA recursion e_t = w_t - sum b_m e_{t-m} over some rows:
+/// sum e_t^2, J'J and -J'e with J_tj = d e_t / d b_j.
+#[derive(Clone, Copy)]
+struct GnSums<const Q: usize> {
+    rss: f64,
+    jtj: [[f64; Q]; Q],
+    jte: [f64; Q],
+}
+
+impl<const Q: usize> GnSums<Q> {
+    fn zero() -> Self {
+        GnSums {
+            rss: 0.0,
+            jtj: [[0.0; Q]; Q],
+            jte: [0.0; Q],
+        }
+    }
+
+    /// self += (head + rest), the grouping of [`rss_groups`] for every sum.
+    fn add_group(&mut self, head: &Self, rest: &Self) {
+        self.rss += head.rss + rest.rss;
+        for i in 0..Q {
+            for j in 0..Q {
+                self.jtj[i][j] += head.jtj[i][j] + rest.jtj[i][j];
+            }
+            self.jte[i] += head.jte[i] + rest.jte[i];
+        }
+    }
+}
+
+/// The MA recursion's state before a row: the last q residuals and derivative
+/// vectors d e / d b.
+#[derive(Clone, Copy)]
+struct GnState<const Q: usize> {
+    eh: [f64; Q],
+    dh: [[f64; Q]; Q],
+}
+
+impl<const Q: usize> GnState<Q> {
+    fn zero() -> Self {
+        GnState {
+            eh: [0.0; Q],
+            dh: [[0.0; Q]; Q],
+        }
+    }
+
+    /// Bit for bit the same state.
+    fn same(&self, o: &Self) -> bool {
+        let bits = |s: &Self| -> Vec<u64> {
+            s.eh.iter()
+                .chain(s.dh.iter().flatten())
+                .map(|v| v.to_bits())
+                .collect()
+        };
+        bits(self) == bits(o)
+    }
+}
+
+/// [`filter_rows`] (e_t in place, the same operations) with the derivative recursion
+/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
+/// 7.2, as `arma_pass`) and the Gauss-Newton sums over rows t >= `start` into a
+/// fresh [`GnSums`] (J'J's upper triangle, mirrored at the end).
+fn gn_rows<const Q: usize>(
+    rows: &mut [f64],
+    b: &[f64; Q],
+    t0: usize,
+    st: &mut GnState<Q>,
+    start: usize,
+) -> GnSums<Q> {
+    let GnState { eh, dh } = st;
+    let (mut rss, mut jtj, mut jte) = (0.0, [[0.0f64; Q]; Q], [0.0f64; Q]);
+    for (i, v) in rows.iter_mut().enumerate() {
+        let mut s = *v;
+        for m in 0..Q {
+            s -= b[m] * eh[m];
+        }
+        *v = s;
+        let mut de = [0.0f64; Q];
+        for j in 0..Q {
+            let mut g = -eh[j];
+            for k in 0..Q {
+                g -= b[k] * dh[k][j];
+            }
+            de[j] = g;
+        }
+        if t0 + i >= start {
+            rss += s * s;
+            for a in 0..Q {
+                for c in a..Q {
+                    jtj[a][c] += de[a] * de[c];
+                }
+                jte[a] -= de[a] * s;
+            }
+        }
+        for m in (1..Q).rev() {
+            eh[m] = eh[m - 1];
+            dh[m] = dh[m - 1];
+        }
+        eh[0] = s;
+        dh[0] = de;
+    }
+    for a in 0..Q {
+        for c in 0..a {
+            jtj[a][c] = jtj[c][a];
+        }
+    }
+    GnSums { rss, jtj, jte }
+}
+
+/// One pass that turns w into the residuals at `b` in place (e_t and their RSS the
+/// values of [`ma_filter_rss`] at `b`, bit for bit) and sums the Gauss-Newton normal
+/// equations for b there: the alternation's b-step without a pass of its own
+/// (`gn_b_step`). `fill`, when given, first writes w into each chunk (`fill(t0,
+/// rows)`), so that w is computed, filtered and summed while the chunk is in cache.
+/// In parallel chunks of [`FILTER_CHUNK`] rows as [`ma_filter_chunked`] (zero start,
+/// lead re-run from the true state, exact when the states agree bit for bit, the
+/// derivatives' included), else serially; the sums are grouped by [`rss_groups`] in
+/// both cases, so the result depends on N and b, not on the threads. `refill` puts w
+/// back into `buf` for the serial re-run when the states disagree. Returns the sums.
+fn ma_filter_gn<const Q: usize>(
+    buf: &mut [f64],
+    b: &[f64; Q],
+    start: usize,
+    fill: Option<&SpanFill<'_>>,
+    refill: impl FnOnce(&mut [f64]),
+) -> GnSums<Q> {
+    use rayon::prelude::*;
+    let n = buf.len();
+    if n >= 2 * FILTER_CHUNK {
+        // (w of the lead rows, state after the lead, end state, lead sums, rest sums)
+        type Part<const Q: usize> = (Vec<f64>, GnState<Q>, GnState<Q>, GnSums<Q>, GnSums<Q>);
+        let parts: Vec<Part<Q>> = buf
+            .par_chunks_mut(FILTER_CHUNK)
+            .enumerate()
+            .map(|(c, rows)| {
+                let t0 = c * FILTER_CHUNK;
+                if let Some(f) = fill {
+                    f(t0, rows);
+                }
+                let lead = FILTER_LEAD.min(rows.len());
+                let w_head = if c > 0 {
+                    rows[..lead].to_vec()
+                } else {
+                    Vec::new()
+                };
+                let mut st = GnState::zero();
+                let (head, rest) = rows.split_at_mut(lead);
+                let head_sums = gn_rows(head, b, t0, &mut st, start);
+                let at_lead = st;
+                let rest_sums = gn_rows(rest, b, t0 + lead, &mut st, start);
+                (w_head, at_lead, st, head_sums, rest_sums)
+            })
+            .collect();
+        let mut total = GnSums::zero();
+        total.add_group(&parts[0].3, &parts[0].4);
+        let mut state = parts[0].2;
+        let mut exact = true;
+        for (c, part) in parts.iter().enumerate().skip(1) {
+            let t0 = c * FILTER_CHUNK;
+            let rows = &mut buf[t0..t0 + part.0.len()];
+            rows.copy_from_slice(&part.0);
+            let mut st = state;
+            let head_sums = gn_rows(rows, b, t0, &mut st, start);
+            // a last chunk of its lead rows only is exact from this re-run alone
+            let lead_only = t0 + part.0.len() == n;
+            if !(st.same(&part.1) || lead_only) {
+                exact = false;
+                break;
+            }
+            total.add_group(&head_sums, &part.4);
+            state = part.2;
+        }
+        if exact {
+            return total;
+        }
+        refill(buf);
+    } else if let Some(f) = fill {
+        f(0, buf);
+    }
+    let mut st = GnState::zero();
+    let mut total = GnSums::zero();
+    for (head, rest) in rss_groups(n) {
+        let (h0, r0) = (head.start, rest.start);
+        let head_sums = gn_rows(&mut buf[head], b, h0, &mut st, start);
+        let rest_sums = gn_rows(&mut buf[rest], b, r0, &mut st, start);
+        total.add_group(&head_sums, &rest_sums);
+    }
+    total
+}
+
+/// The alternation's b-step in one pass ([`ma_filter_gn`]; w written by `fill` chunk
+/// by chunk, or already in `buf` when `fill` is None): `buf` becomes the residuals at
+/// `b0`, and the Gauss-Newton step from `b0` is taken. Returns (RSS at b0, the
+/// stepped b, the step's predicted RSS decrease), or None for q other than 1 and 2
+/// (`buf` untouched).
+fn gn_b_step(
+    buf: &mut [f64],
+    start: usize,
+    b0: &[f64],
+    fill: Option<&SpanFill<'_>>,
+    refill: impl FnOnce(&mut [f64]),
+) -> Option<(f64, Vec<f64>, f64)> {
+    fn solve<const Q: usize>(s: GnSums<Q>, b0: &[f64]) -> (f64, Vec<f64>, f64) {
+        let jtj: Vec<f64> = s.jtj.iter().flatten().copied().collect();
+        match normal_equations(&jtj, &s.jte, Q) {
+            Some(step) => (
+                s.rss,
+                b0.iter().zip(&step).map(|(b, d)| b + d).collect(),
+                predicted_decrease(&step, &s.jte),
+            ),
+            None => (s.rss, b0.to_vec(), 0.0),
+        }
+    }
+    match *b0 {
+        [b1] => Some(solve(ma_filter_gn(buf, &[b1], start, fill, refill), b0)),
+        [b1, b2] => Some(solve(ma_filter_gn(buf, &[b1, b2], start, fill, refill), b0)),
+        _ => None,
+    }
+}
+
 /// How a sum of squares over n rows is grouped, the same wherever an RSS of
 /// residuals is summed ([`rss_from`], the MA filters): a series shorter than two
 /// [`FILTER_CHUNK`]s in one sequential sum (one group, its rest empty); a longer one
@@ -846,7 +1130,15 @@ impl StepCache {
     /// when the intervals do not fit a u16).
     fn index_for(&mut self, prob: &VcProblem, grid: &[f64], h: f64) -> Option<&IntervalIndex> {
         if self.index.as_ref().is_none_or(|(hi, _)| *hi != h) {
-            self.index = Some((h, IntervalIndex::build(prob, breakpoints(grid, &[h]))));
+            // from the ladder's index when its breakpoints hold h's (read through a
+            // table), else by searching
+            let breaks = breakpoints(grid, &[h]);
+            let ladder = self.ladder.as_ref().and_then(|l| l.index.as_ref());
+            let index = match ladder.and_then(|l| l.coarsened(breaks.clone())) {
+                Some(ix) => Some(ix),
+                None => IntervalIndex::build(prob, breaks),
+            };
+            self.index = Some((h, index));
         }
         self.index.as_ref().and_then(|(_, ix)| ix.as_ref())
     }
@@ -1327,32 +1619,34 @@ pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<
     Some((a, b))
 }
 
-/// The linear ARMA (a, b)'s residuals into `e`, e_t = x_t - sum a_m x_{t-m} -
+/// The linear ARMA (a, b)'s residuals, e_t = x_t - sum a_m x_{t-m} -
 /// sum b_m e_{t-m} with zeros before the first sample (the values of
 /// [`super::arma::arma_residuals`], in the same operations), and their RSS over t >= `start` in
 /// [`rss_from`]'s order: w_t = x_t - sum a_m x_{t-m} in parallel, then the MA filter
 /// ([`ma_filter_rss`], in parallel chunks for q = 1, 2).
-fn arma_residuals_rss(x: &[f64], a: &[f64], b: &[f64], start: usize, e: &mut [f64]) -> f64 {
+fn arma_residuals_rss(x: &[f64], a: &[f64], b: &[f64], start: usize) -> (Vec<f64>, f64) {
     use rayon::prelude::*;
+    let w_rows = |t0: usize, rows: &mut [f64]| {
+        for (i, v) in rows.iter_mut().enumerate() {
+            let t = t0 + i;
+            let mut s = x[t];
+            for (m, am) in a.iter().enumerate() {
+                if t > m {
+                    s -= am * x[t - m - 1];
+                }
+            }
+            *v = s;
+        }
+    };
     let fill = |buf: &mut [f64]| {
         buf.par_chunks_mut(FILTER_CHUNK)
             .enumerate()
-            .for_each(|(c, rows)| {
-                let t0 = c * FILTER_CHUNK;
-                for (i, v) in rows.iter_mut().enumerate() {
-                    let t = t0 + i;
-                    let mut s = x[t];
-                    for (m, am) in a.iter().enumerate() {
-                        if t > m {
-                            s -= am * x[t - m - 1];
-                        }
-                    }
-                    *v = s;
-                }
-            })
+            .for_each(|(c, rows)| w_rows(c * FILTER_CHUNK, rows))
     };
-    fill(e);
-    ma_filter_rss(e, b, start, fill)
+    // w written straight into a new buffer (its first write), then filtered in place
+    let (mut e, _) = buffers::filled(x.len(), w_rows);
+    let rss = ma_filter_rss(&mut e, b, start, fill);
+    (e, rss)
 }
 
 /// [`linear_start`] stops refining once the Gauss-Newton model predicts less than
@@ -1364,6 +1658,12 @@ pub const START_ENOUGH: f64 = 1e-10;
 
 /// Growth of the prefixes [`linear_start`] refines the linear ARMA on.
 pub const REFINE_RATIO: usize = 16;
+
+/// Largest predicted RSS decrease, relative to the RSS, of a Gauss-Newton step for b
+/// that the alternation takes without checking it (`gn_b_step`: the step goes into
+/// the next f-step's response, and the next pass's RSS tells whether it helped); a
+/// larger step is taken by [`ma_step`], which checks it with a pass of its own.
+pub const SMALL_STEP: f64 = 1e-3;
 
 /// One iterate of the alternation, kept while it has the least global RSS.
 struct Iterate {
@@ -1407,12 +1707,23 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     } else {
         0.0
     };
-    let x: Vec<f64> = series.iter().map(|v| v - mean).collect();
-    // the extremes and the NaN check in one pass (f64::min and max skip NaN; an
-    // infinite value shows as an infinite extreme)
-    let (xmin, xmax, nan) = x.iter().fold(
+    // the centred series, with its extremes and the NaN check in the same pass
+    // (f64::min and max skip NaN; an infinite value shows as an infinite extreme),
+    // chunks in parallel
+    let (x, parts) = buffers::filled(n, |at, out: &mut [f64]| {
+        let (mut lo, mut hi, mut nan) = (f64::INFINITY, f64::NEG_INFINITY, false);
+        for (o, v) in out.iter_mut().zip(&series[at..]) {
+            let c = v - mean;
+            *o = c;
+            lo = lo.min(c);
+            hi = hi.max(c);
+            nan |= c.is_nan();
+        }
+        (lo, hi, nan)
+    });
+    let (xmin, xmax, nan) = parts.into_iter().fold(
         (f64::INFINITY, f64::NEG_INFINITY, false),
-        |(a, b, nan), v| (a.min(*v), b.max(*v), nan | v.is_nan()),
+        |(a, b, nan), (lo, hi, n)| (a.min(lo), b.max(hi), nan | n),
     );
     if nan || !xmin.is_finite() || !xmax.is_finite() {
         return Err(Error::Usage(
@@ -1474,8 +1785,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // constant f_m = a_m: the linear ARMA's recursion, the same operations as
     // `residuals` with every grid value a_m (interpolating between equal values
     // gives a_m itself), without finding cells
-    let mut e = vec![0.0; n];
-    let mut rss = arma_residuals_rss(&x, &a0, &b, pp, &mut e);
+    let (mut e, mut rss) = arma_residuals_rss(&x, &a0, &b, pp);
     let mut rss_history = vec![rss];
     timings.start_s = lap();
     // The best iterate by global RSS, the linear start being iterate 0 (see the end).
@@ -1499,6 +1809,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // rss_history index of the last bandwidth re-selection
     let mut reselected_at = 0;
     let mut need_gcv = prm.bandwidth.is_none();
+    // the b of the response y_t = x_t - sum b_m e_{t-m} of the next f-step: the
+    // iterate's own b, or the Gauss-Newton step from it (see the b-step)
+    let mut b_resp = b.clone();
     // left-hand sides of the local systems and each row's interval at the current h
     let mut cache = StepCache::default();
     while iterations < prm.max_iter {
@@ -1506,7 +1819,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         let mut at = AlternationTiming::default();
         lap();
         // 2. f-step
-        let sm = Smoother::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+        let sm = Smoother::new(&x, &e, &b_resp, (p, d), &grid, prm.path, (xmin, xmax));
         let mut fit_h = if need_gcv {
             need_gcv = false;
             let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range, &mut cache);
@@ -1538,12 +1851,38 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         let new_rss;
         if q > 0 && prm.init == Init::Arma {
             let index = cache.index_for(&sm.prob, &grid, h);
-            residuals_at(&x, d, &grid, (&coef, &[]), &mut e, index);
-            let refill = |buf: &mut [f64]| residuals_at(&x, d, &grid, (&coef, &[]), buf, index);
-            let (b_new, rss_new) = ma_step(&mut e, pp, &b, refill);
-            b = b_new;
+            let w_into = |buf: &mut [f64]| residuals_at(&x, d, &grid, (&coef, &[]), buf, index);
+            // one pass: w, the residuals at b_resp and the Gauss-Newton sums there,
+            // chunk by chunk; with a small step the iterate is (f, b_resp), its
+            // residuals in hand, and the step goes into the next f-step's response
+            let filler = index.and_then(|ix| w_indexed_filler(&x, d, &grid, &coef, ix));
+            let fill = filler.as_ref().map(|f| f as &SpanFill<'_>);
+            let fused = if q <= 2 {
+                if fill.is_none() {
+                    w_into(&mut e);
+                }
+                gn_b_step(&mut e, pp, &b_resp, fill, |buf: &mut [f64]| w_into(buf))
+            } else {
+                None
+            };
+            match fused {
+                Some((rss_b, b_next, decrease))
+                    if decrease <= SMALL_STEP * rss_b && ma_invertible(&b_next) =>
+                {
+                    b = std::mem::replace(&mut b_resp, b_next);
+                    new_rss = rss_b;
+                }
+                _ => {
+                    // the two-pass step with its check: w again, then ma_step
+                    w_into(&mut e);
+                    let (b_new, rss_new) =
+                        ma_step(&mut e, pp, &b_resp, |buf: &mut [f64]| w_into(buf));
+                    b = b_new;
+                    b_resp = b.clone();
+                    new_rss = rss_new;
+                }
+            }
             at.b_step_s = lap();
-            new_rss = rss_new;
         } else {
             if q > 0 {
                 // the paper's step: least squares of w_t on the previous residuals
@@ -1569,6 +1908,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             at.b_step_s = lap();
             residuals_at(&x, d, &grid, (&coef, &b), &mut e, cache.any_index());
             new_rss = rss_from(&e, pp);
+            b_resp = b.clone();
         }
         at.residuals_s = lap();
         let change = (rss - new_rss).abs();
@@ -1595,7 +1935,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         if settled {
             if prm.bandwidth.is_none() && reselections < 2 {
                 // re-check the bandwidth at the converged residuals
-                let sm = Smoother::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+                let sm = Smoother::new(&x, &e, &b_resp, (p, d), &grid, prm.path, (xmin, xmax));
                 let (rows, _, best, ext, nt) = gcv_select(&sm, range, &mut cache);
                 at.gcv_s += lap();
                 timings.alternations.push(at.clone());
@@ -1881,6 +2221,114 @@ mod tests {
     }
 
     #[test]
+    fn the_one_pass_b_step_filters_as_the_serial_recursion_and_sums_as_arma_pass() {
+        // e and the RSS the serial recursion's bit for bit (one chunk, several with a
+        // short last one, a last chunk of lead rows only), the Gauss-Newton sums
+        // arma_pass's to rounding (other grouping), w written by `fill` chunk by chunk
+        // or already in the buffer, 1 and 2 threads; b near the edge of invertibility
+        // refills w and runs serially, with the same results
+        for (n, b) in [
+            (5_000, vec![-0.6]),
+            (3 * FILTER_CHUNK + 12_345, vec![-0.6]),
+            (3 * FILTER_CHUNK + 12_345, vec![0.5, -0.3]),
+            (3 * FILTER_CHUNK + 12_345, vec![0.9999]),
+            (2 * FILTER_CHUNK + 100, vec![0.99]),
+        ] {
+            let w = uniform(n, 31);
+            let want = serial_filter(&w, &b);
+            let (rss_want, jtj_want, jte_want) = arma_pass(&w, 2, &[], &b);
+            let near_edge = b == [0.9999];
+            let fill = |t0: usize, rows: &mut [f64]| rows.copy_from_slice(&w[t0..t0 + rows.len()]);
+            let mut outs = Vec::new();
+            for threads in [1, 2] {
+                for chunked_fill in [false, true] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let mut buf = if chunked_fill {
+                        vec![f64::NAN; n]
+                    } else {
+                        w.clone()
+                    };
+                    let mut refills = 0;
+                    let f: Option<&SpanFill<'_>> = if chunked_fill { Some(&fill) } else { None };
+                    let (rss, b1, dec) = pool
+                        .install(|| {
+                            gn_b_step(&mut buf, 2, &b, f, |v: &mut [f64]| {
+                                refills += 1;
+                                v.copy_from_slice(&w)
+                            })
+                        })
+                        .unwrap();
+                    assert_eq!(refills, usize::from(near_edge), "b = {b:?}");
+                    assert!(
+                        buf.iter()
+                            .zip(&want)
+                            .all(|(u, v)| u.to_bits() == v.to_bits()),
+                        "b = {b:?}"
+                    );
+                    assert_eq!(rss.to_bits(), rss_from(&want, 2).to_bits(), "b = {b:?}");
+                    assert!((rss - rss_want).abs() <= 1e-12 * rss_want);
+                    // the step from arma_pass's normal equations
+                    let step = normal_equations(&jtj_want, &jte_want, b.len()).unwrap();
+                    for i in 0..b.len() {
+                        let s = b1[i] - b[i];
+                        assert!(
+                            (s - step[i]).abs() <= 1e-9 * (1e-6 + step[i].abs()),
+                            "{s} vs {}",
+                            step[i]
+                        );
+                    }
+                    let dec_want = predicted_decrease(&step, &jte_want);
+                    assert!((dec - dec_want).abs() <= 1e-6 * dec_want.abs() + 1e-9 * rss_want);
+                    outs.push((
+                        rss.to_bits(),
+                        b1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    ));
+                }
+            }
+            assert!(outs.iter().all(|o| *o == outs[0]), "b = {b:?}");
+        }
+        // only q = 1 and 2
+        let mut buf = uniform(100, 1);
+        assert!(gn_b_step(&mut buf, 3, &[0.1, 0.1, 0.1], None, |_| {}).is_none());
+    }
+
+    #[test]
+    fn w_written_span_by_span_is_the_indexed_residuals_w() {
+        let x = uniform(300_000, 8);
+        let grid: Vec<f64> = (0..31).map(|k| -0.4 + 0.025 * k as f64).collect();
+        for p in [1, 2, 3, 4] {
+            let mut coef = GridFit::new(grid.len(), p, 0.1);
+            for (i, f) in coef.f.iter_mut().enumerate() {
+                *f = 0.3 * ((i * 7 % 13) as f64 / 13.0 - 0.5);
+            }
+            for d in [1, 3] {
+                let prob = VcProblem::new(&x, &[], &[], p, d);
+                let ix = IntervalIndex::build(&prob, breakpoints(&grid, &[0.07])).unwrap();
+                let mut want = vec![0.0; x.len()];
+                residuals_indexed(&x, d, &grid, &coef, &[], &mut want, &ix);
+                let fill = w_indexed_filler(&x, d, &grid, &coef, &ix).unwrap();
+                let mut got = vec![f64::NAN; x.len()];
+                for (c, rows) in got.chunks_mut(70_001).enumerate() {
+                    fill(c * 70_001, rows);
+                }
+                assert!(
+                    got.iter()
+                        .zip(&want)
+                        .all(|(u, v)| u.to_bits() == v.to_bits()),
+                    "p = {p}, d = {d}"
+                );
+            }
+        }
+        let coef = GridFit::new(grid.len(), 5, 0.1);
+        let prob = VcProblem::new(&x, &[], &[], 5, 1);
+        let ix = IntervalIndex::build(&prob, breakpoints(&grid, &[0.07])).unwrap();
+        assert!(w_indexed_filler(&x, 1, &grid, &coef, &ix).is_none());
+    }
+
+    #[test]
     fn the_starts_parallel_residuals_are_the_serial_recursions_bit_for_bit() {
         // one chunk (serial filter) and several chunks with a short last one
         for n in [5_000, 3 * FILTER_CHUNK + 123] {
@@ -1897,8 +2345,7 @@ mod tests {
                 let mut want = vec![0.0; n];
                 super::super::arma::arma_residuals(&w, a, b, &mut want);
                 let rss_want = rss_from(&want, start);
-                let mut got = vec![f64::NAN; n];
-                let rss = arma_residuals_rss(&w, a, b, start, &mut got);
+                let (got, rss) = arma_residuals_rss(&w, a, b, start);
                 assert!(
                     got.iter()
                         .zip(&want)

@@ -14,6 +14,7 @@
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
 pub mod arma;
+pub mod buffers;
 pub mod direct;
 pub mod fit;
 pub mod kernel;

@@ -800,7 +800,14 @@ impl MomentTable {
         match index {
             Some(ix) => {
                 let (rows, start) = (&ix.rows[..], prob.start);
-                self.accumulate_find(prob, &|t: usize, _u: f64| rows[t - start] as usize)
+                match &ix.map {
+                    None => {
+                        self.accumulate_find(prob, &|t: usize, _u: f64| rows[t - start] as usize)
+                    }
+                    Some(m) => self.accumulate_find(prob, &|t: usize, _u: f64| {
+                        m[rows[t - start] as usize] as usize
+                    }),
+                }
             }
             None => {
                 let lookup = IntervalLookup::new(&self.breaks);
@@ -1375,9 +1382,13 @@ fn sorted_breaks(mut breaks: Vec<f64>) -> Vec<f64> {
 pub struct IntervalIndex {
     /// Sorted, distinct breakpoints; interval e covers [breaks[e-1], breaks[e]).
     breaks: Vec<f64>,
-    /// First row (rows[i] is the interval of row start + i).
+    /// First row (rows[i] is the code of row start + i).
     start: usize,
-    rows: Vec<u16>,
+    /// Each row's code: its interval, or, with `map`, its interval over the finer
+    /// breakpoints of the index this one was coarsened from (the rows are shared).
+    rows: std::sync::Arc<Vec<u16>>,
+    /// Interval of each code, for a coarsened index.
+    map: Option<Vec<u16>>,
 }
 
 impl IntervalIndex {
@@ -1390,10 +1401,8 @@ impl IntervalIndex {
         }
         let lookup = IntervalLookup::new(&breaks);
         let (x, d, start) = (prob.x, prob.d, prob.start);
-        let mut rows = vec![0u16; prob.n_rows()];
-        const CHUNK: usize = 1 << 16;
-        rows.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            let t0 = start + c * CHUNK;
+        let (rows, _) = super::buffers::filled(prob.n_rows(), |at, out: &mut [u16]| {
+            let t0 = start + at;
             for (i, r) in out.iter_mut().enumerate() {
                 *r = lookup.find(x[t0 + i - d]) as u16;
             }
@@ -1401,14 +1410,55 @@ impl IntervalIndex {
         Some(IntervalIndex {
             breaks,
             start,
-            rows,
+            rows: std::sync::Arc::new(rows),
+            map: None,
+        })
+    }
+
+    /// The index of the same rows over `breaks`, a subset of this index's breakpoints
+    /// (None when one of them is not among them, or the intervals do not fit a u16),
+    /// without a pass: it shares this index's rows and reads each row's interval
+    /// through a table from its interval here. The intervals of
+    /// [`IntervalIndex::build`]: with the breakpoints `b`
+    /// of this index and `c` of the new one, c ⊆ b, a value u with b\[e-1\] <= u < b\[e\]
+    /// has as many values of c at or below it as b\[e-1\] has (a value of c in
+    /// (b\[e-1\], u\] would be a value of b there).
+    pub fn coarsened(&self, breaks: Vec<f64>) -> Option<IntervalIndex> {
+        let breaks = sorted_breaks(breaks);
+        if breaks.is_empty()
+            || breaks.len() > u16::MAX as usize
+            || !breaks
+                .iter()
+                .all(|c| self.breaks.binary_search_by(|b| b.total_cmp(c)).is_ok())
+        {
+            return None;
+        }
+        let to: Vec<u16> = (0..=self.breaks.len())
+            .map(|e| match e {
+                0 => 0,
+                _ => breaks.partition_point(|c| *c <= self.breaks[e - 1]) as u16,
+            })
+            .collect();
+        let map = match &self.map {
+            None => to,
+            Some(m) => m.iter().map(|e| to[*e as usize]).collect(),
+        };
+        Some(IntervalIndex {
+            breaks,
+            start: self.start,
+            rows: self.rows.clone(),
+            map: Some(map),
         })
     }
 
     /// Interval of row t (t >= the first row).
     #[inline]
     pub fn interval(&self, t: usize) -> usize {
-        self.rows[t - self.start] as usize
+        let code = self.rows[t - self.start] as usize;
+        match &self.map {
+            Some(m) => m[code] as usize,
+            None => code,
+        }
     }
 
     /// First row indexed.
@@ -1545,6 +1595,32 @@ pub fn breakpoints(grid: &[f64], hs: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_coarsened_index_has_the_intervals_of_one_built_by_search() {
+        let (x, _) = series(50_000, 12);
+        let grid: Vec<f64> = (0..21).map(|k| -0.8 + 0.08 * k as f64).collect();
+        let hs = [0.5, 0.3, 0.11, 0.05];
+        let prob = VcProblem::new(&x, &[], &[], 2, 1);
+        let fine = IntervalIndex::build(&prob, breakpoints(&grid, &hs)).unwrap();
+        for h in hs {
+            let coarse = fine.coarsened(breakpoints(&grid, &[h])).unwrap();
+            let built = IntervalIndex::build(&prob, breakpoints(&grid, &[h])).unwrap();
+            assert_eq!(coarse.breaks, built.breaks);
+            assert!((prob.start..x.len()).all(|t| coarse.interval(t) == built.interval(t)));
+            // coarsened twice: the tables compose
+            let mid = fine.coarsened(breakpoints(&grid, &[h, 0.05])).unwrap();
+            let twice = mid.coarsened(breakpoints(&grid, &[h])).unwrap();
+            assert!((prob.start..x.len()).all(|t| twice.interval(t) == built.interval(t)));
+            // a table over the coarsened index is the one over the searched index
+            let span = (-3.0, 3.0);
+            let a = MomentTable::build_indexed(&prob, &coarse, span.0, span.1, 6, Families::All);
+            let b = MomentTable::build_indexed(&prob, &built, span.0, span.1, 6, Families::All);
+            assert_eq!(bits(&a), bits(&b));
+        }
+        // a bandwidth the fine index does not hold
+        assert!(fine.coarsened(breakpoints(&grid, &[0.2])).is_none());
+    }
 
     #[test]
     fn interval_lookup_equals_binary_search() {
