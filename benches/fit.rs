@@ -12,7 +12,18 @@
 //!   direct path gathers every support with the KD-tree, so it cannot do 1e6 quickly);
 //! - `FARMA_BENCH_THREADS_N` (default 1e7): size of the 1-vs-2-threads comparison;
 //! - `FARMA_BENCH_PEER=0` skips statsmodels; `FARMA_BENCH_DIR` holds the stores
-//!   (default target/bench-data; 1e8 samples take 800 MB).
+//!   (default target/bench-data; 1e8 samples take 800 MB);
+//! - `FARMA_BENCH_WARM=0` skips the memory warm-up below.
+//!
+//! Memory warm-up: before a child that fits 5e7 samples or more, this process writes
+//! to and frees 3 times the channel's size (one write per 4 KiB page). On the
+//! firecracker VMs of the bench machine the first touch of guest memory that the host
+//! has not backed yet costs about 1.3 ns per byte, 7 times a page fault on memory
+//! the guest has used before (an 800 MB vector first written in parallel: 1.07 s
+//! against 0.14-0.16 s, 2026-11-25), and which pages a process gets is the guest
+//! kernel's choice: without the warm-up the 1e8 fit's 1.8 GB of work arrays cost
+//! anywhere from 0.3 to 2.5 s more. The warm-up's own time is printed: it is the
+//! cold-memory cost the fit would otherwise have paid in part.
 //!
 //! The series: x_t = f_1(x_{t-1}) x_{t-1} + f_2(x_{t-1}) x_{t-2} + e_t - 0.5 e_{t-1},
 //! f_1(z) = 0.3 + 0.4 exp(-z^2), f_2(z) = -0.2 + 0.1 tanh(z), e_t iid N(0, 1) (ChaCha8,
@@ -220,6 +231,20 @@ fn child(path: &str, threads: usize, method: &str, reps: usize) {
     );
 }
 
+/// Writes one byte per 4 KiB page of `bytes` fresh bytes and frees them (see the
+/// module doc); returns the seconds taken.
+fn warm_memory(bytes: usize) -> f64 {
+    let t = Instant::now();
+    let mut v: Vec<u8> = Vec::with_capacity(bytes);
+    let spare = v.spare_capacity_mut();
+    for i in (0..bytes).step_by(4096) {
+        spare[i].write(1);
+    }
+    std::hint::black_box(&v);
+    drop(v);
+    t.elapsed().as_secs_f64()
+}
+
 fn run_child(path: &Path, threads: usize, method: &str, reps: usize) -> Value {
     let exe = std::env::current_exe().unwrap();
     let out = Command::new(exe)
@@ -360,6 +385,14 @@ fn main() {
     for &n in &sizes {
         let path = store_path(n);
         let r = if n >= 50_000_000 { 1 } else { reps };
+        if n >= 50_000_000 && !std::env::var("FARMA_BENCH_WARM").is_ok_and(|v| v == "0") {
+            let bytes = 3 * n * 8;
+            let s = warm_memory(bytes);
+            println!(
+                "|   | memory warm-up: {:.1} GB written once and freed in {s:.2} s before the {n:.0e} child (FARMA_BENCH_WARM=0 skips it) |",
+                bytes as f64 / 1e9
+            );
+        }
         let v = run_child(&path, rayon::current_num_threads(), "fast", r);
         let floor = f(&v["floor_s"]);
         let fit_s = best_fit(&v);

@@ -1663,7 +1663,7 @@ pub const REFINE_RATIO: usize = 16;
 /// that the alternation takes without checking it (`gn_b_step`: the step goes into
 /// the next f-step's response, and the next pass's RSS tells whether it helped); a
 /// larger step is taken by [`ma_step`], which checks it with a pass of its own.
-pub const SMALL_STEP: f64 = 1e-3;
+pub const SMALL_STEP: f64 = 1e-4;
 
 /// One iterate of the alternation, kept while it has the least global RSS.
 struct Iterate {
