@@ -2296,6 +2296,42 @@ mod tests {
     }
 
     #[test]
+    fn a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b() {
+        // FARMA(2,1,1) long enough for the chunked one-pass b-step (more than two
+        // filter chunks): whichever b-step made the returned iterate, its residuals are
+        // the recursion's at the returned (f, b), bit for bit, and its RSS theirs
+        let n = 2 * FILTER_CHUNK + 50_000;
+        let z = uniform(n, 77);
+        let mut x = vec![0.0; n];
+        let (mut x1, mut x2, mut e1) = (0.0f64, 0.0f64, 0.0f64);
+        for t in 0..n {
+            let e = 3.4 * z[t];
+            let f1 = 0.3 + 0.4 * (-x1 * x1).exp();
+            let f2 = -0.2 + 0.1 * x1.tanh();
+            x[t] = f1 * x1 + f2 * x2 + e - 0.5 * e1;
+            (x2, x1, e1) = (x1, x[t], e);
+        }
+        let params = FarmaParams {
+            grid_size: 41,
+            ..FarmaParams::default()
+        }
+        .validate(n)
+        .unwrap();
+        let m = fit(&x, &params).unwrap();
+        assert!(m.iterations >= 2, "{}", m.iterations);
+        assert!((m.b[0] + 0.5).abs() < 0.05, "{:?}", m.b);
+        let xc: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+        let mut e = vec![0.0; n];
+        residuals(&xc, 1, &m.grid, &m.coef, &m.b, &mut e);
+        assert!(
+            e.iter()
+                .zip(&m.residuals)
+                .all(|(u, v)| u.to_bits() == v.to_bits())
+        );
+        assert_eq!(m.rss.to_bits(), rss_from(&e, 2).to_bits());
+    }
+
+    #[test]
     fn w_written_span_by_span_is_the_indexed_residuals_w() {
         let x = uniform(300_000, 8);
         let grid: Vec<f64> = (0..31).map(|k| -0.4 + 0.025 * k as f64).collect();
