@@ -1478,9 +1478,10 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     b
 }
 
-/// The alternation's b-step: one Gauss-Newton step for b on w (in `buf`) from `b0`,
-/// then the MA filter at the new b, turning w into the residuals in place, with their
-/// RSS: two passes. Near the optimum (every alternation after the first few) one step
+/// The alternation's checked b-step (taken when the one-pass step of `gn_b_step` is
+/// not small, see [`SMALL_STEP`], or q > 2): one Gauss-Newton step for b on w (in
+/// `buf`) from `b0`, then the MA filter at the new b, turning w into the residuals in
+/// place, with their RSS: two passes. Near the optimum (every alternation after the first few) one step
 /// is about as good as [`ma_cls`]'s several (Gauss-Newton converges linearly here,
 /// the residuals not being zero, but one step cuts the start's error about 200-fold:
 /// see the test).
@@ -1662,7 +1663,9 @@ pub const REFINE_RATIO: usize = 16;
 /// Largest predicted RSS decrease, relative to the RSS, of a Gauss-Newton step for b
 /// that the alternation takes without checking it (`gn_b_step`: the step goes into
 /// the next f-step's response, and the next pass's RSS tells whether it helped); a
-/// larger step is taken by [`ma_step`], which checks it with a pass of its own.
+/// larger step is taken by [`ma_step`], which checks it with a pass of its own. On the
+/// bench's FARMA(2,1,1) series (1e6-1e8 samples) the first alternation's step predicts
+/// 1.1-1.5e-4 of the RSS (checked), the later ones 4e-6 down to 4e-7.
 pub const SMALL_STEP: f64 = 1e-4;
 
 /// One iterate of the alternation, kept while it has the least global RSS.
