@@ -800,14 +800,7 @@ impl MomentTable {
         match index {
             Some(ix) => {
                 let (rows, start) = (&ix.rows[..], prob.start);
-                match &ix.map {
-                    None => {
-                        self.accumulate_find(prob, &|t: usize, _u: f64| rows[t - start] as usize)
-                    }
-                    Some(m) => self.accumulate_find(prob, &|t: usize, _u: f64| {
-                        m[rows[t - start] as usize] as usize
-                    }),
-                }
+                self.accumulate_find(prob, &|t: usize, _u: f64| rows[t - start] as usize)
             }
             None => {
                 let lookup = IntervalLookup::new(&self.breaks);
@@ -1382,13 +1375,9 @@ fn sorted_breaks(mut breaks: Vec<f64>) -> Vec<f64> {
 pub struct IntervalIndex {
     /// Sorted, distinct breakpoints; interval e covers [breaks[e-1], breaks[e]).
     breaks: Vec<f64>,
-    /// First row (rows[i] is the code of row start + i).
+    /// First row (rows[i] is the interval of row start + i).
     start: usize,
-    /// Each row's code: its interval, or, with `map`, its interval over the finer
-    /// breakpoints of the index this one was coarsened from (the rows are shared).
-    rows: std::sync::Arc<Vec<u16>>,
-    /// Interval of each code, for a coarsened index.
-    map: Option<Vec<u16>>,
+    rows: Vec<u16>,
 }
 
 impl IntervalIndex {
@@ -1410,15 +1399,14 @@ impl IntervalIndex {
         Some(IntervalIndex {
             breaks,
             start,
-            rows: std::sync::Arc::new(rows),
-            map: None,
+            rows,
         })
     }
 
     /// The index of the same rows over `breaks`, a subset of this index's breakpoints
     /// (None when one of them is not among them, or the intervals do not fit a u16),
-    /// without a pass: it shares this index's rows and reads each row's interval
-    /// through a table from its interval here. The intervals of
+    /// without searching: each row's interval is read through a table from its
+    /// interval here (a pass over the u16 rows, in parallel). The intervals of
     /// [`IntervalIndex::build`]: with the breakpoints `b`
     /// of this index and `c` of the new one, c ⊆ b, a value u with b\[e-1\] <= u < b\[e\]
     /// has as many values of c at or below it as b\[e-1\] has (a value of c in
@@ -1439,26 +1427,23 @@ impl IntervalIndex {
                 _ => breaks.partition_point(|c| *c <= self.breaks[e - 1]) as u16,
             })
             .collect();
-        let map = match &self.map {
-            None => to,
-            Some(m) => m.iter().map(|e| to[*e as usize]).collect(),
-        };
+        let from = &self.rows[..];
+        let (rows, _) = super::buffers::filled(from.len(), |at, out: &mut [u16]| {
+            for (r, f) in out.iter_mut().zip(&from[at..]) {
+                *r = to[*f as usize];
+            }
+        });
         Some(IntervalIndex {
             breaks,
             start: self.start,
-            rows: self.rows.clone(),
-            map: Some(map),
+            rows,
         })
     }
 
     /// Interval of row t (t >= the first row).
     #[inline]
     pub fn interval(&self, t: usize) -> usize {
-        let code = self.rows[t - self.start] as usize;
-        match &self.map {
-            Some(m) => m[code] as usize,
-            None => code,
-        }
+        self.rows[t - self.start] as usize
     }
 
     /// First row indexed.
