@@ -6,8 +6,8 @@
 //! centred copy of a 1e8-sample channel took 0.42 s on the bench machine, four passes
 //! over the data (BENCHMARKS.md, 2026-11-25); the faults of a parallel first write
 //! are taken on every thread. (Transparent huge pages, `madvise(MADV_HUGEPAGE)`, were
-//! tried: 0.07 s for 800 MB when the kernel had free 2 MiB pages at hand, 0.57-0.74 s
-//! when it had to compact memory first, so they are not used.)
+//! tried: an 800 MB vector first written in 0.07 s in two tries of three and 0.57 s in
+//! the third, against 0.15-0.17 s with 4 KiB pages: too variable to use.)
 
 use rayon::prelude::*;
 
