@@ -45,11 +45,6 @@ where
     (v, parts)
 }
 
-/// `n` zeros, first written in parallel.
-pub fn zeros<T: Copy + Default + Send + Sync>(n: usize) -> Vec<T> {
-    filled(n, |_, _: &mut [T]| ()).0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -73,7 +68,6 @@ mod tests {
                 next += len;
             }
             assert_eq!(next, n);
-            assert!(zeros::<u16>(n).iter().all(|z| *z == 0));
         }
     }
 }
