@@ -2160,6 +2160,11 @@ mod tests {
         }
     }
 
+    /// The same values, bit for bit.
+    fn same_bits(a: &[f64], b: &[f64]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(u, v)| u.to_bits() == v.to_bits())
+    }
+
     /// The serial MA recursion, the general loop (the chunked filter's slow twin).
     fn serial_filter(w: &[f64], b: &[f64]) -> Vec<f64> {
         let mut e = w.to_vec();
@@ -2209,12 +2214,7 @@ mod tests {
                     })
                 });
                 assert_eq!(refills, usize::from(near_edge), "b = {b:?}");
-                assert!(
-                    buf.iter()
-                        .zip(&want)
-                        .all(|(u, v)| u.to_bits() == v.to_bits()),
-                    "b = {b:?}"
-                );
+                assert!(same_bits(&buf, &want), "b = {b:?}");
                 assert_eq!(rss.to_bits(), rss_from(&want, 2).to_bits(), "b = {b:?}");
                 assert!((rss - plain).abs() <= 1e-12 * plain, "{rss} vs {plain}");
                 outs.push(rss.to_bits());
@@ -2265,12 +2265,7 @@ mod tests {
                         })
                         .unwrap();
                     assert_eq!(refills, usize::from(near_edge), "b = {b:?}");
-                    assert!(
-                        buf.iter()
-                            .zip(&want)
-                            .all(|(u, v)| u.to_bits() == v.to_bits()),
-                        "b = {b:?}"
-                    );
+                    assert!(same_bits(&buf, &want), "b = {b:?}");
                     assert_eq!(rss.to_bits(), rss_from(&want, 2).to_bits(), "b = {b:?}");
                     assert!((rss - rss_want).abs() <= 1e-12 * rss_want);
                     // the step from arma_pass's normal equations
@@ -2326,11 +2321,7 @@ mod tests {
         let xc: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
         let mut e = vec![0.0; n];
         residuals(&xc, 1, &m.grid, &m.coef, &m.b, &mut e);
-        assert!(
-            e.iter()
-                .zip(&m.residuals)
-                .all(|(u, v)| u.to_bits() == v.to_bits())
-        );
+        assert!(same_bits(&e, &m.residuals));
         assert_eq!(m.rss.to_bits(), rss_from(&e, 2).to_bits());
     }
 
@@ -2353,12 +2344,7 @@ mod tests {
                 for (c, rows) in got.chunks_mut(70_001).enumerate() {
                     fill(c * 70_001, rows);
                 }
-                assert!(
-                    got.iter()
-                        .zip(&want)
-                        .all(|(u, v)| u.to_bits() == v.to_bits()),
-                    "p = {p}, d = {d}"
-                );
+                assert!(same_bits(&got, &want), "p = {p}, d = {d}");
             }
         }
         let coef = GridFit::new(grid.len(), 5, 0.1);
@@ -2385,12 +2371,7 @@ mod tests {
                 super::super::arma::arma_residuals(&w, a, b, &mut want);
                 let rss_want = rss_from(&want, start);
                 let (got, rss) = arma_residuals_rss(&w, a, b, start);
-                assert!(
-                    got.iter()
-                        .zip(&want)
-                        .all(|(u, v)| u.to_bits() == v.to_bits()),
-                    "n = {n}, a = {a:?}, b = {b:?}"
-                );
+                assert!(same_bits(&got, &want), "n = {n}, a = {a:?}, b = {b:?}");
                 assert_eq!(
                     rss.to_bits(),
                     rss_want.to_bits(),
