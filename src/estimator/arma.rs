@@ -305,16 +305,16 @@ fn lead_rows(b: &[f64], chunk: usize) -> usize {
 /// The recursion's state before a row: the last p values of x, q of e and q of the
 /// derivative vectors.
 #[derive(Clone, Copy)]
-struct PassState<const P: usize, const Q: usize, const K: usize> {
-    xh: [f64; P],
-    eh: [f64; Q],
-    dh: [[f64; K]; Q],
+pub(super) struct PassState<const P: usize, const Q: usize, const K: usize> {
+    pub(super) xh: [f64; P],
+    pub(super) eh: [f64; Q],
+    pub(super) dh: [[f64; K]; Q],
 }
 
 impl<const P: usize, const Q: usize, const K: usize> PassState<P, Q, K> {
     /// Before row t: the x lags from the series (zeros before the first sample), a
     /// zero MA state.
-    fn at(x: &[f64], t: usize) -> Self {
+    pub(super) fn at(x: &[f64], t: usize) -> Self {
         let mut xh = [0.0f64; P];
         for (m, v) in xh.iter_mut().enumerate() {
             if t > m {
@@ -329,7 +329,7 @@ impl<const P: usize, const Q: usize, const K: usize> PassState<P, Q, K> {
     }
 
     /// The same state to the bit.
-    fn same(&self, o: &Self) -> bool {
+    pub(super) fn same(&self, o: &Self) -> bool {
         let bits = |v: &f64| v.to_bits();
         self.xh.iter().map(bits).eq(o.xh.iter().map(bits))
             && self.eh.iter().map(bits).eq(o.eh.iter().map(bits))
@@ -344,14 +344,14 @@ impl<const P: usize, const Q: usize, const K: usize> PassState<P, Q, K> {
 
 /// RSS and normal equations summed over some rows.
 #[derive(Clone, Copy)]
-struct PassSums<const K: usize> {
-    rss: f64,
-    jtj: [[f64; K]; K],
-    jte: [f64; K],
+pub(super) struct PassSums<const K: usize> {
+    pub(super) rss: f64,
+    pub(super) jtj: [[f64; K]; K],
+    pub(super) jte: [f64; K],
 }
 
 impl<const K: usize> PassSums<K> {
-    fn zero() -> Self {
+    pub(super) fn zero() -> Self {
         PassSums {
             rss: 0.0,
             jtj: [[0.0; K]; K],
@@ -366,6 +366,18 @@ impl<const K: usize> PassSums<K> {
                 self.jtj[i][j] += o.jtj[i][j];
             }
             self.jte[i] += o.jte[i];
+        }
+    }
+
+    /// self += (head + rest), every sum grouped so (the grouping the MA filters sum
+    /// their RSS in, `fit::rss_groups`).
+    pub(super) fn add_group(&mut self, head: &Self, rest: &Self) {
+        self.rss += head.rss + rest.rss;
+        for i in 0..K {
+            for j in 0..K {
+                self.jtj[i][j] += head.jtj[i][j] + rest.jtj[i][j];
+            }
+            self.jte[i] += head.jte[i] + rest.jte[i];
         }
     }
 }

@@ -45,7 +45,7 @@
 
 use std::ops::Range;
 
-use super::arma::{arma_pass, fit_arma, lagged_normal, ma_invertible};
+use super::arma::{PassState, PassSums, arma_pass, fit_arma, lagged_normal, ma_invertible};
 use super::buffers;
 use super::direct::{self, DirectIndex};
 use super::linalg::{normal_equations, spd_solve_inverse};
@@ -684,136 +684,35 @@ fn filter_rows<const Q: usize>(
 }
 
 /// [`ma_filter_rss`] in chunks of [`FILTER_CHUNK`] rows, in parallel, every e_t the
-/// serial recursion's, bit for bit (as `arma_pass` does for its passes): each chunk
-/// first runs from a zero MA state (chunk 0 from the true one), keeping a copy of its
-/// first [`FILTER_LEAD`] values of w and recording its state after them; then, chunk
-/// after chunk, those rows re-run from the true state (the previous chunk's end). The
-/// zero start's error decays like rho^t (rho the largest root of the MA
-/// polynomial); once the two states agree to the bit every later row is the same
-/// computation, so the chunk's values, end state and sum are exact. None when they
-/// do not agree (rho near 1): `buf` then holds neither w nor e. The RSS is summed per
-/// chunk (its lead rows, then the rest) and the chunks in order, as [`rss_from`].
+/// serial recursion's, bit for bit (as `arma_pass` does for its passes), through
+/// [`chunked_in_place`]. None when the chunks' states do not agree (rho near 1):
+/// `buf` then holds neither w nor e. The RSS is summed per chunk (its lead rows, then
+/// the rest) and the chunks in order, as [`rss_from`].
 fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], bb: &[f64; Q], start: usize) -> Option<f64> {
-    use rayon::prelude::*;
-    let n = buf.len();
-    let heads: Vec<Vec<f64>> = buf
-        .chunks(FILTER_CHUNK)
-        .skip(1)
-        .map(|c| c[..FILTER_LEAD.min(c.len())].to_vec())
-        .collect();
-    // (state after the lead, end state, sum over the lead, sum over the rest)
-    type Part<const Q: usize> = ([f64; Q], [f64; Q], f64, f64);
-    let parts: Vec<Part<Q>> = buf
-        .par_chunks_mut(FILTER_CHUNK)
-        .enumerate()
-        .map(|(c, rows)| {
-            let t0 = c * FILTER_CHUNK;
-            let lead = FILTER_LEAD.min(rows.len());
-            let mut eh = [0.0f64; Q];
-            let (head, rest) = rows.split_at_mut(lead);
-            let head_sum = filter_rows(head, bb, t0, &mut eh, start);
-            let at_lead = eh;
-            let rest_sum = filter_rows(rest, bb, t0 + lead, &mut eh, start);
-            (at_lead, eh, head_sum, rest_sum)
-        })
-        .collect();
     let mut rss = 0.0;
-    rss += parts[0].2 + parts[0].3;
-    let mut state = parts[0].1;
-    for (c, (w_head, part)) in heads.iter().zip(&parts[1..]).enumerate() {
-        let t0 = (c + 1) * FILTER_CHUNK;
-        let rows = &mut buf[t0..t0 + w_head.len()];
-        rows.copy_from_slice(w_head);
-        let mut eh = state;
-        let head_sum = filter_rows(rows, bb, t0, &mut eh, start);
-        // a last chunk of its lead rows only is exact from this re-run alone
-        let lead_only = t0 + w_head.len() == n;
-        let same = eh
-            .iter()
-            .zip(&part.0)
-            .all(|(u, v)| u.to_bits() == v.to_bits());
-        if !(same || lead_only) {
-            return None;
-        }
-        rss += head_sum + part.3;
-        state = part.1;
-    }
-    Some(rss)
+    let run = |rows: &mut [f64], t0: usize, eh: &mut [f64; Q]| filter_rows(rows, bb, t0, eh, start);
+    let same =
+        |a: &[f64; Q], o: &[f64; Q]| a.iter().zip(o).all(|(u, v)| u.to_bits() == v.to_bits());
+    let add = |h: &f64, r: &f64| rss += h + r;
+    chunked_in_place(buf, None, [0.0f64; Q], run, same, add).then_some(rss)
 }
 
 /// Writes w_t for rows t0..t0 + out.len() into `out` (`fill(t0, out)`).
 type SpanFill<'a> = dyn Fn(usize, &mut [f64]) + Sync + 'a;
 
-/// Gauss-Newton sums of the MA recursion e_t = w_t - sum b_m e_{t-m} over some rows:
-/// sum e_t^2, J'J and -J'e with J_tj = d e_t / d b_j.
-#[derive(Clone, Copy)]
-struct GnSums<const Q: usize> {
-    rss: f64,
-    jtj: [[f64; Q]; Q],
-    jte: [f64; Q],
-}
-
-impl<const Q: usize> GnSums<Q> {
-    fn zero() -> Self {
-        GnSums {
-            rss: 0.0,
-            jtj: [[0.0; Q]; Q],
-            jte: [0.0; Q],
-        }
-    }
-
-    /// self += (head + rest), the grouping of [`rss_groups`] for every sum.
-    fn add_group(&mut self, head: &Self, rest: &Self) {
-        self.rss += head.rss + rest.rss;
-        for i in 0..Q {
-            for j in 0..Q {
-                self.jtj[i][j] += head.jtj[i][j] + rest.jtj[i][j];
-            }
-            self.jte[i] += head.jte[i] + rest.jte[i];
-        }
-    }
-}
-
-/// The MA recursion's state before a row: the last q residuals and derivative
-/// vectors d e / d b.
-#[derive(Clone, Copy)]
-struct GnState<const Q: usize> {
-    eh: [f64; Q],
-    dh: [[f64; Q]; Q],
-}
-
-impl<const Q: usize> GnState<Q> {
-    fn zero() -> Self {
-        GnState {
-            eh: [0.0; Q],
-            dh: [[0.0; Q]; Q],
-        }
-    }
-
-    /// Bit for bit the same state.
-    fn same(&self, o: &Self) -> bool {
-        let bits = |s: &Self| -> Vec<u64> {
-            s.eh.iter()
-                .chain(s.dh.iter().flatten())
-                .map(|v| v.to_bits())
-                .collect()
-        };
-        bits(self) == bits(o)
-    }
-}
-
-/// [`filter_rows`] (e_t in place, the same operations) with the derivative recursion
-/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j (Box, Jenkins and Reinsel,
-/// 7.2, as `arma_pass`) and the Gauss-Newton sums over rows t >= `start` into a
-/// fresh [`GnSums`] (J'J's upper triangle, mirrored at the end).
+/// `arma_pass`'s row recursion with p = 0 (the same operations, Box, Jenkins and
+/// Reinsel 7.2: d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j), in place:
+/// each w_t of `rows` (row t0 first) becomes e_t, the operations of [`filter_rows`];
+/// the Gauss-Newton sums of rows t >= `start` are returned (J'J's upper triangle,
+/// mirrored at the end).
 fn gn_rows<const Q: usize>(
     rows: &mut [f64],
     b: &[f64; Q],
     t0: usize,
-    st: &mut GnState<Q>,
+    st: &mut PassState<0, Q, Q>,
     start: usize,
-) -> GnSums<Q> {
-    let GnState { eh, dh } = st;
+) -> PassSums<Q> {
+    let PassState { eh, dh, .. } = st;
     let (mut rss, mut jtj, mut jte) = (0.0, [[0.0f64; Q]; Q], [0.0f64; Q]);
     for (i, v) in rows.iter_mut().enumerate() {
         let mut s = *v;
@@ -850,85 +749,111 @@ fn gn_rows<const Q: usize>(
             jtj[a][c] = jtj[c][a];
         }
     }
-    GnSums { rss, jtj, jte }
+    PassSums { rss, jtj, jte }
+}
+
+/// The chunked in-place recursion of both MA filters ([`ma_filter_chunked`],
+/// [`ma_filter_gn`]): chunks of [`FILTER_CHUNK`] rows in parallel, each first written
+/// by `fill` when given (`fill(t0, rows)`), its first [`FILTER_LEAD`] values of w kept,
+/// run by `run(rows, t0, state)` from the `zero` state, its state after the lead and
+/// at its end recorded; then, chunk after chunk, the lead rows re-run from the true
+/// state (the previous chunk's end). The zero start's error decays like rho^t (rho
+/// the largest root of the MA polynomial); once the two states agree to the bit
+/// (`same`) every later row is the same computation, so the chunk's values, end state
+/// and sums are exact. `add(head, rest)` takes each chunk's lead and rest sums in
+/// chunk order. False when the states do not agree (rho near 1): `buf` then holds
+/// neither w nor e.
+fn chunked_in_place<S, A>(
+    buf: &mut [f64],
+    fill: Option<&SpanFill<'_>>,
+    zero: S,
+    run: impl Fn(&mut [f64], usize, &mut S) -> A + Sync,
+    same: impl Fn(&S, &S) -> bool,
+    mut add: impl FnMut(&A, &A),
+) -> bool
+where
+    S: Copy + Send + Sync,
+    A: Send,
+{
+    use rayon::prelude::*;
+    let n = buf.len();
+    // (w of the lead rows, state after the lead, end state, lead sums, rest sums)
+    let parts: Vec<(Vec<f64>, S, S, A, A)> = buf
+        .par_chunks_mut(FILTER_CHUNK)
+        .enumerate()
+        .map(|(c, rows)| {
+            let t0 = c * FILTER_CHUNK;
+            if let Some(f) = fill {
+                f(t0, rows);
+            }
+            let lead = FILTER_LEAD.min(rows.len());
+            let w_head = if c > 0 {
+                rows[..lead].to_vec()
+            } else {
+                Vec::new()
+            };
+            let mut st = zero;
+            let (head, rest) = rows.split_at_mut(lead);
+            let head_sums = run(head, t0, &mut st);
+            let at_lead = st;
+            let rest_sums = run(rest, t0 + lead, &mut st);
+            (w_head, at_lead, st, head_sums, rest_sums)
+        })
+        .collect();
+    add(&parts[0].3, &parts[0].4);
+    let mut state = parts[0].2;
+    for (c, part) in parts.iter().enumerate().skip(1) {
+        let t0 = c * FILTER_CHUNK;
+        let rows = &mut buf[t0..t0 + part.0.len()];
+        rows.copy_from_slice(&part.0);
+        let mut st = state;
+        let head_sums = run(rows, t0, &mut st);
+        // a last chunk of its lead rows only is exact from this re-run alone
+        let lead_only = t0 + part.0.len() == n;
+        if !(same(&st, &part.1) || lead_only) {
+            return false;
+        }
+        add(&head_sums, &part.4);
+        state = part.2;
+    }
+    true
 }
 
 /// One pass that turns w into the residuals at `b` in place (e_t and their RSS the
 /// values of [`ma_filter_rss`] at `b`, bit for bit) and sums the Gauss-Newton normal
 /// equations for b there: the alternation's b-step without a pass of its own
-/// (`gn_b_step`). `fill`, when given, first writes w into each chunk (`fill(t0,
-/// rows)`), so that w is computed, filtered and summed while the chunk is in cache.
-/// In parallel chunks of [`FILTER_CHUNK`] rows as [`ma_filter_chunked`] (zero start,
-/// lead re-run from the true state, exact when the states agree bit for bit, the
-/// derivatives' included), else serially; the sums are grouped by [`rss_groups`] in
-/// both cases, so the result depends on N and b, not on the threads. `refill` puts w
-/// back into `buf` for the serial re-run when the states disagree. Returns the sums.
+/// (`gn_b_step`). `fill`, when given, first writes w into each chunk, so that w is
+/// computed, filtered and summed while the chunk is in cache. Long series in parallel
+/// chunks ([`chunked_in_place`]), else (or, after `refill` has put w back, when the
+/// chunks' states disagree) serially; the sums are grouped by [`rss_groups`] either
+/// way, so the result depends on N and b, not on the threads.
 fn ma_filter_gn<const Q: usize>(
     buf: &mut [f64],
     b: &[f64; Q],
     start: usize,
     fill: Option<&SpanFill<'_>>,
     refill: impl FnOnce(&mut [f64]),
-) -> GnSums<Q> {
-    use rayon::prelude::*;
+) -> PassSums<Q> {
+    let zero = PassState::<0, Q, Q>::at(&[], 0);
+    let run =
+        |rows: &mut [f64], t0: usize, st: &mut PassState<0, Q, Q>| gn_rows(rows, b, t0, st, start);
     let n = buf.len();
+    let mut total = PassSums::zero();
     if n >= 2 * FILTER_CHUNK {
-        // (w of the lead rows, state after the lead, end state, lead sums, rest sums)
-        type Part<const Q: usize> = (Vec<f64>, GnState<Q>, GnState<Q>, GnSums<Q>, GnSums<Q>);
-        let parts: Vec<Part<Q>> = buf
-            .par_chunks_mut(FILTER_CHUNK)
-            .enumerate()
-            .map(|(c, rows)| {
-                let t0 = c * FILTER_CHUNK;
-                if let Some(f) = fill {
-                    f(t0, rows);
-                }
-                let lead = FILTER_LEAD.min(rows.len());
-                let w_head = if c > 0 {
-                    rows[..lead].to_vec()
-                } else {
-                    Vec::new()
-                };
-                let mut st = GnState::zero();
-                let (head, rest) = rows.split_at_mut(lead);
-                let head_sums = gn_rows(head, b, t0, &mut st, start);
-                let at_lead = st;
-                let rest_sums = gn_rows(rest, b, t0 + lead, &mut st, start);
-                (w_head, at_lead, st, head_sums, rest_sums)
-            })
-            .collect();
-        let mut total = GnSums::zero();
-        total.add_group(&parts[0].3, &parts[0].4);
-        let mut state = parts[0].2;
-        let mut exact = true;
-        for (c, part) in parts.iter().enumerate().skip(1) {
-            let t0 = c * FILTER_CHUNK;
-            let rows = &mut buf[t0..t0 + part.0.len()];
-            rows.copy_from_slice(&part.0);
-            let mut st = state;
-            let head_sums = gn_rows(rows, b, t0, &mut st, start);
-            // a last chunk of its lead rows only is exact from this re-run alone
-            let lead_only = t0 + part.0.len() == n;
-            if !(st.same(&part.1) || lead_only) {
-                exact = false;
-                break;
-            }
-            total.add_group(&head_sums, &part.4);
-            state = part.2;
-        }
-        if exact {
+        let add = |h: &PassSums<Q>, r: &PassSums<Q>| total.add_group(h, r);
+        if chunked_in_place(buf, fill, zero, run, |a, o| a.same(o), add) {
             return total;
         }
+        total = PassSums::zero();
         refill(buf);
     } else if let Some(f) = fill {
         f(0, buf);
     }
-    let mut st = GnState::zero();
-    let mut total = GnSums::zero();
+    let mut st = zero;
     for (head, rest) in rss_groups(n) {
         let (h0, r0) = (head.start, rest.start);
-        let head_sums = gn_rows(&mut buf[head], b, h0, &mut st, start);
-        let rest_sums = gn_rows(&mut buf[rest], b, r0, &mut st, start);
+        let head_sums = run(&mut buf[head], h0, &mut st);
+        let rest_sums = run(&mut buf[rest], r0, &mut st);
         total.add_group(&head_sums, &rest_sums);
     }
     total
@@ -946,7 +871,7 @@ fn gn_b_step(
     fill: Option<&SpanFill<'_>>,
     refill: impl FnOnce(&mut [f64]),
 ) -> Option<(f64, Vec<f64>, f64)> {
-    fn solve<const Q: usize>(s: GnSums<Q>, b0: &[f64]) -> (f64, Vec<f64>, f64) {
+    fn solve<const Q: usize>(s: PassSums<Q>, b0: &[f64]) -> (f64, Vec<f64>, f64) {
         let jtj: Vec<f64> = s.jtj.iter().flatten().copied().collect();
         match normal_equations(&jtj, &s.jte, Q) {
             Some(step) => (
@@ -1492,7 +1417,7 @@ pub fn ma_step(
     buf: &mut [f64],
     start: usize,
     b0: &[f64],
-    mut refill: impl FnMut(&mut [f64]),
+    refill: impl FnMut(&mut [f64]),
 ) -> (Vec<f64>, f64) {
     let q = b0.len();
     let (rss0, jtj, jte) = arma_pass(buf, start, &[], b0);
@@ -1500,6 +1425,19 @@ pub fn ma_step(
         Some(step) => b0.iter().zip(&step).map(|(b, s)| b + s).collect(),
         None => b0.to_vec(),
     };
+    ma_step_from(buf, start, b0, (rss0, b1), refill)
+}
+
+/// [`ma_step`] from its Gauss-Newton step already taken: `rss0` the RSS at `b0`, `b1`
+/// the stepped b (from `gn_b_step`'s pass, which the alternation has run): the filter
+/// at b1 and the check, without `arma_pass`'s pass again.
+fn ma_step_from(
+    buf: &mut [f64],
+    start: usize,
+    b0: &[f64],
+    (rss0, b1): (f64, Vec<f64>),
+    mut refill: impl FnMut(&mut [f64]),
+) -> (Vec<f64>, f64) {
     if ma_invertible(&b1) {
         let rss1 = ma_filter_rss(buf, &b1, start, &mut refill);
         if rss1 <= rss0 * (1.0 + FLAT_RSS) {
@@ -1858,33 +1796,41 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             // one pass: w, the residuals at b_resp and the Gauss-Newton sums there,
             // chunk by chunk; with a small step the iterate is (f, b_resp), its
             // residuals in hand, and the step goes into the next f-step's response
-            let filler = index.and_then(|ix| w_indexed_filler(&x, d, &grid, &coef, ix));
+            // (q > 2: no one-pass step; w written in place for ma_step)
+            let filler = index
+                .filter(|_| q <= 2)
+                .and_then(|ix| w_indexed_filler(&x, d, &grid, &coef, ix));
             let fill = filler.as_ref().map(|f| f as &SpanFill<'_>);
-            let fused = if q <= 2 {
-                if fill.is_none() {
-                    w_into(&mut e);
-                }
-                gn_b_step(&mut e, pp, &b_resp, fill, |buf: &mut [f64]| w_into(buf))
-            } else {
-                None
-            };
-            match fused {
+            if fill.is_none() {
+                w_into(&mut e);
+            }
+            let refill = |buf: &mut [f64]| w_into(buf);
+            // (the iterate's b, the next response's b, the iterate's RSS)
+            let (b_iter, b_next, rss_iter) = match gn_b_step(&mut e, pp, &b_resp, fill, refill) {
+                // the iterate is (f, b_resp), its residuals in `e`; the step goes
+                // into the next f-step's response
                 Some((rss_b, b_next, decrease))
                     if decrease <= SMALL_STEP * rss_b && ma_invertible(&b_next) =>
                 {
-                    b = std::mem::replace(&mut b_resp, b_next);
-                    new_rss = rss_b;
+                    (b_resp.clone(), b_next, rss_b)
                 }
-                _ => {
-                    // the two-pass step with its check: w again, then ma_step
+                // a larger step, checked: w again, the filter at the stepped b (the
+                // Gauss-Newton step is the one-pass step's, not summed again)
+                Some((rss_b, b_next, _)) => {
                     w_into(&mut e);
                     let (b_new, rss_new) =
-                        ma_step(&mut e, pp, &b_resp, |buf: &mut [f64]| w_into(buf));
-                    b = b_new;
-                    b_resp = b.clone();
-                    new_rss = rss_new;
+                        ma_step_from(&mut e, pp, &b_resp, (rss_b, b_next), refill);
+                    (b_new.clone(), b_new, rss_new)
                 }
-            }
+                // q > 2: ma_step's own passes on w
+                None => {
+                    let (b_new, rss_new) = ma_step(&mut e, pp, &b_resp, refill);
+                    (b_new.clone(), b_new, rss_new)
+                }
+            };
+            b = b_iter;
+            b_resp = b_next;
+            new_rss = rss_iter;
             at.b_step_s = lap();
         } else {
             if q > 0 {

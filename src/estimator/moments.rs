@@ -1593,7 +1593,7 @@ mod tests {
             let built = IntervalIndex::build(&prob, breakpoints(&grid, &[h])).unwrap();
             assert_eq!(coarse.breaks, built.breaks);
             assert!((prob.start..x.len()).all(|t| coarse.interval(t) == built.interval(t)));
-            // coarsened twice: the tables compose
+            // coarsened twice (fine -> two bandwidths -> one): the same intervals
             let mid = fine.coarsened(breakpoints(&grid, &[h, 0.05])).unwrap();
             let twice = mid.coarsened(breakpoints(&grid, &[h])).unwrap();
             assert!((prob.start..x.len()).all(|t| twice.interval(t) == built.interval(t)));
