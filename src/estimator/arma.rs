@@ -213,7 +213,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     let chunk = (n / 32).max(PASS_CHUNK_MIN);
     let run =
         |rows: std::ops::Range<usize>, st: &mut PassState<P, Q, K>, sums: &mut PassSums<K>| {
-            pass_rows(x, rows, start, &aa, &bb, st, sums)
+            pass_rows(x, rows, 0, start, &aa, &bb, st, sums)
         };
     let finish = |s: PassSums<K>| {
         let jtj: Vec<f64> = (0..K * K).map(|i| s.jtj[i / K][i % K]).collect();
@@ -382,12 +382,42 @@ impl<const K: usize> PassSums<K> {
     }
 }
 
-/// The recursion over `rows` from state `st` (left at the state after them), adding
-/// rows t >= `start` to `sums`.
+/// Where [`pass_rows`] reads x_t: a series (`&[f64]`), or a buffer whose values
+/// it turns into the residuals e_t in place (`&mut [f64]`, the MA filter of the
+/// alternation's one-pass b-step, `fit::gn_rows`).
+pub(super) trait RowIo {
+    fn get(&self, i: usize) -> f64;
+    fn put(&mut self, i: usize, e: f64);
+}
+
+impl RowIo for &[f64] {
+    #[inline]
+    fn get(&self, i: usize) -> f64 {
+        self[i]
+    }
+    #[inline]
+    fn put(&mut self, _i: usize, _e: f64) {}
+}
+
+impl RowIo for &mut [f64] {
+    #[inline]
+    fn get(&self, i: usize) -> f64 {
+        self[i]
+    }
+    #[inline]
+    fn put(&mut self, i: usize, e: f64) {
+        self[i] = e;
+    }
+}
+
+/// The recursion over `rows` (indices into `io`; row t = `t0` + index) from state
+/// `st` (left at the state after them), adding rows t >= `start` to `sums`.
 #[inline]
-fn pass_rows<const P: usize, const Q: usize, const K: usize>(
-    x: &[f64],
+#[allow(clippy::too_many_arguments)]
+pub(super) fn pass_rows<const P: usize, const Q: usize, const K: usize, IO: RowIo>(
+    mut io: IO,
     rows: std::ops::Range<usize>,
+    t0: usize,
     start: usize,
     aa: &[f64; P],
     bb: &[f64; Q],
@@ -398,8 +428,9 @@ fn pass_rows<const P: usize, const Q: usize, const K: usize>(
     // the sums in locals (registers), J'J's upper triangle only: its lower one is the
     // same products in the same order (de_i de_j = de_j de_i), mirrored at the end
     let (mut rss, mut jtj, mut jte) = (sums.rss, sums.jtj, sums.jte);
-    for t in rows {
-        let xt = x[t];
+    for i in rows {
+        let t = t0 + i;
+        let xt = io.get(i);
         let mut s = xt;
         for m in 0..P {
             s -= aa[m] * xh[m];
@@ -407,6 +438,7 @@ fn pass_rows<const P: usize, const Q: usize, const K: usize>(
         for m in 0..Q {
             s -= bb[m] * eh[m];
         }
+        io.put(i, s);
         let mut de = [0.0f64; K];
         for j in 0..K {
             let mut v = if j < P { -xh[j] } else { -eh[j - P] };

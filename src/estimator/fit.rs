@@ -18,9 +18,10 @@
 //!    b), its residuals and RSS in hand, and a small step (predicted RSS decrease
 //!    below [`SMALL_STEP`] of the RSS) goes into the next f-step's response without a
 //!    pass of its own (the next iterate's RSS is its check, and the rule below returns
-//!    the iterate of least RSS). A larger step, or q > 2, is taken by [`ma_step`]: the
-//!    step kept when it lowers the RSS, else Gauss-Newton with step halving to
-//!    convergence, then the residuals at its b (the iterate is then (f, that b)).
+//!    the iterate of least RSS). A larger step is checked ([`ma_step`]'s check, from
+//!    the one-pass step): the step kept when the filter at its b lowers the RSS, else
+//!    Gauss-Newton with step halving to convergence, then the residuals at its b (the
+//!    iterate is then (f, that b)); q > 2 runs [`ma_step`] whole.
 //!    `Literal`: one least-squares regression of w on the previous residuals;
 //! 4. residuals recomputed recursively (zeros before the first sample), f between grid
 //!    points by linear interpolation; repeat until the RSS settles: it changes by less
@@ -45,7 +46,9 @@
 
 use std::ops::Range;
 
-use super::arma::{PassState, PassSums, arma_pass, fit_arma, lagged_normal, ma_invertible};
+use super::arma::{
+    PassState, PassSums, arma_pass, fit_arma, lagged_normal, ma_invertible, pass_rows,
+};
 use super::buffers;
 use super::direct::{self, DirectIndex};
 use super::linalg::{normal_equations, spd_solve_inverse};
@@ -700,11 +703,10 @@ fn ma_filter_chunked<const Q: usize>(buf: &mut [f64], bb: &[f64; Q], start: usiz
 /// Writes w_t for rows t0..t0 + out.len() into `out` (`fill(t0, out)`).
 type SpanFill<'a> = dyn Fn(usize, &mut [f64]) + Sync + 'a;
 
-/// `arma_pass`'s row recursion with p = 0 (the same operations, Box, Jenkins and
-/// Reinsel 7.2: d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j), in place:
-/// each w_t of `rows` (row t0 first) becomes e_t, the operations of [`filter_rows`];
-/// the Gauss-Newton sums of rows t >= `start` are returned (J'J's upper triangle,
-/// mirrored at the end).
+/// `arma_pass`'s row recursion with p = 0 (`pass_rows`; Box, Jenkins and Reinsel 7.2:
+/// d e_t / d b_j = -e_{t-j} - sum_k b_k d e_{t-k} / d b_j) in place: each w_t of `rows`
+/// (row t0 first) becomes e_t, the operations of [`filter_rows`]; returns the
+/// Gauss-Newton sums of rows t >= `start`.
 fn gn_rows<const Q: usize>(
     rows: &mut [f64],
     b: &[f64; Q],
@@ -712,44 +714,10 @@ fn gn_rows<const Q: usize>(
     st: &mut PassState<0, Q, Q>,
     start: usize,
 ) -> PassSums<Q> {
-    let PassState { eh, dh, .. } = st;
-    let (mut rss, mut jtj, mut jte) = (0.0, [[0.0f64; Q]; Q], [0.0f64; Q]);
-    for (i, v) in rows.iter_mut().enumerate() {
-        let mut s = *v;
-        for m in 0..Q {
-            s -= b[m] * eh[m];
-        }
-        *v = s;
-        let mut de = [0.0f64; Q];
-        for j in 0..Q {
-            let mut g = -eh[j];
-            for k in 0..Q {
-                g -= b[k] * dh[k][j];
-            }
-            de[j] = g;
-        }
-        if t0 + i >= start {
-            rss += s * s;
-            for a in 0..Q {
-                for c in a..Q {
-                    jtj[a][c] += de[a] * de[c];
-                }
-                jte[a] -= de[a] * s;
-            }
-        }
-        for m in (1..Q).rev() {
-            eh[m] = eh[m - 1];
-            dh[m] = dh[m - 1];
-        }
-        eh[0] = s;
-        dh[0] = de;
-    }
-    for a in 0..Q {
-        for c in 0..a {
-            jtj[a][c] = jtj[c][a];
-        }
-    }
-    PassSums { rss, jtj, jte }
+    let mut sums = PassSums::zero();
+    let n = rows.len();
+    pass_rows(rows, 0..n, t0, start, &[], b, st, &mut sums);
+    sums
 }
 
 /// The chunked in-place recursion of both MA filters ([`ma_filter_chunked`],
@@ -1403,10 +1371,11 @@ pub fn ma_cls(w: &[f64], start: usize, b0: &[f64]) -> Vec<f64> {
     b
 }
 
-/// The alternation's checked b-step (taken when the one-pass step of `gn_b_step` is
-/// not small, see [`SMALL_STEP`], or q > 2): one Gauss-Newton step for b on w (in
-/// `buf`) from `b0`, then the MA filter at the new b, turning w into the residuals in
-/// place, with their RSS: two passes. Near the optimum (every alternation after the first few) one step
+/// The alternation's checked b-step for q > 2 (for q <= 2 the alternation runs
+/// `ma_step_from` from `gn_b_step`'s step when that step is not small, see
+/// [`SMALL_STEP`]): one Gauss-Newton step for b on w (in `buf`) from `b0`, then the
+/// MA filter at the new b, turning w into the residuals in place, with their RSS: two
+/// passes. Near the optimum (every alternation after the first few) one step
 /// is about as good as [`ma_cls`]'s several (Gauss-Newton converges linearly here,
 /// the residuals not being zero, but one step cuts the start's error about 200-fold:
 /// see the test).
