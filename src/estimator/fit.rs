@@ -285,31 +285,101 @@ pub struct FittedFarma {
     pub timings: FitTimings,
 }
 
-/// Quantile of a strided sample of at most 1e6 values (exact for shorter series).
+/// Quantile of a strided sample of at most 1e6 values (exact for shorter series):
+/// linear interpolation between the order statistics of ranks floor(q (n - 1)) and
+/// the next (type 7 of Hyndman and Fan 1996, numpy's default), in
+/// [`f64::total_cmp`]'s order.
+///
+/// The order statistics by radix selection: the values' keys
+/// ([`total_order_key`]) are counted by their top 16 bits, which gives the bucket
+/// and the rank within it of every order statistic asked for; only the values of
+/// those buckets are then selected among. The values a full sort would put at those
+/// ranks (tested against one).
 fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64]) -> Vec<f64> {
     let n = rows.len();
     let stride = n.div_ceil(1_000_000).max(1);
-    let mut v: Vec<f64> = rows.step_by(stride).map(u).collect();
-    // order statistics by selection (the values a full sort would put there); after
-    // selecting rank i every larger rank lies in v[i + 1..], so quantiles taken in
-    // increasing order select within what is left of the last one
-    let mut order: Vec<usize> = (0..qs.len()).collect();
-    order.sort_by(|a, b| qs[*a].total_cmp(&qs[*b]));
-    let mut out = vec![f64::NAN; qs.len()];
+    // the values, read twice where they are (no copy of up to 1e6 values)
+    let values = || rows.clone().step_by(stride).map(&u);
+    let len = values().len();
+    if len == 0 {
+        return vec![f64::NAN; qs.len()];
+    }
+    const SHIFT: u32 = 48;
+    let mut counts = vec![0u32; 1 << (64 - SHIFT)];
+    for x in values() {
+        counts[(total_order_key(x) >> SHIFT) as usize] += 1;
+    }
+    // every rank asked for: floor(q (n - 1)) and the next one
+    let last = len - 1;
+    let at: Vec<(usize, f64)> = qs
+        .iter()
+        .map(|q| {
+            let pos = q * last as f64;
+            (pos.floor() as usize, pos - pos.floor())
+        })
+        .collect();
+    let mut ranks: Vec<usize> = at
+        .iter()
+        .flat_map(|&(i, _)| [i.min(last), (i + 1).min(last)])
+        .collect();
+    ranks.sort_unstable();
+    ranks.dedup();
+    // (bucket, rank of its first value) of each rank
+    let mut first_rank = Vec::with_capacity(ranks.len());
+    let (mut bucket, mut below) = (0usize, 0usize);
+    for &r in &ranks {
+        while below + counts[bucket] as usize <= r {
+            below += counts[bucket] as usize;
+            bucket += 1;
+        }
+        first_rank.push((bucket, below));
+    }
+    let mut buckets: Vec<usize> = first_rank.iter().map(|&(b, _)| b).collect();
+    buckets.dedup();
+    let mut members: Vec<Vec<f64>> = buckets
+        .iter()
+        .map(|&b| Vec::with_capacity(counts[b] as usize))
+        .collect();
+    for x in values() {
+        let b = (total_order_key(x) >> SHIFT) as usize;
+        if let Ok(k) = buckets.binary_search(&b) {
+            members[k].push(x);
+        }
+    }
+    // the order statistics, ranks in increasing order: after selecting local rank
+    // i, every larger one lies in m[i + 1..], so the next selects within what is left
+    let mut stats = vec![f64::NAN; ranks.len()];
     let mut from = 0;
-    for k in order {
-        let pos = qs[k] * (v.len() - 1) as f64;
-        let (i, frac) = (pos.floor() as usize, pos - pos.floor());
-        let i = i.max(from);
-        let (_, vi, right) = v[from..].select_nth_unstable_by(i - from, f64::total_cmp);
-        let vi = *vi;
-        out[k] = match right.iter().min_by(|a, b| a.total_cmp(b)) {
-            Some(&next) => vi + frac * (next - vi),
-            None => vi,
-        };
+    let mut last_bucket = usize::MAX;
+    for (k, (&r, &(b, below))) in ranks.iter().zip(&first_rank).enumerate() {
+        if b != last_bucket {
+            (from, last_bucket) = (0, b);
+        }
+        let m = &mut members[buckets.binary_search(&b).expect("its bucket")];
+        let i = r - below;
+        stats[k] = *m[from..].select_nth_unstable_by(i - from, f64::total_cmp).1;
         from = i;
     }
-    out
+    let order_stat = |r: usize| stats[ranks.binary_search(&r).expect("a rank asked for")];
+    at.iter()
+        .map(|&(i, frac)| {
+            let i = i.min(last);
+            let vi = order_stat(i);
+            if i < last {
+                vi + frac * (order_stat(i + 1) - vi)
+            } else {
+                vi
+            }
+        })
+        .collect()
+}
+
+/// A u64 whose unsigned order is [`f64::total_cmp`]'s order of `x`: the sign bit set
+/// for positive values, every bit flipped for negative ones (IEEE 754-2008, 5.10,
+/// totalOrder).
+fn total_order_key(x: f64) -> u64 {
+    let b = x.to_bits();
+    if b >> 63 == 1 { !b } else { b | (1 << 63) }
 }
 
 /// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
@@ -1091,6 +1161,11 @@ struct LadderCache {
     /// The left-hand sides of the rungs fitted on this table (index j - js.0): they
     /// depend on X and U only, so they outlive a refresh of the y families.
     systems: Vec<Option<LocalSystems>>,
+    /// The smoother's trace at those rungs (None: not every point fitted); it too
+    /// depends on X and U only (a refreshed table keeps the design's families bit for
+    /// bit, and the kept left-hand sides give the same inverses), so a refit on new
+    /// residuals sums the RSS alone.
+    traces: Vec<Option<Option<f64>>>,
 }
 
 impl LadderCache {
@@ -1124,7 +1199,7 @@ impl<'a> Smoother<'a> {
         let lad = match kept {
             Some(l) if *fresh => l,
             Some(l) => LadderCache {
-                table: l.table.with_response(&self.prob, l.index.as_ref(), span),
+                table: l.table.into_response(&self.prob, l.index.as_ref(), span),
                 fits: vec![None; l.fits.len()],
                 ..l
             },
@@ -1148,6 +1223,7 @@ impl<'a> Smoother<'a> {
                     index,
                     fits: vec![None; rungs],
                     systems: (0..rungs).map(|_| None).collect(),
+                    traces: vec![None; rungs],
                 }
             }
         };
@@ -1177,14 +1253,24 @@ impl<'a> Smoother<'a> {
                     (f, Some(s))
                 }
             };
+            // the traces known for these rungs (kept left-hand sides)
+            let known: Vec<Option<Option<f64>>> = missing
+                .iter()
+                .map(|j| lad.traces[(j - lad.js.0) as usize])
+                .collect();
             let fits: Vec<RungFit> = fits
                 .into_par_iter()
-                .map(|f| {
-                    let rt = f.all_ok().then(|| table.rss_trace(self.grid, &f));
+                .zip(known)
+                .map(|(f, known)| {
+                    let rt = match known {
+                        Some(tr) => tr.map(|tr| (table.rss(self.grid, &f), tr)),
+                        None => f.all_ok().then(|| table.rss_trace(self.grid, &f)),
+                    };
                     (f, rt)
                 })
                 .collect();
             for (j, fit) in missing.iter().zip(fits) {
+                lad.traces[(j - lad.js.0) as usize] = Some(fit.1.map(|(_, tr)| tr));
                 lad.fits[(j - lad.js.0) as usize] = Some(fit);
             }
             if let Some(systems) = systems {
@@ -2294,6 +2380,42 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn radix_selected_quantiles_equal_those_of_a_full_sort_over_signs_and_scales() {
+        // values of both signs over many binades, both zeros, ties, and a bucket of
+        // the key's top bits holding most of the values
+        let u = uniform(30_001, 9);
+        let v: Vec<f64> = u
+            .iter()
+            .enumerate()
+            .map(|(i, w)| match i % 7 {
+                0 => 0.0,
+                1 => -0.0,
+                2 => (w - 0.5) * 1e-300,
+                3 => (w - 0.5) * 1e12,
+                4 => 1.0 + w * 1e-9,
+                _ => w - 0.5,
+            })
+            .collect();
+        let mut sorted = v.clone();
+        sorted.sort_by(f64::total_cmp);
+        let qs = [0.0, 1e-5, 0.01, 0.1, 0.2857, 0.5, 0.71, 0.9, 0.99, 1.0];
+        let got = quantiles(|t| v[t], 0..v.len(), &qs);
+        for (q, g) in qs.iter().zip(&got) {
+            let pos = q * (sorted.len() - 1) as f64;
+            let (i, frac) = (pos.floor() as usize, pos - pos.floor());
+            let want = match sorted.get(i + 1) {
+                Some(next) => sorted[i] + frac * (next - sorted[i]),
+                None => sorted[i],
+            };
+            assert_eq!(g.to_bits(), want.to_bits(), "q = {q}");
+        }
+        let mut keys: Vec<u64> = v.iter().map(|x| total_order_key(*x)).collect();
+        keys.sort_unstable();
+        let by_key: Vec<u64> = sorted.iter().map(|x| total_order_key(*x)).collect();
+        assert_eq!(keys, by_key, "the keys' order is total_cmp's");
     }
 
     #[test]

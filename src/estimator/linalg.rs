@@ -77,6 +77,54 @@ pub fn small_spd_solve_inverse(
     n: usize,
 ) -> Option<(Vec<f64>, Vec<f64>, f64)> {
     assert!(n <= SMALL_N && s.len() == n * n && rhs.len() == n);
+    let f = small_spd_factor(s, n)?;
+    Some((f.solve(rhs), f.inv, f.cond))
+}
+
+/// A symmetric positive definite system of order n <= [`SMALL_N`] factored once by
+/// [`small_spd_factor`]: its Cholesky factor, inverse and condition number, so that
+/// systems with the same left-hand side and other right-hand sides (a local system
+/// whose response changed) are solved by substitution alone, with the bits
+/// [`small_spd_solve_inverse`] gives.
+#[derive(Clone, Debug)]
+pub struct SpdFactor {
+    n: usize,
+    /// Lower Cholesky factor.
+    l: [[f64; SMALL_N]; SMALL_N],
+    /// S^-1, row-major n x n.
+    pub inv: Vec<f64>,
+    /// lambda_max / lambda_min.
+    pub cond: f64,
+}
+
+impl SpdFactor {
+    /// z with S z = rhs: L y = rhs, L' z = y.
+    pub fn solve(&self, rhs: &[f64]) -> Vec<f64> {
+        let (n, l) = (self.n, &self.l);
+        assert_eq!(rhs.len(), n);
+        let mut z = [0.0f64; SMALL_N];
+        for i in 0..n {
+            let mut v = rhs[i];
+            for k in 0..i {
+                v -= l[i][k] * z[k];
+            }
+            z[i] = v / l[i][i];
+        }
+        for i in (0..n).rev() {
+            let mut v = z[i];
+            for k in i + 1..n {
+                v -= l[k][i] * z[k];
+            }
+            z[i] = v / l[i][i];
+        }
+        z[..n].to_vec()
+    }
+}
+
+/// The factor of [`small_spd_solve_inverse`] (its steps but the substitution), or
+/// None where that returns None.
+pub fn small_spd_factor(s: &[f64], n: usize) -> Option<SpdFactor> {
+    assert!(n <= SMALL_N && s.len() == n * n);
     if (0..n).any(|i| !(s[i * n + i].is_finite() && s[i * n + i] > 0.0)) {
         return None;
     }
@@ -154,22 +202,6 @@ pub fn small_spd_solve_inverse(
     if cond.is_nan() || cond > MAX_COND {
         return None;
     }
-    // z: L y = rhs, L' z = y
-    let mut z = [0.0f64; M];
-    for i in 0..n {
-        let mut v = rhs[i];
-        for k in 0..i {
-            v -= l[i][k] * z[k];
-        }
-        z[i] = v / l[i][i];
-    }
-    for i in (0..n).rev() {
-        let mut v = z[i];
-        for k in i + 1..n {
-            v -= l[k][i] * z[k];
-        }
-        z[i] = v / l[i][i];
-    }
     // W = L^-1 (lower), then S^-1 = W' W
     let mut w = [[0.0f64; M]; M];
     for j in 0..n {
@@ -193,7 +225,7 @@ pub fn small_spd_solve_inverse(
             inv[j * n + i] = v;
         }
     }
-    Some((z[..n].to_vec(), inv, cond))
+    Some(SpdFactor { n, l, inv, cond })
 }
 
 /// Ordinary least squares by the normal equations: minimises |y - A beta|^2 given

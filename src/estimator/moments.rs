@@ -32,6 +32,7 @@
 use rayon::prelude::*;
 
 use super::kernel::{BIWEIGHT, binomial_table, poly_mul};
+use super::linalg::{SMALL_N, SpdFactor, small_spd_factor};
 use super::problem::{GridFit, VcProblem};
 
 /// Which products of V = (X_1..X_p, y) a table holds.
@@ -130,6 +131,7 @@ impl WholeCells {
 /// cell edge nearest the grid point it is shifted to, and lies inside the window, so
 /// the binomial shift has |a| + |b| <= 1 (no coefficient above 1 in the scaled powers,
 /// as with single intervals).
+#[derive(Clone)]
 struct Cells {
     grid: Vec<f64>,
     /// Cell of each interval; first and last interval of each cell.
@@ -152,9 +154,32 @@ pub struct LocalSystems {
     pub h: f64,
     p: usize,
     points: Vec<(Vec<f64>, u64, f64)>,
+    /// Each point's factored S_g ([`small_spd_factor`]; inner None: singular) where
+    /// 2p <= [`SMALL_N`] and the support has 2p samples or more, so that the fits
+    /// of each new response solve by substitution alone; outer None: solved
+    /// afresh by [`GridFit::set_point`].
+    factors: Vec<Option<Option<SpdFactor>>>,
 }
 
 impl LocalSystems {
+    /// Systems at `h` from each grid point's (S_g, count, kernel mass), factored.
+    fn new(grid: &[f64], h: f64, p: usize, points: Vec<(Vec<f64>, u64, f64)>) -> Self {
+        let n = 2 * p;
+        let factors = points
+            .iter()
+            .map(|(s, count, _)| {
+                (n <= SMALL_N && *count as usize >= n).then(|| small_spd_factor(s, n))
+            })
+            .collect();
+        LocalSystems {
+            grid: grid.to_vec(),
+            h,
+            p,
+            points,
+            factors,
+        }
+    }
+
     /// The grid points they are at.
     pub fn grid(&self) -> &[f64] {
         &self.grid
@@ -172,8 +197,11 @@ impl LocalSystems {
     /// grid point g ([`GridFit::set_point`]).
     fn fit_with<'r>(&self, rhs: impl Fn(usize) -> &'r [f64]) -> GridFit {
         let mut fit = GridFit::new(self.grid.len(), self.p, self.h);
-        for (g, (s, count, mass)) in self.points.iter().enumerate() {
-            fit.set_point(g, s, rhs(g), *count, *mass);
+        for (g, ((s, count, mass), factor)) in self.points.iter().zip(&self.factors).enumerate() {
+            match factor {
+                Some(f) => fit.set_point_factored(g, f.as_ref(), rhs(g), *count, *mass),
+                None => fit.set_point(g, s, rhs(g), *count, *mass),
+            }
         }
         fit
     }
@@ -986,6 +1014,35 @@ impl MomentTable {
         &self,
         prob: &VcProblem,
         index: Option<&IntervalIndex>,
+        span: (f64, f64),
+    ) -> MomentTable {
+        let cells = self.cells.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        MomentTable {
+            breaks: self.breaks.clone(),
+            centre: self.centre.clone(),
+            half: self.half.clone(),
+            p: self.p,
+            nfam: self.nfam,
+            fam_of: self.fam_of.clone(),
+            pairs: self.pairs.clone(),
+            deg: self.deg,
+            m: self.m.clone(),
+            count: self.count.clone(),
+            lo_edge: self.lo_edge.clone(),
+            hi_edge: self.hi_edge.clone(),
+            cells: std::sync::Mutex::new(cells),
+        }
+        .into_response(prob, index, span)
+    }
+
+    /// [`MomentTable::with_response`] in place: the kept families' moments and the
+    /// cell sums of the last grid stay where they are (the cell sums of each family
+    /// are its own, so the design's are kept and only those of the y families are
+    /// summed anew, the same bits as a fresh table's, tested).
+    pub fn into_response(
+        mut self,
+        prob: &VcProblem,
+        index: Option<&IntervalIndex>,
         (umin, umax): (f64, f64),
     ) -> MomentTable {
         assert_eq!(
@@ -1008,30 +1065,32 @@ impl MomentTable {
         let fresh = Self::build_over(prob, index, breaks, (umin, umax), self.deg, fams);
         assert!(fresh.centre == self.centre && fresh.half == self.half);
         let d1 = self.deg + 1;
-        let mut m = self.m.clone();
         let (w_all, w_new) = (self.nfam * d1, fresh.nfam * d1);
-        for (k, &(a, b)) in fresh.pairs.iter().enumerate() {
-            let f = self.fam(a, b);
-            for e in 0..self.n_intervals() {
-                m[e * w_all + f * d1..e * w_all + (f + 1) * d1]
-                    .copy_from_slice(&fresh.m[e * w_new + k * d1..e * w_new + (k + 1) * d1]);
+        // (family of `fresh`, family of this table)
+        let map: Vec<(usize, usize)> = fresh
+            .pairs
+            .iter()
+            .enumerate()
+            .map(|(k, &(a, b))| (k, self.fam(a, b)))
+            .collect();
+        let copy_families = |dst: &mut [f64], src: &[f64]| {
+            for (drow, srow) in dst.chunks_exact_mut(w_all).zip(src.chunks_exact(w_new)) {
+                for &(k, f) in &map {
+                    drow[f * d1..(f + 1) * d1].copy_from_slice(&srow[k * d1..(k + 1) * d1]);
+                }
             }
+        };
+        copy_families(&mut self.m, &fresh.m);
+        let slot = self.cells.get_mut().unwrap_or_else(|e| e.into_inner());
+        if let Some(kept) = slot.take() {
+            let mut cells = std::sync::Arc::try_unwrap(kept).unwrap_or_else(|a| (*a).clone());
+            let new = fresh.build_cells(&cells.grid);
+            debug_assert!(new.prefix_count == cells.prefix_count && new.first == cells.first);
+            copy_families(&mut cells.prefix, &new.prefix);
+            copy_families(&mut cells.suffix, &new.suffix);
+            *slot = Some(std::sync::Arc::new(cells));
         }
-        MomentTable {
-            breaks: self.breaks.clone(),
-            centre: self.centre.clone(),
-            half: self.half.clone(),
-            p: self.p,
-            nfam: self.nfam,
-            fam_of: self.fam_of.clone(),
-            pairs: self.pairs.clone(),
-            deg: self.deg,
-            m,
-            count: self.count.clone(),
-            lo_edge: self.lo_edge.clone(),
-            hi_edge: self.hi_edge.clone(),
-            cells: std::sync::Mutex::new(None),
-        }
+        self
     }
 
     /// The left-hand sides of the local systems at bandwidth `h` (they depend on X and
@@ -1049,12 +1108,7 @@ impl MomentTable {
                 (self.local_lhs(&a_of), count, a_of(self.one_fam(), 0))
             })
             .collect();
-        LocalSystems {
-            grid: grid.to_vec(),
-            h,
-            p: self.p,
-            points: per_g,
-        }
+        LocalSystems::new(grid, h, self.p, per_g)
     }
 
     /// Local fits at `sys.h` from the right-hand sides of this table (a
@@ -1136,15 +1190,11 @@ impl MomentTable {
         hs.par_iter()
             .enumerate()
             .map(|(j, &h)| {
-                let sys = LocalSystems {
-                    grid: grid.to_vec(),
-                    h,
-                    p,
-                    points: per_g
-                        .iter()
-                        .map(|pts| (pts[j].0.clone(), pts[j].2, pts[j].3))
-                        .collect(),
-                };
+                let points = per_g
+                    .iter()
+                    .map(|pts| (pts[j].0.clone(), pts[j].2, pts[j].3))
+                    .collect();
+                let sys = LocalSystems::new(grid, h, p, points);
                 (sys.fit_with(|g| &per_g[g][j].1), sys)
             })
             .unzip()
@@ -1194,18 +1244,30 @@ impl MomentTable {
     /// from the part of each neighbouring grid point's window inside the cell (the
     /// whole cell, or the run from the grid point to the window's edge).
     pub fn rss_trace(&self, grid: &[f64], fit: &GridFit) -> (f64, f64) {
-        self.rss_trace_parts(grid, fit, true)
+        self.rss_trace_parts(grid, fit, true, true)
+    }
+
+    /// The RSS alone ([`MomentTable::rss_trace`]'s, the same bits): for a fit whose
+    /// trace is known (the same left-hand sides, another response).
+    pub fn rss(&self, grid: &[f64], fit: &GridFit) -> f64 {
+        self.rss_trace_parts(grid, fit, true, false).0
     }
 
     /// The smoother's trace alone ([`MomentTable::rss_trace`]'s, the same bits): it
     /// needs only the design's families (an [`Families::All`] or [`Families::Design`]
     /// table) and `fit`'s inverses S_g^-1, not its values.
     pub fn trace(&self, grid: &[f64], fit: &GridFit) -> f64 {
-        self.rss_trace_parts(grid, fit, false).1
+        self.rss_trace_parts(grid, fit, false, true).1
     }
 
-    /// RSS (0 unless `with_rss`) and trace.
-    fn rss_trace_parts(&self, grid: &[f64], fit: &GridFit, with_rss: bool) -> (f64, f64) {
+    /// RSS (0 unless `with_rss`) and trace (0 unless `with_trace`).
+    fn rss_trace_parts(
+        &self,
+        grid: &[f64],
+        fit: &GridFit,
+        with_rss: bool,
+        with_trace: bool,
+    ) -> (f64, f64) {
         let p = self.p;
         assert!(
             self.pairs.contains(&(0, 0)) && (!with_rss || self.pairs.contains(&(p, p))),
@@ -1294,6 +1356,9 @@ impl MomentTable {
                     }
                 }
                 let mut tr = 0.0;
+                if !with_trace {
+                    targets.clear();
+                }
                 for (g, omega, piece) in targets {
                     let Some(piece) = piece.filter(|pc| pc.count > 0) else {
                         continue;
@@ -1699,10 +1764,29 @@ mod tests {
                 ..prob
             };
             let fresh = MomentTable::build(&prob2, breaks.clone(), -2.0, 2.0, 6);
+            // with the cell sums of the grid kept from the first table: the y
+            // families' are summed anew, and all equal a fresh table's
+            let _ = all.cells(&grid);
+            let cell_bits = |t: &MomentTable| {
+                let c = t.cells(&grid);
+                let b = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+                (
+                    b(&c.prefix),
+                    b(&c.suffix),
+                    b(&c.prefix_scale),
+                    c.prefix_count.clone(),
+                )
+            };
             for index in [Some(&ix), None] {
                 let refreshed = all.with_response(&prob2, index, (-2.0, 2.0));
                 assert_eq!(bits(&refreshed), bits(&fresh), "p = {p}");
+                assert!(cell_bits(&refreshed) == cell_bits(&fresh), "p = {p}");
             }
+            let moved = MomentTable::build_indexed(&prob, &ix, -2.0, 2.0, 6, Families::All);
+            let _ = moved.cells(&grid);
+            let moved = moved.into_response(&prob2, Some(&ix), (-2.0, 2.0));
+            assert_eq!(bits(&moved), bits(&fresh), "p = {p}");
+            assert!(cell_bits(&moved) == cell_bits(&fresh), "p = {p}");
         }
     }
 

@@ -162,16 +162,45 @@ impl GridFit {
         }
         match super::linalg::spd_solve_inverse(s, rhs, 2 * p) {
             None => self.status[g] = PointStatus::Singular,
-            Some((sol, inv, cond)) => {
-                self.status[g] = PointStatus::Ok;
-                self.cond[g] = cond;
-                for m in 0..p {
-                    self.f[g * p + m] = sol[m];
-                    self.slope[g * p + m] = sol[p + m] / self.bandwidth;
-                }
-                self.s_inv[g * 4 * p * p..(g + 1) * 4 * p * p].copy_from_slice(&inv);
+            Some((sol, inv, cond)) => self.set_solved(g, &sol, &inv, cond),
+        }
+    }
+
+    /// [`GridFit::set_point`] with the system factored beforehand (`factor`: None
+    /// when it is singular; [`super::linalg::small_spd_factor`]): the same status,
+    /// values and bits.
+    pub fn set_point_factored(
+        &mut self,
+        g: usize,
+        factor: Option<&super::linalg::SpdFactor>,
+        rhs: &[f64],
+        n_support: u64,
+        kernel_mass: f64,
+    ) {
+        let p = self.p;
+        self.n_support[g] = n_support;
+        self.kernel_mass[g] = kernel_mass;
+        if n_support == 0 {
+            self.status[g] = PointStatus::EmptySupport;
+        } else if (n_support as usize) < 2 * p {
+            self.status[g] = PointStatus::TooFewSamples;
+        } else {
+            match factor {
+                None => self.status[g] = PointStatus::Singular,
+                Some(f) => self.set_solved(g, &f.solve(rhs), &f.inv, f.cond),
             }
         }
+    }
+
+    fn set_solved(&mut self, g: usize, sol: &[f64], inv: &[f64], cond: f64) {
+        let p = self.p;
+        self.status[g] = PointStatus::Ok;
+        self.cond[g] = cond;
+        for m in 0..p {
+            self.f[g * p + m] = sol[m];
+            self.slope[g * p + m] = sol[p + m] / self.bandwidth;
+        }
+        self.s_inv[g * 4 * p * p..(g + 1) * 4 * p * p].copy_from_slice(inv);
     }
 
     /// f at `u` by linear interpolation between grid values, constant beyond the ends.
@@ -191,6 +220,70 @@ impl GridFit {
                 let a = self.f[k * p + m];
                 out[m] = a + lam * (self.f[(k + 1) * p + m] - a);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::linalg::small_spd_factor;
+    use super::*;
+
+    fn field_bits(f: &GridFit) -> Vec<u64> {
+        let b = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+        let mut out = b(&f.f);
+        out.extend(b(&f.slope));
+        out.extend(b(&f.s_inv));
+        out.extend(b(&f.cond));
+        out.extend(b(&f.kernel_mass));
+        out.extend(&f.n_support);
+        out
+    }
+
+    #[test]
+    fn a_point_set_from_its_factor_is_the_point_solved_afresh() {
+        // (p, S, count): well posed, too few samples, empty, singular, indefinite
+        let spd = |p: usize, seed: f64| {
+            let n = 2 * p;
+            let a: Vec<f64> = (0..n * n)
+                .map(|k| ((k as f64 + seed) * 0.7).sin())
+                .collect();
+            let mut s = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    s[i * n + j] = (0..n).map(|k| a[i * n + k] * a[j * n + k]).sum::<f64>()
+                        + if i == j { 0.1 } else { 0.0 };
+                }
+            }
+            s
+        };
+        for p in [1, 2, 3, 4] {
+            let n = 2 * p;
+            let rhs: Vec<f64> = (0..n).map(|k| 1.0 - 0.3 * k as f64).collect();
+            let singular = vec![1.0; n * n];
+            let mut indefinite = spd(p, 2.0);
+            indefinite[0] = -1.0;
+            let cases: Vec<(Vec<f64>, u64)> = vec![
+                (spd(p, 0.0), 100),
+                (spd(p, 1.0), n as u64 - 1),
+                (spd(p, 1.0), 0),
+                (singular, 100),
+                (indefinite, 100),
+            ];
+            let mut fresh = GridFit::new(cases.len(), p, 0.25);
+            let mut factored = GridFit::new(cases.len(), p, 0.25);
+            for (g, (s, count)) in cases.iter().enumerate() {
+                fresh.set_point(g, s, &rhs, *count, 3.5);
+                let factor = small_spd_factor(s, n);
+                factored.set_point_factored(g, factor.as_ref(), &rhs, *count, 3.5);
+            }
+            assert_eq!(fresh.status, factored.status, "p = {p}");
+            assert_eq!(field_bits(&fresh), field_bits(&factored), "p = {p}");
+            assert_eq!(fresh.status[0], PointStatus::Ok);
+            assert_eq!(fresh.status[1], PointStatus::TooFewSamples);
+            assert_eq!(fresh.status[2], PointStatus::EmptySupport);
+            assert_eq!(fresh.status[3], PointStatus::Singular);
+            assert_eq!(fresh.status[4], PointStatus::Singular);
         }
     }
 }
