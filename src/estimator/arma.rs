@@ -161,11 +161,37 @@ pub fn ma_invertible(b: &[f64]) -> bool {
 /// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
 /// values of e and of the derivatives: nothing N-long is allocated.
 pub fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    arma_pass_fixed_orders(x, start, a, b, None).unwrap_or_else(|| arma_pass_any(x, start, a, b))
+}
+
+/// [`arma_pass`] that also writes every e_t to `e` (as long as `x`): the residuals at
+/// (a, b), the values of [`arma_residuals`] bit for bit (the same operations, tested).
+/// None, with nothing written, for orders without a kernel of their own (p <= 3 and
+/// q <= 2 have one).
+pub fn arma_pass_into(
+    x: &[f64],
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+    e: &mut [f64],
+) -> Option<(f64, Vec<f64>, Vec<f64>)> {
+    assert_eq!(e.len(), x.len());
+    arma_pass_fixed_orders(x, start, a, b, Some(e))
+}
+
+/// [`arma_pass_fixed`] for the orders that have a kernel; None for the others.
+fn arma_pass_fixed_orders(
+    x: &[f64],
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+    e: Option<&mut [f64]>,
+) -> Option<(f64, Vec<f64>, Vec<f64>)> {
     macro_rules! fixed {
         ($(($p:literal, $q:literal)),*) => {
             match (a.len(), b.len()) {
-                $(($p, $q) => return arma_pass_fixed::<$p, $q, { $p + $q }>(x, start, a, b),)*
-                _ => {}
+                $(($p, $q) => Some(arma_pass_fixed::<$p, $q, { $p + $q }>(x, start, a, b, e)),)*
+                _ => None,
             }
         };
     }
@@ -178,8 +204,25 @@ pub fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64
         (1, 2),
         (2, 2),
         (3, 2)
-    );
-    arma_pass_any(x, start, a, b)
+    )
+}
+
+/// Where the pass of one chunk of rows reads x_t and writes e_t: the chunk of the
+/// series, and the chunk of the residual buffer when one is filled.
+struct ReadWrite<'a> {
+    x: &'a [f64],
+    e: &'a mut [f64],
+}
+
+impl RowIo for ReadWrite<'_> {
+    #[inline]
+    fn get(&self, i: usize) -> f64 {
+        self.x[i]
+    }
+    #[inline]
+    fn put(&mut self, i: usize, e: f64) {
+        self.e[i] = e;
+    }
 }
 
 /// [`arma_pass`] for orders known at compile time: the last p values of x, q of e and
@@ -202,6 +245,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     start: usize,
     a: &[f64],
     b: &[f64],
+    out: Option<&mut [f64]>,
 ) -> (f64, Vec<f64>, Vec<f64>) {
     use rayon::prelude::*;
     debug_assert_eq!(P + Q, K);
@@ -211,10 +255,28 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     bb.copy_from_slice(b);
     let n = x.len();
     let chunk = (n / 32).max(PASS_CHUNK_MIN);
-    let run =
-        |rows: std::ops::Range<usize>, st: &mut PassState<P, Q, K>, sums: &mut PassSums<K>| {
-            pass_rows(x, rows, 0, start, &aa, &bb, st, sums)
-        };
+    // rows `rows` of the chunk `r` (indices from its start), writing e_t to `es` (the
+    // chunk's part of `out`) when there is one
+    let run = |r: &std::ops::Range<usize>,
+               rows: std::ops::Range<usize>,
+               es: Option<&mut [f64]>,
+               st: &mut PassState<P, Q, K>,
+               sums: &mut PassSums<K>| {
+        let xs = &x[r.clone()];
+        match es {
+            Some(e) => pass_rows(
+                ReadWrite { x: xs, e },
+                rows,
+                r.start,
+                start,
+                &aa,
+                &bb,
+                st,
+                sums,
+            ),
+            None => pass_rows(xs, rows, r.start, start, &aa, &bb, st, sums),
+        }
+    };
     let finish = |s: PassSums<K>| {
         let jtj: Vec<f64> = (0..K * K).map(|i| s.jtj[i / K][i % K]).collect();
         (s.rss, jtj, s.jte.to_vec())
@@ -222,7 +284,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     if n < 2 * chunk || Q == 0 {
         let mut st = PassState::at(x, 0);
         let mut sums = PassSums::zero();
-        run(0..n, &mut st, &mut sums);
+        run(&(0..n), 0..n, out, &mut st, &mut sums);
         return finish(sums);
     }
     let lead = lead_rows(b, chunk);
@@ -230,6 +292,11 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
         .step_by(chunk)
         .map(|s| s..(s + chunk).min(n))
         .collect();
+    // each chunk's part of the residual buffer, when one is filled
+    let mut slots: Vec<Option<&mut [f64]>> = match out {
+        Some(e) => e.chunks_mut(chunk).map(Some).collect(),
+        None => chunks.iter().map(|_| None).collect(),
+    };
     // each chunk from a zero MA state: (state after the lead, end state, sums after it)
     type Part<const P: usize, const Q: usize, const K: usize> = (
         PassState<P, Q, K>,
@@ -239,33 +306,35 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
     );
     let parts: Vec<Part<P, Q, K>> = chunks
         .par_iter()
-        .map(|r| {
-            let mid = r.start + lead.min(r.len());
+        .zip(slots.par_iter_mut())
+        .map(|(r, slot)| {
+            let mid = lead.min(r.len());
             let mut st = PassState::at(x, r.start);
             let mut head = PassSums::zero();
-            run(r.start..mid, &mut st, &mut head);
+            run(r, 0..mid, slot.as_deref_mut(), &mut st, &mut head);
             let at_lead = st;
             let mut rest = PassSums::zero();
-            run(mid..r.end, &mut st, &mut rest);
+            run(r, mid..r.len(), slot.as_deref_mut(), &mut st, &mut rest);
             (at_lead, st, head, rest)
         })
         .collect();
-    // the first chunk started from the true state; the others re-run their lead
+    // the first chunk started from the true state; the others re-run their lead (and
+    // write its true e_t over the zero-start ones)
     let mut total = parts[0].2;
     total.add(&parts[0].3);
     let mut state = parts[0].1;
-    for (r, part) in chunks.iter().zip(&parts).skip(1) {
-        let mid = r.start + lead.min(r.len());
+    for ((r, part), slot) in chunks.iter().zip(&parts).zip(slots.iter_mut()).skip(1) {
+        let mid = lead.min(r.len());
         let mut st = state;
         let mut head = PassSums::zero();
-        run(r.start..mid, &mut st, &mut head);
+        run(r, 0..mid, slot.as_deref_mut(), &mut st, &mut head);
         total.add(&head);
         if st.same(&part.0) {
             total.add(&part.3);
             state = part.1;
         } else {
             let mut rest = PassSums::zero();
-            run(mid..r.end, &mut st, &mut rest);
+            run(r, mid..r.len(), slot.as_deref_mut(), &mut st, &mut rest);
             total.add(&rest);
             state = st;
         }
@@ -666,6 +735,56 @@ mod tests {
                 assert_eq!(other.2, chunked.2);
             }
         }
+    }
+
+    #[test]
+    fn a_pass_writes_the_residuals_of_the_one_loop_recursion() {
+        // arma_pass_into on several chunks (parallel, re-run leads, the fallback near
+        // the unit circle), one chunk and a short series: e equal to arma_residuals
+        // bit for bit, the sums those of arma_pass, on 1 and 3 threads
+        let mut s: u64 = 5;
+        let long: Vec<f64> = (0..5 * PASS_CHUNK_MIN + 77)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let cases: [(&[f64], &[f64]); 5] = [
+            (&[], &[-0.5]),
+            (&[0.4, -0.2], &[-0.5]),
+            (&[0.3], &[0.6, 0.2]),
+            (&[0.1, 0.2, -0.1], &[-0.9999]),
+            (&[0.2], &[1.2, 0.5]),
+        ];
+        for x in [&long[..], &long[..1000]] {
+            for (a, b) in cases {
+                let mut want = vec![0.0; x.len()];
+                arma_residuals(x, a, b, &mut want);
+                let sums = arma_pass(x, 2, a, b);
+                for threads in [1, 3] {
+                    let mut e = vec![f64::NAN; x.len()];
+                    let got = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap()
+                        .install(|| arma_pass_into(x, 2, a, b, &mut e))
+                        .expect("a fixed order");
+                    assert!(
+                        e.iter().zip(&want).all(|(u, v)| u.to_bits() == v.to_bits()),
+                        "{a:?} {b:?}, n = {}, {threads} threads",
+                        x.len()
+                    );
+                    assert_eq!(got.0.to_bits(), sums.0.to_bits());
+                    assert_eq!((got.1, got.2), (sums.1.clone(), sums.2.clone()));
+                }
+            }
+        }
+        // an order without a kernel of its own: nothing written
+        let mut e = vec![7.0; 1000];
+        assert!(arma_pass_into(&long[..1000], 4, &[0.1; 4], &[0.2], &mut e).is_none());
+        assert!(e.iter().all(|v| *v == 7.0));
     }
 
     #[test]

@@ -47,7 +47,8 @@
 use std::ops::Range;
 
 use super::arma::{
-    PassState, PassSums, arma_pass, fit_arma, lagged_normal, ma_invertible, pass_rows,
+    PassState, PassSums, arma_pass, arma_pass_into, fit_arma, lagged_normal, ma_invertible,
+    pass_rows,
 };
 use super::buffers;
 use super::direct::{self, DirectIndex};
@@ -1527,12 +1528,43 @@ pub fn arma_cls(
 pub fn arma_cls_within(
     x: &[f64],
     start: usize,
-    (a0, b0): (&[f64], &[f64]),
+    ab0: (&[f64], &[f64]),
     max_iter: usize,
     enough: f64,
 ) -> (Vec<f64>, Vec<f64>, f64) {
+    let (a, b, rss, _) = arma_cls_residuals(x, start, ab0, max_iter, enough, None);
+    (a, b, rss)
+}
+
+/// [`arma_cls_within`], each pass writing its residuals to `e` (when given, and the
+/// order has a kernel of its own, [`arma_pass_into`]). The last value is true when
+/// `e` then holds the residuals at the returned (a, b) (the pass that evaluated them
+/// was the last to write), false when it must be filled again (a rejected trial
+/// step wrote last, or nothing was written).
+fn arma_cls_residuals(
+    x: &[f64],
+    start: usize,
+    (a0, b0): (&[f64], &[f64]),
+    max_iter: usize,
+    enough: f64,
+    mut e: Option<&mut [f64]>,
+) -> (Vec<f64>, Vec<f64>, f64, bool) {
     let (p, q) = (a0.len(), b0.len());
     let k = p + q;
+    // the (a, b) whose residuals `e` holds
+    let mut written: Option<(Vec<f64>, Vec<f64>)> = None;
+    let mut arma_pass = |x: &[f64], start: usize, a: &[f64], b: &[f64]| {
+        let into = e
+            .as_deref_mut()
+            .and_then(|e| arma_pass_into(x, start, a, b, e));
+        match into {
+            Some(out) => {
+                written = Some((a.to_vec(), b.to_vec()));
+                out
+            }
+            None => arma_pass(x, start, a, b),
+        }
+    };
     let (mut a, mut b) = (a0.to_vec(), b0.to_vec());
     let (mut rss, mut jtj, mut jte) = arma_pass(x, start, &a, &b);
     for _ in 0..max_iter {
@@ -1582,7 +1614,13 @@ pub fn arma_cls_within(
             break;
         }
     }
-    (a, b, rss)
+    let holds = written.is_some_and(|(wa, wb)| same_bits(&wa, &a) && same_bits(&wb, &b));
+    (a, b, rss, holds)
+}
+
+/// Whether two slices hold the same values bit for bit.
+fn same_bits(u: &[f64], v: &[f64]) -> bool {
+    u.len() == v.len() && u.iter().zip(v).all(|(a, b)| a.to_bits() == b.to_bits())
 }
 
 /// The linear ARMA(p,q) the FARMA fit starts from (and nests): conditional least
@@ -1600,6 +1638,19 @@ pub fn arma_cls_within(
 /// at 1e7 samples (timing prints, BENCHMARKS.md): 5 passes over every sample from a
 /// fit on the first 2^16, 4 from the prefixes, 2 with [`START_ENOUGH`] as well.
 pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    linear_start_into(x, p, q, start, None).map(|(a, b, _)| (a, b))
+}
+
+/// [`linear_start`], the passes over every sample writing their residuals to `e`
+/// (when given); the last value says whether `e` holds the residuals at the
+/// returned (a, b) ([`arma_cls_residuals`]).
+fn linear_start_into(
+    x: &[f64],
+    p: usize,
+    q: usize,
+    start: usize,
+    mut e: Option<&mut [f64]>,
+) -> Option<(Vec<f64>, Vec<f64>, bool)> {
     let m = fit_arma(&x[..x.len().min(START_MAX)], p, q)?;
     let (mut a, mut b) = (m.ar, m.ma);
     // N / RATIO^k for k = ..., 2, 1, 0, those longer than the first fit's
@@ -1607,10 +1658,16 @@ pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<
         .take_while(|l| *l > START_MAX)
         .collect();
     lens.reverse();
+    let mut holds = false;
     for len in lens {
-        (a, b, _) = arma_cls_within(&x[..len], start, (&a, &b), 30, START_ENOUGH);
+        let out = if len == x.len() {
+            e.as_deref_mut()
+        } else {
+            None
+        };
+        (a, b, _, holds) = arma_cls_residuals(&x[..len], start, (&a, &b), 30, START_ENOUGH, out);
     }
-    Some((a, b))
+    Some((a, b, holds))
 }
 
 /// The linear ARMA (a, b)'s residuals, e_t = x_t - sum a_m x_{t-m} -
@@ -1756,9 +1813,12 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // cost as much as the alternation, and its work arrays several copies of the
     // series)
     let x_start = &x[..n.min(START_MAX)];
-    let (a0, mut b) = match prm.init {
-        Init::Arma => match linear_start(&x, p, q, pp) {
-            Some(ab) => ab,
+    // the residuals at the start: written by the linear start's last pass over every
+    // sample when it evaluated the returned (a, b), else by arma_residuals_rss
+    let mut e_start = vec![0.0; if prm.init == Init::Arma { n } else { 0 }];
+    let (a0, mut b, start_holds) = match prm.init {
+        Init::Arma => match linear_start_into(&x, p, q, pp, Some(&mut e_start)) {
+            Some(abh) => abh,
             None => {
                 return Err(Error::Usage(
                     "the linear ARMA start failed (singular design)".into(),
@@ -1766,7 +1826,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             }
         },
         Init::Literal => match fit_arma(x_start, p, 0) {
-            Some(m) => (m.ar, vec![0.0; q]),
+            Some(m) => (m.ar, vec![0.0; q], false),
             None => return Err(Error::Usage("the AR start failed (singular design)".into())),
         },
     };
@@ -1781,7 +1841,13 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // constant f_m = a_m: the linear ARMA's recursion, the same operations as
     // `residuals` with every grid value a_m (interpolating between equal values
     // gives a_m itself), without finding cells
-    let (mut e, mut rss) = arma_residuals_rss(&x, &a0, &b, pp);
+    let (mut e, mut rss) = if start_holds {
+        let rss = rss_from(&e_start, pp);
+        (e_start, rss)
+    } else {
+        drop(e_start);
+        arma_residuals_rss(&x, &a0, &b, pp)
+    };
     let mut rss_history = vec![rss];
     timings.start_s = lap();
     // The best iterate by global RSS, the linear start being iterate 0 (see the end).
@@ -2416,6 +2482,35 @@ mod tests {
         keys.sort_unstable();
         let by_key: Vec<u64> = sorted.iter().map(|x| total_order_key(*x)).collect();
         assert_eq!(keys, by_key, "the keys' order is total_cmp's");
+    }
+
+    #[test]
+    fn the_starts_residuals_from_its_last_pass_are_those_filled_afresh() {
+        // linear_start_into's last pass over every sample (several chunks) writes the
+        // residuals at the (a, b) it returns: bit for bit those of arma_residuals_rss,
+        // and rss_from gives its RSS; the same (a, b) as linear_start
+        let x: Vec<f64> = {
+            let w = uniform(600_000, 21);
+            let mut x = vec![0.0; w.len()];
+            for t in 2..w.len() {
+                x[t] = 0.5 * x[t - 1] - 0.2 * x[t - 2] + w[t] - 0.4 * w[t - 1];
+            }
+            x
+        };
+        for (p, q) in [(2, 1), (1, 2), (3, 1)] {
+            let start = p.max(q);
+            let mut e = vec![0.0; x.len()];
+            let (a, b, holds) = linear_start_into(&x, p, q, start, Some(&mut e)).unwrap();
+            assert!(
+                holds,
+                "({p}, {q}): the last pass evaluated the returned (a, b)"
+            );
+            let (a2, b2) = linear_start(&x, p, q, start).unwrap();
+            assert!(same_bits(&a, &a2) && same_bits(&b, &b2));
+            let (want, rss) = arma_residuals_rss(&x, &a, &b, start);
+            assert!(same_bits(&e, &want), "({p}, {q})");
+            assert_eq!(rss_from(&e, start).to_bits(), rss.to_bits());
+        }
     }
 
     #[test]
