@@ -42,6 +42,38 @@ fn parse_pair(s: &str) -> Result<(usize, usize)> {
     ))
 }
 
+/// Estimated sample visits of a 2-D fit with GCV above which it gets a warning.
+/// Each rung of a GCV ladder gathers every grid point's support (the box
+/// [u_k - h_k, u_k + h_k) with h_j = 1.1^-j (range_k / 2)); over the rungs j = 0..20
+/// the boxes' shares of the samples add up to about sum 1.1^-2j = 5.8 (less on
+/// concentrated data), and a fit runs two ladders (the first f-step and the re-check),
+/// so about 12 G1 G2 N visits. Measured on the 2-core bench machine (2026-11-25,
+/// FARMA(1,0,1), N = 64,000): 4.8 s at 21,21, 10.3 s at 31,31 and 109.7 s at
+/// 100,100 (7.7e9 estimated visits), about 14 ns per estimated visit; so this
+/// threshold is about a minute there.
+pub const COST_WARN_VISITS: f64 = 4e9;
+
+/// The warning for a 2-D fit of `channels` channels of `n` samples on a
+/// `g1` x `g2` grid, when its GCV ladders' estimated visits exceed
+/// [`COST_WARN_VISITS`] (none with fixed bandwidths: one rung per f-step).
+pub fn cost_warning(
+    (g1, g2): (usize, usize),
+    n: usize,
+    channels: usize,
+    fixed_bandwidth: bool,
+) -> Option<String> {
+    if fixed_bandwidth {
+        return None;
+    }
+    let visits = 12.0 * g1 as f64 * g2 as f64 * n as f64 * channels as f64;
+    (visits > COST_WARN_VISITS).then(|| {
+        format!(
+            "a 2-D index fit gathers every grid point's support at every rung of its two GCV ladders: about 12 x {g1} x {g2} grid points x {n} samples x {channels} channel(s) = {visits:.1e} sample visits (about 14 ns each on 2 cores: {:.0} min on such a machine); a coarser --index-grid, or fixed --bandwidth H1 --bandwidth2 H2 (one rung), costs less",
+            (visits * 14e-9 / 60.0).max(1.0)
+        )
+    })
+}
+
 pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let (p, q, d) = parse_order(&a.order)?;
     OutputSet::check(&a.output)?;
@@ -108,6 +140,9 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         return Err(Error::Usage(
             "--tol must be positive and --max-iter at least 1".into(),
         ));
+    }
+    if let Some(w) = cost_warning(grid, store.n_samples(), names.len(), bandwidth.is_some()) {
+        eprintln!("farma: warning: {w}");
     }
     let t0 = Instant::now();
     let fits: Vec<(String, Fitted2)> = names
@@ -215,4 +250,22 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         a.output.display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_costly_2d_fit_gets_a_warning_with_its_estimate() {
+        // 21 x 21 on 64,000 samples (4.8 s measured): no warning
+        assert!(cost_warning((21, 21), 64_000, 1, false).is_none());
+        // 100 x 100 on 1e6 samples: 1.2e11 visits
+        let w = cost_warning((100, 100), 1_000_000, 1, false).expect("a warning");
+        assert!(w.contains("1.2e11") && w.contains("--index-grid"), "{w}");
+        // the default grid on 1e6 samples of three channels: 1.6e10
+        assert!(cost_warning((21, 21), 1_000_000, 3, false).is_some());
+        // fixed bandwidths: no ladder
+        assert!(cost_warning((100, 100), 1_000_000, 1, true).is_none());
+    }
 }
