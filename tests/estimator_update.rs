@@ -328,6 +328,7 @@ fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
             "'e_tail'",
         ),
         ("b NaN", Box::new(|s| s.b[0] = f64::NAN), "'b'"),
+        ("b not invertible", Box::new(|s| s.b[0] = -1.5), "'b'"),
         (
             "grid inf",
             Box::new(|s| *s.grid.last_mut().unwrap() = f64::INFINITY),

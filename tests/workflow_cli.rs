@@ -218,6 +218,61 @@ fn check_reads_a_fit_folder_and_scores_the_holdout() {
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // a model whose b is not invertible (an update can write one): exit 2, naming
+    // the file, the channel and b, nothing written
+    with_b(&model.join("params.parquet"), -1.5);
+    let out2 = dir.path().join("c2");
+    let o = farma(
+        &[
+            "check",
+            model.to_str().unwrap(),
+            log.to_str().unwrap(),
+            "-o",
+            out2.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("params.parquet") && err.contains("gyro_x") && err.contains("not invertible"),
+        "{err}"
+    );
+    assert!(!out2.exists());
+}
+
+/// Rewrites a fit's params.parquet with every channel's b = [b1].
+fn with_b(path: &std::path::Path, b1: f64) {
+    use arrow_array::builder::{Float64Builder, ListBuilder};
+    use arrow_array::{Array, RecordBatch};
+    use std::sync::Arc;
+    let file = std::fs::File::open(path).unwrap();
+    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap();
+    let batches: Vec<RecordBatch> = reader.map(|b| b.unwrap()).collect();
+    let schema = batches[0].schema();
+    let k = schema.index_of("b").unwrap();
+    let edited: Vec<RecordBatch> = batches
+        .iter()
+        .map(|batch| {
+            let mut list = ListBuilder::new(Float64Builder::new());
+            for _ in 0..batch.num_rows() {
+                list.values().append_value(b1);
+                list.append(true);
+            }
+            let mut cols: Vec<Arc<dyn Array>> = batch.columns().to_vec();
+            cols[k] = Arc::new(list.finish());
+            RecordBatch::try_new(schema.clone(), cols).unwrap()
+        })
+        .collect();
+    let file = std::fs::File::create(path).unwrap();
+    let mut w = parquet::arrow::ArrowWriter::try_new(file, schema.clone(), None).unwrap();
+    for b in &edited {
+        w.write(b).unwrap();
+    }
+    w.close().unwrap();
 }
 
 /// `-o` naming a file (not a folder) is a usage error found before the work: exit 2,

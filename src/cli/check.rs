@@ -173,6 +173,16 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     )> = Vec::new();
     for name in &names {
         let model = load_saved(&a.model, Some(name))?;
+        if !crate::estimator::arma::ma_invertible(&model.b) {
+            // (a fit never writes one; an update can, with a note)
+            return Err(Error::format(
+                &a.model.join("params.parquet"),
+                format!(
+                    "channel '{name}': b = {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle): the model's residuals on the log would grow without bound; refit the channel",
+                    model.b
+                ),
+            ));
+        }
         let x = store.column(name)?;
         let n = x.len();
         let holdout = (a.holdout_s * rate).round() as usize;

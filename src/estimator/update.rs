@@ -130,6 +130,21 @@ impl ChannelState {
     /// Checks the shapes, that every number is finite and that the values are possible
     /// for a fitted (or updated) channel (a state read from a file may be corrupt or
     /// edited). The message names the field and what is wrong.
+    /// An error unless b is invertible (every root of 1 + b_1 z + ... + b_q z^q
+    /// outside the unit circle). A fit never gives another b, but an update can (it
+    /// says so in a note), and continuing from it would make the residuals of the new
+    /// samples grow without bound. Not part of [`ChannelState::check`], which also
+    /// checks an update's own result before it is written with that note.
+    pub fn check_invertible(&self) -> std::result::Result<(), String> {
+        if self.q == 0 || super::arma::ma_invertible(&self.b) {
+            return Ok(());
+        }
+        Err(format!(
+            "field 'b': {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle; the update that wrote it said so in a note): the residuals of new samples would grow without bound; refit the channel (farma fit --save-state)",
+            self.b
+        ))
+    }
+
     pub fn check(&self) -> std::result::Result<(), String> {
         let (p, q, g) = (self.p, self.q, self.grid.len());
         let lag = self.lag();
@@ -505,7 +520,10 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
             "--forgetting: {forgetting} is not in (0, 1]"
         )));
     }
-    state.check().map_err(Error::Usage)?;
+    state
+        .check()
+        .and_then(|()| state.check_invertible())
+        .map_err(Error::Usage)?;
     if new.is_empty() {
         return Err(Error::Usage("no new samples".into()));
     }
@@ -1168,6 +1186,7 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 forgetting: lam.value(row),
             };
             s.check()
+                .and_then(|()| s.check_invertible())
                 .map_err(|m| Error::format(path, format!("channel '{}': {m}", s.channel)))?;
             if out.iter().any(|o: &ChannelState| o.channel == s.channel) {
                 return Err(Error::format(
