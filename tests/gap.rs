@@ -195,6 +195,37 @@ fn cli_writes_the_contract_json_tables_and_report() {
     assert_eq!(after.channels[0].components.len(), 3);
     let svg = std::fs::read_to_string(outdir.join("report.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("sinusoid"));
+    // written as one set: the five files and nothing else (no temporary file left)
+    let mut names: Vec<String> = std::fs::read_dir(&outdir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    let mut want = farma::diagnosis::report::GAP_OUTPUTS
+        .map(String::from)
+        .to_vec();
+    want.sort();
+    assert_eq!(names, want);
+
+    // -o naming a file: a usage error before the work (exit 2), the file untouched
+    let taken = dir.path().join("taken");
+    std::fs::write(&taken, "keep me").unwrap();
+    let out = farma(&[
+        "gap",
+        "--real",
+        log_s,
+        "--sim",
+        spec_path.to_str().unwrap(),
+        "--channel",
+        "rate",
+        "--cache-dir",
+        cache.to_str().unwrap(),
+        "-o",
+        taken.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a folder"));
+    assert_eq!(std::fs::read_to_string(&taken).unwrap(), "keep me");
 
     // bad input: unknown channel, spec without the channel, bad fraction: exit 2, nothing written
     for (args, what) in [

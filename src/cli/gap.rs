@@ -50,6 +50,10 @@ pub struct GapArgs {
 
 pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
     let started = Instant::now();
+    if let Some(dir) = &a.output {
+        // before the work: an OUTDIR that is a file is a usage error
+        crate::output::OutputSet::check(dir)?;
+    }
     let spec = load_spec(&a.sim)?;
     let store = a.log_args.open(&a.real, progress)?;
     let x = store.column(&a.channel)?;

@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 
 use super::{Diagnosis, Region, Statistic};
 use crate::error::Result;
-use crate::output::{batch, write_parquet, write_text};
+use crate::output::{OutputSet, batch, write_text};
 
 /// The JSON object of contracts.md section 3 (with extra keys).
 pub fn to_json(d: &Diagnosis) -> Value {
@@ -76,7 +76,7 @@ fn strs(v: Vec<String>) -> ArrayRef {
 /// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
 /// `spec_after.toml` and `report.svg` into `dir` (each atomically).
 pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
-    crate::output::ensure_dir(dir)?;
+    let mut out = OutputSet::new(dir)?;
     let ch = |n: usize| strs(vec![d.channel.clone(); n]);
     let k = d.defs.len();
     let zb = d.ens_before.z(&d.real);
@@ -192,24 +192,35 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
     meta.push(("gap_before", d.gap_before.to_string()));
     meta.push(("gap_after", d.gap_after.to_string()));
     meta.push(("noise_floor", d.noise_floor.to_string()));
-    let mut written = Vec::new();
+    // one set: every file staged beside its place, all renamed into place together
     for (name, b) in [
         ("gap_features.parquet", &feats),
         ("gap_regions.parquet", &reg),
         ("gap_effects.parquet", &eff),
     ] {
-        let p = dir.join(name);
-        write_parquet(&p, b, &meta)?;
-        written.push(p.display().to_string());
+        out.parquet(name, b, &meta)?;
     }
-    let spec_path = dir.join("spec_after.toml");
-    write_text(&spec_path, &d.spec_after.to_toml()?)?;
-    written.push(spec_path.display().to_string());
-    let svg_path = dir.join("report.svg");
-    write_text(&svg_path, &svg(d))?;
-    written.push(svg_path.display().to_string());
+    let toml = d.spec_after.to_toml()?;
+    out.file("spec_after.toml", |p| write_text(p, &toml))?;
+    let report = svg(d);
+    out.file("report.svg", |p| write_text(p, &report))?;
+    let written = GAP_OUTPUTS
+        .iter()
+        .map(|n| out.path(n).display().to_string())
+        .collect();
+    out.commit(&GAP_OUTPUTS)?;
     Ok(written)
 }
+
+/// The files of `farma gap -o OUTDIR`, written as one set ([`OutputSet`]): a run
+/// that fails leaves the folder as it was.
+pub const GAP_OUTPUTS: [&str; 5] = [
+    "gap_features.parquet",
+    "gap_regions.parquet",
+    "gap_effects.parquet",
+    "spec_after.toml",
+    "report.svg",
+];
 
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
