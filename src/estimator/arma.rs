@@ -682,21 +682,26 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
 
-    #[test]
-    fn chunked_pass_equals_the_one_loop_recursion() {
-        // N of several chunks: the chunked pass (parallel, re-run leads) against one
-        // run over all rows (the one-loop recursion): the e_t and derivatives are the
-        // same to the bit, so the sums differ only by their grouping; with 1 and 2
-        // threads the bits are the same; b near the unit circle takes the fallback
-        let mut s: u64 = 3;
-        let x: Vec<f64> = (0..5 * PASS_CHUNK_MIN + 123)
+    /// n values uniform on [-0.5, 0.5) from a 64-bit LCG seeded with `seed`.
+    fn uniform_lcg(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
             .map(|_| {
                 s = s
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
                 (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn chunked_pass_equals_the_one_loop_recursion() {
+        // N of several chunks: the chunked pass (parallel, re-run leads) against one
+        // run over all rows (the one-loop recursion): the e_t and derivatives are the
+        // same to the bit, so the sums differ only by their grouping; with 1 and 2
+        // threads the bits are the same; b near the unit circle takes the fallback
+        let x = uniform_lcg(5 * PASS_CHUNK_MIN + 123, 3);
         let cases: [(&[f64], &[f64]); 5] = [
             (&[], &[-0.5]),
             (&[0.4, -0.2], &[-0.5]),
@@ -742,15 +747,7 @@ mod tests {
         // arma_pass_into on several chunks (parallel, re-run leads, the fallback near
         // the unit circle), one chunk and a short series: e equal to arma_residuals
         // bit for bit, the sums those of arma_pass, on 1 and 3 threads
-        let mut s: u64 = 5;
-        let long: Vec<f64> = (0..5 * PASS_CHUNK_MIN + 77)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect();
+        let long = uniform_lcg(5 * PASS_CHUNK_MIN + 77, 5);
         let cases: [(&[f64], &[f64]); 5] = [
             (&[], &[-0.5]),
             (&[0.4, -0.2], &[-0.5]),

@@ -149,20 +149,28 @@ impl GridFit {
         n_support: u64,
         kernel_mass: f64,
     ) {
-        let p = self.p;
+        if !self.set_support(g, n_support, kernel_mass) {
+            return;
+        }
+        match super::linalg::spd_solve_inverse(s, rhs, 2 * self.p) {
+            None => self.status[g] = PointStatus::Singular,
+            Some((sol, inv, cond)) => self.set_solved(g, &sol, &inv, cond),
+        }
+    }
+
+    /// Stores point g's support count and kernel mass; with fewer than 2p samples
+    /// sets its status (empty support or too few samples) and returns false.
+    fn set_support(&mut self, g: usize, n_support: u64, kernel_mass: f64) -> bool {
         self.n_support[g] = n_support;
         self.kernel_mass[g] = kernel_mass;
         if n_support == 0 {
             self.status[g] = PointStatus::EmptySupport;
-            return;
-        }
-        if (n_support as usize) < 2 * p {
+            false
+        } else if (n_support as usize) < 2 * self.p {
             self.status[g] = PointStatus::TooFewSamples;
-            return;
-        }
-        match super::linalg::spd_solve_inverse(s, rhs, 2 * p) {
-            None => self.status[g] = PointStatus::Singular,
-            Some((sol, inv, cond)) => self.set_solved(g, &sol, &inv, cond),
+            false
+        } else {
+            true
         }
     }
 
@@ -177,18 +185,12 @@ impl GridFit {
         n_support: u64,
         kernel_mass: f64,
     ) {
-        let p = self.p;
-        self.n_support[g] = n_support;
-        self.kernel_mass[g] = kernel_mass;
-        if n_support == 0 {
-            self.status[g] = PointStatus::EmptySupport;
-        } else if (n_support as usize) < 2 * p {
-            self.status[g] = PointStatus::TooFewSamples;
-        } else {
-            match factor {
-                None => self.status[g] = PointStatus::Singular,
-                Some(f) => self.set_solved(g, &f.solve(rhs), &f.inv, f.cond),
-            }
+        if !self.set_support(g, n_support, kernel_mass) {
+            return;
+        }
+        match factor {
+            None => self.status[g] = PointStatus::Singular,
+            Some(f) => self.set_solved(g, &f.solve(rhs), &f.inv, f.cond),
         }
     }
 
