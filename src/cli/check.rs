@@ -174,7 +174,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     for name in &names {
         let model = load_saved(&a.model, Some(name))?;
         if !crate::estimator::arma::ma_invertible(&model.b) {
-            // (a fit never writes one; an update can, with a note)
+            // (an update can leave one, with a note, and a folder can be edited)
             return Err(Error::format(
                 &a.model.join("params.parquet"),
                 format!(

@@ -49,7 +49,8 @@ fn parse_pair(s: &str) -> Result<(usize, usize)> {
 /// concentrated data), and a fit runs two ladders (the first f-step and the re-check),
 /// so about 12 G1 G2 N visits. Measured on the 2-core bench machine (2026-11-25,
 /// FARMA(1,0,1), N = 64,000): 4.8 s at 21,21, 10.3 s at 31,31 and 109.7 s at
-/// 100,100 (7.7e9 estimated visits), about 14 ns per estimated visit; so this
+/// 100,100 (7.7e9 estimated visits), about 14 ns per estimated visit (p = 1: each
+/// visit adds to a 3p x 3p system, so larger p costs more per visit); so this
 /// threshold is about a minute there.
 pub const COST_WARN_VISITS: f64 = 4e9;
 
@@ -68,7 +69,7 @@ pub fn cost_warning(
     let visits = 12.0 * g1 as f64 * g2 as f64 * n as f64 * channels as f64;
     (visits > COST_WARN_VISITS).then(|| {
         format!(
-            "a 2-D index fit gathers every grid point's support at every rung of its two GCV ladders: about 12 x {g1} x {g2} grid points x {n} samples x {channels} channel(s) = {visits:.1e} sample visits (about 14 ns each on 2 cores: {:.0} min on such a machine); a coarser --index-grid, or fixed --bandwidth H1 --bandwidth2 H2 (one rung), costs less",
+            "a 2-D index fit gathers every grid point's support at every rung of its two GCV ladders: about 12 x {g1} x {g2} grid points x {n} samples x {channels} channel(s) = {visits:.1e} sample visits (about 14 ns each on 2 cores at p = 1, more for larger p: {:.0} min or more on such a machine); a coarser --index-grid, or fixed --bandwidth H1 --bandwidth2 H2 (one rung), costs less",
             (visits * 14e-9 / 60.0).max(1.0)
         )
     })

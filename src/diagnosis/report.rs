@@ -74,7 +74,8 @@ fn strs(v: Vec<String>) -> ArrayRef {
 }
 
 /// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
-/// `spec_after.toml` and `report.svg` into `dir` (each atomically).
+/// `spec_after.toml` and `report.svg` into `dir` (created when missing) as one set
+/// ([`GAP_OUTPUTS`]).
 pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
     let mut out = OutputSet::new(dir)?;
     let ch = |n: usize| strs(vec![d.channel.clone(); n]);
@@ -212,8 +213,9 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
     Ok(written)
 }
 
-/// The files of `farma gap -o OUTDIR`, written as one set ([`OutputSet`]): a run
-/// that fails leaves the folder as it was.
+/// The files of `farma gap -o OUTDIR`, written as one set ([`OutputSet`]): each is
+/// staged beside its place and they are renamed into place only once all are written,
+/// so a run that fails before then leaves the folder's files as they were.
 pub const GAP_OUTPUTS: [&str; 5] = [
     "gap_features.parquet",
     "gap_regions.parquet",

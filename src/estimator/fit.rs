@@ -294,12 +294,13 @@ pub struct FittedFarma {
 /// The order statistics by radix selection: the values' keys
 /// ([`total_order_key`]) are counted by their top 16 bits, which gives the bucket
 /// and the rank within it of every order statistic asked for; only the values of
-/// those buckets are then selected among. The values a full sort would put at those
+/// those buckets are then copied and selected among (nearly all of them when one
+/// bucket holds most values, as a copy of all did before). The values a full sort would put at those
 /// ranks (tested against one).
 fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64]) -> Vec<f64> {
     let n = rows.len();
     let stride = n.div_ceil(1_000_000).max(1);
-    // the values, read twice where they are (no copy of up to 1e6 values)
+    // the values, read twice where they are (the counting copies none)
     let values = || rows.clone().step_by(stride).map(&u);
     let len = values().len();
     if len == 0 {

@@ -127,24 +127,24 @@ impl ChannelState {
             .collect()
     }
 
-    /// Checks the shapes, that every number is finite and that the values are possible
-    /// for a fitted (or updated) channel (a state read from a file may be corrupt or
-    /// edited). The message names the field and what is wrong.
     /// An error unless b is invertible (every root of 1 + b_1 z + ... + b_q z^q
-    /// outside the unit circle). A fit never gives another b, but an update can (it
-    /// says so in a note), and continuing from it would make the residuals of the new
-    /// samples grow without bound. Not part of [`ChannelState::check`], which also
+    /// outside the unit circle). An update can leave another b (it says so in a note),
+    /// and so can an edited file; continuing from it would make the residuals of the
+    /// new samples grow without bound. Not part of [`ChannelState::check`], which also
     /// checks an update's own result before it is written with that note.
     pub fn check_invertible(&self) -> std::result::Result<(), String> {
         if self.q == 0 || super::arma::ma_invertible(&self.b) {
             return Ok(());
         }
         Err(format!(
-            "field 'b': {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle; the update that wrote it said so in a note): the residuals of new samples would grow without bound; refit the channel (farma fit --save-state)",
+            "field 'b': {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle; an update that leaves one says so in a note): the residuals of new samples would grow without bound; refit the channel (farma fit --save-state)",
             self.b
         ))
     }
 
+    /// Checks the shapes, that every number is finite and that the values are possible
+    /// for a fitted (or updated) channel (a state read from a file may be corrupt or
+    /// edited). The message names the field and what is wrong.
     pub fn check(&self) -> std::result::Result<(), String> {
         let (p, q, g) = (self.p, self.q, self.grid.len());
         let lag = self.lag();
@@ -936,7 +936,7 @@ fn update_notes(
     }
     if st.q > 0 && !super::arma::ma_invertible(&st.b) {
         notes.push(format!(
-            "the updated MA coefficients b = {:?} are not invertible (a root of 1 + b_1 z + ... on or inside the unit circle; a fit never gives one): the new samples do not follow the model (a level shift?); consider a refit",
+            "the updated MA coefficients b = {:?} are not invertible (a root of 1 + b_1 z + ... on or inside the unit circle): the new samples do not follow the model (a level shift?); consider a refit",
             st.b
         ));
     }
