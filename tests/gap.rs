@@ -138,22 +138,23 @@ fn cli_writes_the_contract_json_tables_and_report() {
     );
     let outdir = dir.path().join("gap");
     let cache = dir.path().join("cache");
-    let out = farma(&[
-        "gap",
-        "--real",
-        log_s,
-        "--sim",
-        spec_path.to_str().unwrap(),
-        "--channel",
-        "rate",
-        "--replicas",
-        "8",
-        "--json",
-        "--cache-dir",
-        cache.to_str().unwrap(),
-        "-o",
-        outdir.to_str().unwrap(),
-    ]);
+    // `farma gap` of this log against this spec into `out`, with `extra` arguments
+    let gap_into = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "gap",
+            "--real",
+            log_s,
+            "--sim",
+            spec_path.to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        farma(&args)
+    };
+    let out = gap_into(&outdir, &["--channel", "rate", "--replicas", "8", "--json"]);
     assert!(
         out.status.success(),
         "{}",
@@ -210,19 +211,7 @@ fn cli_writes_the_contract_json_tables_and_report() {
     // -o naming a file: a usage error before the work (exit 2), the file untouched
     let taken = dir.path().join("taken");
     std::fs::write(&taken, "keep me").unwrap();
-    let out = farma(&[
-        "gap",
-        "--real",
-        log_s,
-        "--sim",
-        spec_path.to_str().unwrap(),
-        "--channel",
-        "rate",
-        "--cache-dir",
-        cache.to_str().unwrap(),
-        "-o",
-        taken.to_str().unwrap(),
-    ]);
+    let out = gap_into(&taken, &["--channel", "rate"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a folder"));
     assert_eq!(std::fs::read_to_string(&taken).unwrap(), "keep me");
@@ -236,19 +225,7 @@ fn cli_writes_the_contract_json_tables_and_report() {
         ),
     ] {
         let bad_dir = dir.path().join("bad");
-        let mut full = vec![
-            "gap",
-            "--real",
-            log_s,
-            "--sim",
-            spec_path.to_str().unwrap(),
-            "--cache-dir",
-            cache.to_str().unwrap(),
-            "-o",
-            bad_dir.to_str().unwrap(),
-        ];
-        full.extend(args);
-        let out = farma(&full);
+        let out = gap_into(&bad_dir, &args);
         assert_eq!(out.status.code(), Some(2), "{what}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(what), "{err}");

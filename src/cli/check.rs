@@ -173,13 +173,12 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     )> = Vec::new();
     for name in &names {
         let model = load_saved(&a.model, Some(name))?;
-        if !crate::estimator::arma::ma_invertible(&model.b) {
+        if let Some(what) = crate::estimator::arma::not_invertible(&model.b) {
             // (an update can leave one, with a note, and a folder can be edited)
             return Err(Error::format(
                 &a.model.join("params.parquet"),
                 format!(
-                    "channel '{name}': b = {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle): the model's residuals on the log would grow without bound; refit the channel",
-                    model.b
+                    "channel '{name}': {what}: the model's residuals on the log would grow without bound; refit the channel"
                 ),
             ));
         }

@@ -134,6 +134,16 @@ fn lagged_ls_one_series(
     normal_equations(&ata, &aty, k)
 }
 
+/// None when b is invertible ([`ma_invertible`]), else what is wrong with it, for a
+/// message: "b = [..] is not invertible (a root of ... on or inside the unit circle)".
+pub fn not_invertible(b: &[f64]) -> Option<String> {
+    (!ma_invertible(b)).then(|| {
+        format!(
+            "b = {b:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle)"
+        )
+    })
+}
+
 /// True when the MA polynomial 1 + b_1 z + ... has all roots outside the unit circle
 /// (checked by the Schur-Cohn / Jury recursion on the reversed coefficients).
 pub fn ma_invertible(b: &[f64]) -> bool {

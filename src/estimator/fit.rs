@@ -295,8 +295,8 @@ pub struct FittedFarma {
 /// ([`total_order_key`]) are counted by their top 16 bits, which gives the bucket
 /// and the rank within it of every order statistic asked for; only the values of
 /// those buckets are then copied and selected among (nearly all of them when one
-/// bucket holds most values, as a copy of all did before). The values a full sort would put at those
-/// ranks (tested against one).
+/// bucket holds most values, as a copy of all did before). The values a full sort
+/// would put at those ranks (tested against one).
 fn quantiles(u: impl Fn(usize) -> f64, rows: std::ops::Range<usize>, qs: &[f64]) -> Vec<f64> {
     let n = rows.len();
     let stride = n.div_ceil(1_000_000).max(1);
@@ -1554,7 +1554,7 @@ fn arma_cls_residuals(
     let k = p + q;
     // the (a, b) whose residuals `e` holds
     let mut written: Option<(Vec<f64>, Vec<f64>)> = None;
-    let mut arma_pass = |x: &[f64], start: usize, a: &[f64], b: &[f64]| {
+    let mut pass = |x: &[f64], start: usize, a: &[f64], b: &[f64]| {
         let into = e
             .as_deref_mut()
             .and_then(|e| arma_pass_into(x, start, a, b, e));
@@ -1567,7 +1567,7 @@ fn arma_cls_residuals(
         }
     };
     let (mut a, mut b) = (a0.to_vec(), b0.to_vec());
-    let (mut rss, mut jtj, mut jte) = arma_pass(x, start, &a, &b);
+    let (mut rss, mut jtj, mut jte) = pass(x, start, &a, &b);
     for _ in 0..max_iter {
         let Some(step) = normal_equations(&jtj, &jte, k) else {
             break;
@@ -1589,7 +1589,7 @@ fn arma_cls_residuals(
             let at: Vec<f64> = (0..p).map(|i| a[i] + step[i]).collect();
             let bt: Vec<f64> = (0..q).map(|i| b[i] + step[p + i]).collect();
             if ma_invertible(&bt) {
-                let r = arma_pass(x, start, &at, &bt).0;
+                let r = pass(x, start, &at, &bt).0;
                 if r <= rss * (1.0 + FLAT_RSS) {
                     (a, b, rss) = (at, bt, r);
                 }
@@ -1602,7 +1602,7 @@ fn arma_cls_residuals(
             let at: Vec<f64> = (0..p).map(|i| a[i] + scale * step[i]).collect();
             let bt: Vec<f64> = (0..q).map(|i| b[i] + scale * step[p + i]).collect();
             if ma_invertible(&bt) {
-                let (r, jt, je) = arma_pass(x, start, &at, &bt);
+                let (r, jt, je) = pass(x, start, &at, &bt);
                 if r <= rss {
                     moved = rss - r > 1e-12 * rss;
                     (a, b, rss, jtj, jte) = (at, bt, r, jt, je);
@@ -1926,9 +1926,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             if fill.is_none() {
                 w_into(&mut e);
             }
-            let refill = |buf: &mut [f64]| w_into(buf);
             // (the iterate's b, the next response's b, the iterate's RSS)
-            let (b_iter, b_next, rss_iter) = match gn_b_step(&mut e, pp, &b_resp, fill, refill) {
+            let (b_iter, b_next, rss_iter) = match gn_b_step(&mut e, pp, &b_resp, fill, w_into) {
                 // the iterate is (f, b_resp), its residuals in `e`; the step goes
                 // into the next f-step's response
                 Some((rss_b, b_next, decrease))
@@ -1941,12 +1940,12 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 Some((rss_b, b_next, _)) => {
                     w_into(&mut e);
                     let (b_new, rss_new) =
-                        ma_step_from(&mut e, pp, &b_resp, (rss_b, b_next), refill);
+                        ma_step_from(&mut e, pp, &b_resp, (rss_b, b_next), w_into);
                     (b_new.clone(), b_new, rss_new)
                 }
                 // q > 2: ma_step's own passes on w
                 None => {
-                    let (b_new, rss_new) = ma_step(&mut e, pp, &b_resp, refill);
+                    let (b_new, rss_new) = ma_step(&mut e, pp, &b_resp, w_into);
                     (b_new.clone(), b_new, rss_new)
                 }
             };
@@ -2226,11 +2225,6 @@ mod tests {
             assert!(r_new < r_far, "{b:?}");
             assert_eq!(rss.to_bits(), r_new.to_bits());
         }
-    }
-
-    /// The same values, bit for bit.
-    fn same_bits(a: &[f64], b: &[f64]) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(u, v)| u.to_bits() == v.to_bits())
     }
 
     /// The serial MA recursion, the general loop (the chunked filter's slow twin).

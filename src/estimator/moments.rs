@@ -350,6 +350,29 @@ fn rescale_into(src: &[f64], ratio: f64, nfam: usize, d1: usize, acc: &mut [f64]
     }
 }
 
+impl Clone for MomentTable {
+    /// Every field, the cell sums of the last grid included (shared until one of the
+    /// tables changes them: [`MomentTable::into_response`] copies them then).
+    fn clone(&self) -> Self {
+        let cells = self.cells.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        MomentTable {
+            breaks: self.breaks.clone(),
+            centre: self.centre.clone(),
+            half: self.half.clone(),
+            p: self.p,
+            nfam: self.nfam,
+            fam_of: self.fam_of.clone(),
+            pairs: self.pairs.clone(),
+            deg: self.deg,
+            m: self.m.clone(),
+            count: self.count.clone(),
+            lo_edge: self.lo_edge.clone(),
+            hi_edge: self.hi_edge.clone(),
+            cells: std::sync::Mutex::new(cells),
+        }
+    }
+}
+
 impl MomentTable {
     fn n_intervals(&self) -> usize {
         self.breaks.len() + 1
@@ -1016,23 +1039,7 @@ impl MomentTable {
         index: Option<&IntervalIndex>,
         span: (f64, f64),
     ) -> MomentTable {
-        let cells = self.cells.lock().unwrap_or_else(|e| e.into_inner()).clone();
-        MomentTable {
-            breaks: self.breaks.clone(),
-            centre: self.centre.clone(),
-            half: self.half.clone(),
-            p: self.p,
-            nfam: self.nfam,
-            fam_of: self.fam_of.clone(),
-            pairs: self.pairs.clone(),
-            deg: self.deg,
-            m: self.m.clone(),
-            count: self.count.clone(),
-            lo_edge: self.lo_edge.clone(),
-            hi_edge: self.hi_edge.clone(),
-            cells: std::sync::Mutex::new(cells),
-        }
-        .into_response(prob, index, span)
+        self.clone().into_response(prob, index, span)
     }
 
     /// [`MomentTable::with_response`] in place: the kept families' moments and the
@@ -1346,7 +1353,9 @@ impl MomentTable {
                     let (wlo, _) = self.window_edges(&cells, g, h);
                     wlo.map(|wlo| self.suffix(&cells, wlo.max(f0)))
                 };
+                // (none without the trace: its window pieces are not even found)
                 match k1 {
+                    _ if !with_trace => {}
                     None if c == 0 => targets.push((0, vec![1.0], left_part(0))),
                     None => targets.push((k, vec![1.0], right_part(k))),
                     Some(k1) => {
@@ -1356,9 +1365,6 @@ impl MomentTable {
                     }
                 }
                 let mut tr = 0.0;
-                if !with_trace {
-                    targets.clear();
-                }
                 for (g, omega, piece) in targets {
                     let Some(piece) = piece.filter(|pc| pc.count > 0) else {
                         continue;

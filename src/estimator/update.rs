@@ -133,13 +133,12 @@ impl ChannelState {
     /// new samples grow without bound. Not part of [`ChannelState::check`], which also
     /// checks an update's own result before it is written with that note.
     pub fn check_invertible(&self) -> std::result::Result<(), String> {
-        if self.q == 0 || super::arma::ma_invertible(&self.b) {
-            return Ok(());
+        match super::arma::not_invertible(&self.b) {
+            None => Ok(()),
+            Some(what) => Err(format!(
+                "field 'b': {what} (an update that leaves one says so in a note): the residuals of new samples would grow without bound; refit the channel (farma fit --save-state)"
+            )),
         }
-        Err(format!(
-            "field 'b': {:?} is not invertible (a root of 1 + b_1 z + ... + b_q z^q on or inside the unit circle; an update that leaves one says so in a note): the residuals of new samples would grow without bound; refit the channel (farma fit --save-state)",
-            self.b
-        ))
     }
 
     /// Checks the shapes, that every number is finite and that the values are possible
@@ -934,10 +933,9 @@ fn update_notes(
             sigma2 / before_s2
         ));
     }
-    if st.q > 0 && !super::arma::ma_invertible(&st.b) {
+    if let Some(what) = super::arma::not_invertible(&st.b) {
         notes.push(format!(
-            "the updated MA coefficients b = {:?} are not invertible (a root of 1 + b_1 z + ... on or inside the unit circle): the new samples do not follow the model (a level shift?); consider a refit",
-            st.b
+            "the updated MA coefficients: {what}: the new samples do not follow the model (a level shift?); consider a refit"
         ));
     }
     notes
