@@ -96,6 +96,44 @@ fn literal_scheme_stays_further_from_b_than_the_arma_start() {
     assert!((ma.b[0] + 0.5).abs() < (ml.b[0] + 0.5).abs());
 }
 
+/// On a unit-root MA(1), x_t = e_t + e_{t-1}, the literal scheme's least-squares b
+/// can step past 1 once b is near it: from such a b the residual recursion grows
+/// without bound. Before the b-step refused such a b, this series (seed 6 of eight
+/// tried; the other seven ended with b in 0.993..0.9993) ended after max_iter = 50
+/// alternations with b = 1.00196, a NaN RSS and converged false. Now that b is
+/// refused, with a note, and the fit converges.
+#[test]
+fn the_literal_scheme_keeps_an_invertible_b_on_a_unit_root_ma() {
+    let n = 300_000;
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let e: Vec<f64> = (0..=n).map(|_| StandardNormal.sample(&mut rng)).collect();
+    let x: Vec<f64> = (1..=n).map(|t| e[t] + e[t - 1]).collect();
+    let params = FarmaParams {
+        p: 1,
+        q: 1,
+        d: 1,
+        init: Init::Literal,
+        grid_size: 51,
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let m = fit(&x, &params).unwrap();
+    eprintln!(
+        "b = {:?}, rss {}, iterations {}, converged {}, notes {:?}",
+        m.b, m.rss, m.iterations, m.converged, m.notes
+    );
+    assert!(m.b[0].abs() < 1.0, "b = {:?}", m.b);
+    assert!(m.rss.is_finite() && m.sigma2.is_finite(), "RSS {}", m.rss);
+    assert!((m.sigma2 - 1.0).abs() < 0.05, "sigma2 = {}", m.sigma2);
+    assert!(m.converged);
+    assert!(
+        m.notes.iter().any(|n| n.contains("b was not invertible")),
+        "{:?}",
+        m.notes
+    );
+}
+
 /// |fast - direct| <= 1e-9 |fast| (fast and direct paths of one fit quantity).
 fn within_1e9(fast: f64, direct: f64, what: &str) {
     assert!(

@@ -22,7 +22,8 @@
 //!    the one-pass step): the step kept when the filter at its b lowers the RSS, else
 //!    Gauss-Newton with step halving to convergence, then the residuals at its b (the
 //!    iterate is then (f, that b)); q > 2 runs [`ma_step`] whole.
-//!    `Literal`: one least-squares regression of w on the previous residuals;
+//!    `Literal`: one least-squares regression of w on the previous residuals (a b
+//!    that is not invertible is refused, the previous one kept, with a note);
 //! 4. residuals recomputed recursively (zeros before the first sample), f between grid
 //!    points by linear interpolation; repeat until the RSS settles: it changes by less
 //!    than `tol` relative (default 1e-6), or the least RSS so far has not been beaten
@@ -36,7 +37,8 @@
 //! rises slowly towards a fixed point 1.2e-5 above. `rss_history` records every step.
 //! The iterate of least global RSS (the linear start included) is returned when the
 //! last one ends above it by more than `tol` relative, with a note: the fit never ends
-//! more than `tol` above the linear ARMA it nests. A returned linear start reports the
+//! more than `tol` above the linear ARMA it nests. Residuals that are not finite stop
+//! the alternation (`converged` false) and the iterate of least RSS is returned. A returned linear start reports the
 //! linear model's degrees of freedom, trace = p, its GCV from them and the
 //! least-squares standard errors of its constant coefficients (the bandwidth field
 //! keeps the one GCV last chose, which that model does not use). Alternating on past
@@ -1387,6 +1389,14 @@ fn gcv_select(
     }
 }
 
+/// Whether the last iterate's RSS `rss` ends above the least one, `best_rss`, by more
+/// than `tol` relative (the iterate of least RSS is then returned, module doc); a
+/// non-finite `rss` always does (the difference alone would compare inf > inf or NaN,
+/// both false).
+fn went_back(rss: f64, best_rss: f64, tol: f64) -> bool {
+    !rss.is_finite() || rss - best_rss > tol * rss
+}
+
 /// A Gauss-Newton step's predicted RSS decrease, step . (-J'e): with
 /// step = (J'J)^-1 (-J'e), ||e + J step||^2 = RSS - step . (-J'e).
 fn predicted_decrease(step: &[f64], neg_jte: &[f64]) -> f64 {
@@ -1877,6 +1887,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut b_resp = b.clone();
     // left-hand sides of the local systems and each row's interval at the current h
     let mut cache = StepCache::default();
+    // `Init::Literal`: (first alternation, its least-squares b, alternations) where the
+    // least-squares b was not invertible and the previous b was kept
+    let mut not_invertible_kept: Option<(usize, Vec<f64>, usize)> = None;
     while iterations < prm.max_iter {
         iterations += 1;
         let mut at = AlternationTiming::default();
@@ -1973,7 +1986,17 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                         aty[i] += e[t - i - 1] * w;
                     }
                 }
-                b = normal_equations(&ata, &aty, q).unwrap_or(b);
+                // a b that is not invertible makes the residual recursion grow
+                // without bound: the previous b is kept (as the Gauss-Newton step's
+                // check does for `Init::Arma`)
+                match normal_equations(&ata, &aty, q) {
+                    Some(b_ls) if ma_invertible(&b_ls) => b = b_ls,
+                    Some(b_ls) => {
+                        let kept = not_invertible_kept.get_or_insert((iterations, b_ls, 0));
+                        kept.2 += 1;
+                    }
+                    None => {}
+                }
             }
             at.b_step_s = lap();
             residuals_at(&x, d, &grid, (&coef, &b), &mut e, cache.any_index());
@@ -1981,6 +2004,18 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             b_resp = b.clone();
         }
         at.residuals_s = lap();
+        if !new_rss.is_finite() {
+            // residuals that overflow (local fits far off the data's scale at a small
+            // bandwidth): no later step can start from them; the iterate of least RSS
+            // is returned below (`went_back`), not converged
+            notes.push(format!(
+                "alternation {iterations}: the residuals are not finite (RSS {new_rss}): the alternation stops"
+            ));
+            rss = new_rss;
+            rss_history.push(rss);
+            timings.alternations.push(at);
+            break;
+        }
         let change = (rss - new_rss).abs();
         rss = new_rss;
         rss_history.push(rss);
@@ -2042,7 +2077,12 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // than the convergence tolerance. The linear start (constant f_m = a_m) is the
     // linear model: trace p, its GCV, and the least-squares standard errors of a_m
     // (the bandwidth field keeps the one GCV last chose, unused by that model).
-    let went_back = rss - best.rss > prm.tol * rss;
+    if let Some((first, b_ls, times)) = not_invertible_kept {
+        notes.push(format!(
+            "the least-squares b was not invertible in {times} alternation(s) (first in alternation {first}: {b_ls:?}); the previous b was kept each time"
+        ));
+    }
+    let went_back = went_back(rss, best.rss, prm.tol);
     let returned_start = went_back && best.index == 0;
     if went_back {
         notes.push(if best.index == 0 {
@@ -2506,6 +2546,20 @@ mod tests {
             assert!(same_bits(&e, &want), "({p}, {q})");
             assert_eq!(rss_from(&e, start).to_bits(), rss.to_bits());
         }
+    }
+
+    #[test]
+    fn a_non_finite_rss_always_goes_back_to_the_least_one() {
+        let tol = 1e-6;
+        assert!(!went_back(100.0, 100.0, tol));
+        assert!(!went_back(100.00001, 100.0, tol), "within tol");
+        assert!(went_back(100.001, 100.0, tol));
+        assert!(!went_back(99.0, 100.0, tol), "below the least");
+        // inf - 100 > tol inf and NaN > x are both false: the plain difference would
+        // return these iterates
+        assert!(went_back(f64::INFINITY, 100.0, tol));
+        assert!(went_back(f64::NAN, 100.0, tol));
+        assert!(went_back(f64::NEG_INFINITY, 100.0, tol));
     }
 
     #[test]
