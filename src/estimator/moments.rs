@@ -889,6 +889,7 @@ impl MomentTable {
         // same breakpoints are summed in the same blocks, so a family has the same bits
         // in every table that holds it); many intervals (a GCV ladder's) get larger
         // blocks, so that zeroing and adding the block tables stays small beside the pass
+        let table_len = self.m.len();
         let nv = prob.p + 1;
         let full_len = self.count.len() * (nv * (nv + 1) / 2 + 1) * 7;
         let block = (n_rows / 16)
@@ -897,10 +898,6 @@ impl MomentTable {
         let starts: Vec<usize> = (prob.start..prob.x.len()).step_by(block).collect();
         let wave = rayon::current_num_threads().max(1);
         let ne = self.count.len();
-        // slots per family in a block table: D1, or 8 or 16 for the AVX-512 kernel
-        // (each family's powers in one or two whole registers; the totals stay D1 wide)
-        let slots = wide_slots(D1).unwrap_or(D1);
-        let block_len = ne * self.nfam * slots;
         let response: Vec<(usize, usize)> = (0..prob.p).map(|a| (a, prob.p)).collect();
         let xy_only = self.pairs == response;
         // the sums leave the table while the blocks read it
@@ -912,7 +909,7 @@ impl MomentTable {
         let mut tables: Vec<(Vec<f64>, Vec<u64>)> = Vec::new();
         for group in starts.chunks(wave) {
             tables.resize_with(group.len().max(tables.len()), || {
-                (vec![0.0; block_len], vec![0u64; ne])
+                (vec![0.0; table_len], vec![0u64; ne])
             });
             group
                 .par_iter()
@@ -921,19 +918,6 @@ impl MomentTable {
                     m.fill(0.0);
                     count.fill(0);
                     let rows = s..(s + block).min(prob.x.len());
-                    #[cfg(target_arch = "x86_64")]
-                    if slots != D1 {
-                        // SAFETY: wide_slots returns Some only where AVX-512F is
-                        // detected; `m` holds ne x nfam x slots values
-                        unsafe {
-                            if D1 <= 8 {
-                                this.block_avx512::<D1, 8, F>(prob, find, rows, m, count)
-                            } else {
-                                this.block_avx512::<D1, 16, F>(prob, find, rows, m, count)
-                            }
-                        }
-                        return;
-                    }
                     match (xy_only, prob.p) {
                         (true, 1) => this.block_xy::<D1, 1, F>(prob, find, rows, m, count),
                         (true, 2) => this.block_xy::<D1, 2, F>(prob, find, rows, m, count),
@@ -942,17 +926,8 @@ impl MomentTable {
                     }
                 });
             for (m, count) in &tables[..group.len()] {
-                if slots == D1 {
-                    for (a, b) in total_m.iter_mut().zip(m) {
-                        *a += b;
-                    }
-                } else {
-                    // the same sums in the same order, from the first D1 slots
-                    for (a, b) in total_m.chunks_exact_mut(D1).zip(m.chunks_exact(slots)) {
-                        for k in 0..D1 {
-                            a[k] += b[k];
-                        }
-                    }
+                for (a, b) in total_m.iter_mut().zip(m) {
+                    *a += b;
                 }
                 for (a, b) in total_count.iter_mut().zip(count) {
                     *a += b;
@@ -1007,81 +982,6 @@ impl MomentTable {
                 let chunk: &mut [f64; D1] = chunk.try_into().unwrap();
                 for k in 0..D1 {
                     chunk[k] += val * pw[k];
-                }
-            }
-        }
-    }
-
-    /// [`MomentTable::block_any`] with each family's D1 powers in S = 8 or 16 slots
-    /// (`m`: intervals x families x S), added by whole AVX-512 registers: in every
-    /// slot k < D1 the product val * z^k is rounded, then the sum (no fused
-    /// multiply-add), the operations of `block_any` in the same order, so the same
-    /// bits (tested); slots D1.. add val * 0 and are not read.
-    ///
-    /// # Safety
-    /// AVX-512F must be available ([`wide_slots`] says so).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn block_avx512<const D1: usize, const S: usize, F: Fn(usize, f64) -> usize>(
-        &self,
-        prob: &VcProblem,
-        find: &F,
-        rows: std::ops::Range<usize>,
-        m: &mut [f64],
-        count: &mut [u64],
-    ) {
-        use std::arch::x86_64::*;
-        assert!((S == 8 || S == 16) && D1 <= S, "D1 powers in S slots");
-        let width = self.nfam * S;
-        assert_eq!(m.len(), count.len() * width);
-        let (p, d) = (prob.p, prob.d);
-        let (x, ee, bb) = (prob.x, prob.e, prob.b);
-        let (centre, half, pairs) = (&self.centre[..], &self.half[..], &self.pairs[..]);
-        let with_y = pairs.iter().any(|&(a, b)| a == p || b == p);
-        let mut v = [0.0f64; 8];
-        v[p + 1] = 1.0;
-        let base = m.as_mut_ptr();
-        for t in rows {
-            let u = x[t - d];
-            let e = find(t, u);
-            // bounds-checked: e < count.len(), so the row below is inside `m`
-            count[e] += 1;
-            let z = (u - centre[e]) / half[e];
-            let mut pw = [0.0f64; S];
-            pw[0] = 1.0;
-            for k in 1..D1 {
-                pw[k] = pw[k - 1] * z;
-            }
-            for (mm, vm) in v[..p].iter_mut().enumerate() {
-                *vm = x[t - 1 - mm];
-            }
-            if with_y {
-                let mut y = x[t];
-                for (mm, bm) in bb.iter().enumerate() {
-                    y -= bm * ee[t - mm - 1];
-                }
-                v[p] = y;
-            }
-            // SAFETY: AVX-512F is enabled on this function; pw holds S >= 8 (16)
-            // values; row e * width + f * S + S <= m.len() for f < nfam
-            unsafe {
-                let p0 = _mm512_loadu_pd(pw.as_ptr());
-                let p1 = if S == 16 {
-                    _mm512_loadu_pd(pw.as_ptr().add(8))
-                } else {
-                    p0
-                };
-                let row = base.add(e * width);
-                for (f, &(a, b)) in pairs.iter().enumerate() {
-                    let val = _mm512_set1_pd(v[a] * v[b]);
-                    let at = row.add(f * S);
-                    let sum = _mm512_add_pd(_mm512_loadu_pd(at), _mm512_mul_pd(val, p0));
-                    _mm512_storeu_pd(at, sum);
-                    if S == 16 {
-                        let at = at.add(8);
-                        let sum = _mm512_add_pd(_mm512_loadu_pd(at), _mm512_mul_pd(val, p1));
-                        _mm512_storeu_pd(at, sum);
-                    }
                 }
             }
         }
@@ -1532,31 +1432,6 @@ impl MomentTable {
 }
 
 /// Sorted, distinct breakpoints (the order `MomentTable` keeps them in).
-/// Whether the pass adds by whole AVX-512 registers ([`MomentTable::block_avx512`]):
-/// the slots per family of its block tables (8 or 16, for D1 powers), None where the
-/// CPU has no AVX-512F (the scalar loop, the same bits) or `FARMA_SCALAR_TABLES` is set
-/// (to compare the two). Checked once per process.
-fn wide_slots(d1: usize) -> Option<usize> {
-    static WIDE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let wide = *WIDE.get_or_init(|| {
-        #[cfg(target_arch = "x86_64")]
-        {
-            std::env::var_os("FARMA_SCALAR_TABLES").is_none()
-                && std::arch::is_x86_feature_detected!("avx512f")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
-        }
-    });
-    match d1 {
-        _ if !wide => None,
-        0..=8 => Some(8),
-        9..=16 => Some(16),
-        _ => None,
-    }
-}
-
 fn sorted_breaks(mut breaks: Vec<f64>) -> Vec<f64> {
     breaks.sort_by(f64::total_cmp);
     breaks.dedup();
