@@ -134,6 +134,74 @@ fn the_literal_scheme_keeps_an_invertible_b_on_a_unit_root_ma() {
     );
 }
 
+/// A fit in other units is the same fit: b and the coefficient functions unchanged,
+/// sigma^2, RSS and the bandwidth scaled, inside `MAGNITUDE_LIMITS`; beyond them the
+/// fast path refuses the channel with the power of ten to rescale by (before, 1e40
+/// and 1e-55 failed as "no grid point has a local fit", and 1e-45 and 1e-50 returned
+/// fits with most grid points filled or the linear start), and the direct path fits
+/// it.
+#[test]
+fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
+    let x = simulate(5_000, 11);
+    let params = FarmaParams::default().validate(x.len()).unwrap();
+    let base = fit(&x, &params).unwrap();
+    for scale in [1e-25, 1e-8, 1e6, 1e25] {
+        let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
+        let m = fit(&xs, &params).unwrap();
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+        assert!(
+            (m.b[0] - base.b[0]).abs() < 1e-9,
+            "{scale:e}: b {:?} {:?}",
+            m.b,
+            base.b
+        );
+        assert!(
+            rel(m.sigma2 / (scale * scale), base.sigma2) < 1e-9,
+            "{scale:e}: sigma2"
+        );
+        assert!(
+            rel(m.bandwidth / scale, base.bandwidth) < 1e-12,
+            "{scale:e}: h"
+        );
+        assert!(rel(m.trace, base.trace) < 1e-9, "{scale:e}: trace");
+        for (a, b) in m.coef.f.iter().zip(&base.coef.f) {
+            assert!(
+                (a - b).abs() < 1e-8 * (1.0 + b.abs()),
+                "{scale:e}: f {a} {b}"
+            );
+        }
+    }
+    let direct = FarmaParams {
+        path: FitPath::Direct,
+        grid_size: 31,
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let base_direct = fit(&x, &direct).unwrap();
+    for scale in [1e-40, 1e40] {
+        let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
+        match fit(&xs, &params) {
+            Err(farma::Error::Usage(msg)) => {
+                assert!(msg.contains("other units"), "{scale:e}: {msg}")
+            }
+            Err(e) => panic!("{scale:e}: {e}"),
+            Ok(m) => panic!("{scale:e}: fitted, b {:?}", m.b),
+        }
+        let m = fit(&xs, &direct).unwrap();
+        assert!(
+            (m.b[0] - base_direct.b[0]).abs() < 1e-9,
+            "{scale:e}: direct b {:?}",
+            m.b
+        );
+        let sigma2 = m.sigma2 / (scale * scale);
+        assert!(
+            (sigma2 - base_direct.sigma2).abs() < 1e-9 * base_direct.sigma2,
+            "{scale:e}"
+        );
+    }
+}
+
 /// |fast - direct| <= 1e-9 |fast| (fast and direct paths of one fit quantity).
 fn within_1e9(fast: f64, direct: f64, what: &str) {
     assert!(
