@@ -202,6 +202,85 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
     }
 }
 
+/// A channel of three levels 1 apart: the paper's largest bandwidth, h_0 = range/2 =
+/// 1, leaves the end grid points' open supports with one level (no local fit), so no
+/// rung of the ladder fits every grid point. The ladder is then extended upwards (h_-1
+/// = 1.1 fits them all, with a defined trace and GCV); before, the fit returned h_0 with
+/// NaN trace and GCV (a helper's fuzzing, 2026-11-25). At a fixed bandwidth of 1 trace
+/// and GCV are NaN, now with a note saying why.
+#[test]
+fn a_ladder_with_no_rung_that_fits_every_point_is_extended_upwards() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let x: Vec<f64> = (0..3000)
+        .map(|_| (rand::Rng::random_range(&mut rng, 0..3u32)) as f64)
+        .collect();
+    let mk = |path, bandwidth, grid_size| {
+        FarmaParams {
+            p: 1,
+            q: 0,
+            d: 1,
+            path,
+            bandwidth,
+            grid_size,
+            ..FarmaParams::default()
+        }
+        .validate(x.len())
+        .unwrap()
+    };
+    for path in [FitPath::Fast, FitPath::Direct] {
+        let m = fit(&x, &mk(path, None, 31)).unwrap();
+        eprintln!(
+            "{path:?}: h {} trace {} notes {:?}",
+            m.bandwidth, m.trace, m.notes
+        );
+        assert!(
+            m.trace.is_finite() && m.gcv.is_finite(),
+            "{path:?}: {}",
+            m.trace
+        );
+        assert!(m.bandwidth > 1.0, "{path:?}: h {}", m.bandwidth);
+        assert!(
+            m.notes.iter().any(|n| n.contains("extended upwards")),
+            "{:?}",
+            m.notes
+        );
+        assert!(
+            m.gcv_table[0].j < 0,
+            "rungs named by their j: {}",
+            m.gcv_table[0].j
+        );
+        assert!(
+            m.gcv_table
+                .iter()
+                .all(|r| r.gcv.is_finite() == (r.n_failed == 0))
+        );
+    }
+    // (an MA(1) part: with q = 0 this series' linear start is returned, trace p)
+    let fixed = FarmaParams {
+        p: 1,
+        q: 1,
+        d: 1,
+        bandwidth: Some(1.0),
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let m = fit(&x, &fixed).unwrap();
+    assert!(
+        m.trace.is_nan() && m.gcv.is_nan(),
+        "{} {:?}",
+        m.trace,
+        m.notes
+    );
+    assert!(
+        m.notes
+            .iter()
+            .any(|n| n.contains("trace and GCV not defined")),
+        "{:?}",
+        m.notes
+    );
+}
+
 /// |fast - direct| <= 1e-9 |fast| (fast and direct paths of one fit quantity).
 fn within_1e9(fast: f64, direct: f64, what: &str) {
     assert!(

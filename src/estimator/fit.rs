@@ -191,6 +191,9 @@ impl ValidParams {
 /// One row of the GCV table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GcvRow {
+    /// The rung: h_j = 1.1^-j range/2 (j = 0..20 the paper's ladder; below 0 and
+    /// above 20 its extensions).
+    pub j: i32,
     pub bandwidth: f64,
     pub rss: f64,
     pub trace: f64,
@@ -1318,10 +1321,12 @@ fn gcv_select(
         let rows: Vec<GcvRow> = hs
             .iter()
             .zip(&fits)
-            .map(|(&h, (f, rt))| {
+            .zip(&js)
+            .map(|((&h, (f, rt)), &j)| {
                 let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
                 match rt {
                     Some((rss, tr)) if *tr < m => GcvRow {
+                        j,
                         bandwidth: h,
                         rss: *rss,
                         trace: *tr,
@@ -1329,6 +1334,7 @@ fn gcv_select(
                         n_failed,
                     },
                     _ => GcvRow {
+                        j,
                         bandwidth: h,
                         rss: f64::NAN,
                         trace: f64::NAN,
@@ -1369,12 +1375,39 @@ fn gcv_select(
                 extended = true;
             }
             Some(i) => {
+                if i == 0 || i == last {
+                    // at an end no further extension reaches
+                    notes.push(format!(
+                        "GCV minimum at the {} bandwidth h_{} = {:.6e}, the end of the ladder's extensions: the optimum may lie beyond it",
+                        if i == 0 { "largest" } else { "smallest" },
+                        js[i],
+                        rows[i].bandwidth
+                    ));
+                }
                 let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
                 return (rows, fits, i, extended, notes);
             }
+            // no rung fits every grid point (a quantised channel whose levels are as far
+            // apart as the largest bandwidth, say): wider bandwidths first
+            None if js[0] > -20 => {
+                let first = js[0];
+                notes.push(format!(
+                    "GCV: no bandwidth from h_{first} = {:.6e} down gives a fit at every grid point: ladder extended upwards",
+                    rows[0].bandwidth
+                ));
+                let mut more: Vec<i32> = (first - 5..first).collect();
+                more.extend(js);
+                js = more;
+                extended = true;
+            }
             None => {
-                notes
-                    .push("GCV: no bandwidth of the ladder gives a fit at every grid point".into());
+                notes.push(format!(
+                    "GCV: no bandwidth of the ladder (h_{} = {:.6e} down to h_{} = {:.6e}) gives a fit at every grid point: the one with the fewest grid points without a fit is used (its GCV is not defined)",
+                    js[0],
+                    rows[0].bandwidth,
+                    js[last],
+                    rows[last].bandwidth
+                ));
                 let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
                 // take the one with the fewest failed points, widest first
                 let i = rows
@@ -1957,8 +1990,15 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             sm.fit_at(h, &mut cache)
         };
         filled = fill_failed(&mut fit_h, &grid).ok_or_else(|| {
+            let fixed = match prm.bandwidth {
+                Some(_) => format!(
+                    "a --bandwidth far from the index values' spread (they span {range:.6e}; the grid {:.6e}), ",
+                    grid[g - 1] - grid[0]
+                ),
+                None => String::new(),
+            };
             Error::Usage(format!(
-                "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular (too few distinct index values near each grid point: a quantised channel, or a spike that stretches the range; `farma prep` removes outliers)"
+                "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular: {fixed}too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (a deterministic trend or sinusoid)"
             ))
         })?;
         coef = fit_h;
@@ -2193,6 +2233,16 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         }
     };
     let trace = trace.unwrap_or(f64::NAN);
+    if trace.is_nan() {
+        let failed = coef
+            .status
+            .iter()
+            .filter(|s| **s != PointStatus::Ok)
+            .count();
+        notes.push(format!(
+            "trace and GCV not defined: {failed} grid point(s) have no local fit at h = {h:.6e} (see status)"
+        ));
+    }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
     let n_filled = filled.iter().filter(|f| **f).count();

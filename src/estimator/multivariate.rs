@@ -621,9 +621,17 @@ fn gcv_select2(
                 let f = fits.swap_remove(i);
                 return (rows, f, i, extended, notes);
             }
+            None if rows[0].j > -10 => {
+                let first = rows[0].j;
+                notes.push(format!(
+                    "GCV: no bandwidth pair of the ladder from j = {first} down gives a fit at every grid point: extended upwards"
+                ));
+                js = (first - 5..first).collect();
+                extended = true;
+            }
             None => {
                 notes.push(
-                    "GCV: no bandwidth pair of the ladder gives a fit at every grid point".into(),
+                    "GCV: no bandwidth pair of the ladder gives a fit at every grid point: the one with the fewest grid points without a fit is used (its GCV is not defined)".into(),
                 );
                 let i = rows
                     .iter()
@@ -771,7 +779,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
         };
         filled = fill_failed2(&mut fit_h, &grid, half).ok_or_else(|| {
             Error::Usage(format!(
-                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular (too few distinct index values near each grid point: a quantised channel, or a spike that stretches the range; `farma prep` removes outliers)",
+                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular: bandwidths far from the index values' spread, too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (an index channel that copies a lag of the channel, a deterministic trend)",
                 h.0, h.1
             ))
         })?;
@@ -830,6 +838,17 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let m = (n - pp) as f64;
     // the returned model's GCV, from its own RSS (as the 1-D fit's)
     let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
+    if trace.is_nan() {
+        let failed = final_fit
+            .status
+            .iter()
+            .filter(|s| **s != PointStatus::Ok)
+            .count();
+        notes.push(format!(
+            "trace and GCV not defined: {failed} grid point(s) have no local fit at bandwidths ({:.6e}, {:.6e}) (see status)",
+            h.0, h.1
+        ));
+    }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let sigma2 = rss / m;
     let se: Vec<f64> = se_factors2(&prob, &index, &grid, &final_fit)

@@ -139,7 +139,7 @@ pub fn params_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
     ])
 }
 
-/// The GCV ladder: channel, j (row), bandwidth, rss, trace, gcv, n_failed, chosen.
+/// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2), bandwidth, rss, trace, gcv, n_failed, chosen.
 pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
     let (mut ch, mut j, mut h, mut rss, mut tr, mut gcv, mut nf, mut chosen) = (
         vec![],
@@ -152,9 +152,9 @@ pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
         vec![],
     );
     for (name, m) in models {
-        for (k, r) in m.gcv_table.iter().enumerate() {
+        for r in &m.gcv_table {
             ch.push(name.clone());
-            j.push(k as i64);
+            j.push(r.j as i64);
             h.push(r.bandwidth);
             rss.push(r.rss);
             tr.push(r.trace);
