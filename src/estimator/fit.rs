@@ -1462,6 +1462,31 @@ pub(crate) fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Resu
     ))
 }
 
+/// A note on the grid points with a local fit (`status` Ok) but no standard error
+/// (`se` NaN: [`super::moments::sandwich_diag`]), naming how many and the largest
+/// condition number among them; None when there are none. `se` and `cond` as the
+/// coefficient table's: p values per grid point, one condition number per point.
+pub fn missing_se_note(
+    status: &[PointStatus],
+    cond: &[f64],
+    se: &[f64],
+    p: usize,
+) -> Option<String> {
+    let missing: Vec<usize> = (0..status.len())
+        .filter(|&g| {
+            status[g] == PointStatus::Ok && se[g * p..(g + 1) * p].iter().any(|v| v.is_nan())
+        })
+        .collect();
+    if missing.is_empty() {
+        return None;
+    }
+    let worst = missing.iter().map(|&g| cond[g]).fold(0.0f64, f64::max);
+    Some(format!(
+        "{} fitted grid point(s) have no standard error (se NaN): their local systems (condition number up to {worst:.1e}) are too ill-conditioned for the sandwich form, which squares it",
+        missing.len()
+    ))
+}
+
 /// Whether the last iterate's RSS `rss` ends above the least one, `best_rss`, by more
 /// than `tol` relative (the iterate of least RSS is then returned, module doc); a
 /// non-finite `rss` always does (the difference alone would compare inf > inf or NaN,
@@ -2245,6 +2270,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
+    notes.extend(missing_se_note(&coef.status, &coef.cond, &se, p));
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
         notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));
@@ -2639,6 +2665,29 @@ mod tests {
             assert!(same_bits(&e, &want), "({p}, {q})");
             assert_eq!(rss_from(&e, start).to_bits(), rss.to_bits());
         }
+    }
+
+    /// A sandwich variance that rounds to 0 or below is NaN, not 0 (on a 2-level
+    /// channel with 1e-6 noise, `--bandwidth 0.5 --grid 1000`, 29 fitted points had
+    /// se written as 0, condition numbers up to 4.2e12), and the note counts the
+    /// fitted points without one.
+    #[test]
+    fn a_standard_error_lost_to_rounding_is_nan_and_noted() {
+        use super::super::moments::sandwich_diag;
+        let q = [1.0, 0.0, 0.0, 1.0];
+        assert_eq!(sandwich_diag(&q, &[4.0, 0.0, 0.0, 1.0], 2, 1), vec![2.0]);
+        assert!(sandwich_diag(&q, &[0.0, 0.0, 0.0, 1.0], 2, 1)[0].is_nan());
+        assert!(sandwich_diag(&q, &[-1e-30, 0.0, 0.0, 1.0], 2, 1)[0].is_nan());
+        let status = [PointStatus::Ok, PointStatus::Ok, PointStatus::Singular];
+        let cond = [10.0, 4.2e12, f64::NAN];
+        let se = [0.1, 0.2, 0.3, f64::NAN, f64::NAN, f64::NAN];
+        let note = missing_se_note(&status, &cond, &se, 2).unwrap();
+        assert!(note.starts_with("1 fitted grid point(s)"), "{note}");
+        assert!(note.contains("4.2e12"), "{note}");
+        assert_eq!(
+            missing_se_note(&status, &cond, &[0.1, 0.2, 0.3, 0.4, f64::NAN, f64::NAN], 2),
+            None
+        );
     }
 
     #[test]

@@ -1620,7 +1620,11 @@ impl IntervalLookup {
     }
 }
 
-/// sqrt of the first p diagonal entries of Q S2 Q (Q symmetric, row-major n x n).
+/// sqrt of the first p diagonal entries of Q S2 Q (Q symmetric, row-major n x n); NaN
+/// where the computed entry is not positive: with S2 positive definite it is positive,
+/// but Q S2 Q squares the condition number of the local system (Q = S^-1), and past
+/// about 1e8 rounding can leave it at or below 0 (the callers count such points in a
+/// note, [`super::fit::missing_se_note`]).
 pub fn sandwich_diag(q: &[f64], s2: &[f64], n: usize, p: usize) -> Vec<f64> {
     (0..p)
         .map(|m| {
@@ -1630,7 +1634,11 @@ pub fn sandwich_diag(q: &[f64], s2: &[f64], n: usize, p: usize) -> Vec<f64> {
                     v += q[m * n + i] * s2[i * n + j] * q[j * n + m];
                 }
             }
-            v.max(0.0).sqrt()
+            if v > 0.0 && v.is_finite() {
+                v.sqrt()
+            } else {
+                f64::NAN
+            }
         })
         .collect()
 }

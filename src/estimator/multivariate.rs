@@ -41,7 +41,7 @@ use kiddo::{Chebyshev, ImmutableKdTree};
 use rayon::prelude::*;
 
 use super::arma::fit_arma;
-use super::fit::{FarmaParams, ma_cls};
+use super::fit::{FarmaParams, ma_cls, missing_se_note};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::sandwich_diag;
@@ -855,6 +855,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
         .iter()
         .map(|f| f * sigma2.sqrt())
         .collect();
+    notes.extend(missing_se_note(&final_fit.status, &final_fit.cond, &se, p));
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
         notes.push(format!(

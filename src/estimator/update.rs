@@ -843,6 +843,12 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
             "{newly} grid point(s) without a fit before the update have one now (solved from the accumulated normal equations)"
         ));
     }
+    notes.extend(super::fit::missing_se_note(
+        &coef.status,
+        &coef.cond,
+        &se,
+        p,
+    ));
     notes.extend(update_notes(state, &st, &coef, sigma2, &xs[lag..]));
     let model = FittedFarma {
         p,
@@ -908,7 +914,8 @@ fn check_result(
         Some("coefficient functions f".to_string())
     } else if !ok_points(&coef.slope) {
         Some("slopes of f".to_string())
-    } else if !ok_points(se) {
+    } else if se.iter().any(|v| v.is_infinite()) {
+        // (NaN: a point too ill-conditioned for the sandwich form, in a note)
         Some("standard errors of f".to_string())
     } else if !all(es) {
         Some("residuals".to_string())
