@@ -2667,10 +2667,11 @@ mod tests {
         }
     }
 
-    /// A sandwich variance that rounds to 0 or below is NaN, not 0 (on a 2-level
-    /// channel with 1e-6 noise, `--bandwidth 0.5 --grid 1000`, 29 fitted points had
-    /// se written as 0, condition numbers up to 4.2e12), and the note counts the
-    /// fitted points without one.
+    /// A sandwich variance that rounds to 0 or below is NaN, not 0, and the note counts
+    /// the fitted points without one. (A helper's fuzzing found 23 fitted rows with se
+    /// exactly 0 on a 2-level channel with 1e-6 noise, condition numbers near 9e11; on
+    /// such a channel at `--bandwidth 0.5 --grid 1000`, 29 fitted points now have NaN
+    /// se, condition numbers up to 4.2e12.)
     #[test]
     fn a_standard_error_lost_to_rounding_is_nan_and_noted() {
         use super::super::moments::sandwich_diag;
