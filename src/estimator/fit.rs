@@ -1363,12 +1363,22 @@ fn gcv_select(
                 js.extend(next..next + 10);
                 extended = true;
             }
-            Some(0) if js[0] > -20 => {
+            // the minimum at the largest bandwidth, or no rung that fits every grid
+            // point (a quantised channel whose levels are as far apart as the largest
+            // bandwidth, say): wider bandwidths
+            Some(0) | None if js[0] > -20 => {
                 let first = js[0];
-                notes.push(format!(
-                    "GCV minimum at the largest bandwidth h_{first} = {:.6e}: ladder extended upwards",
-                    rows[0].bandwidth
-                ));
+                notes.push(if best.is_some() {
+                    format!(
+                        "GCV minimum at the largest bandwidth h_{first} = {:.6e}: ladder extended upwards",
+                        rows[0].bandwidth
+                    )
+                } else {
+                    format!(
+                        "GCV: no bandwidth from h_{first} = {:.6e} down gives a fit at every grid point: ladder extended upwards",
+                        rows[0].bandwidth
+                    )
+                });
                 let mut more: Vec<i32> = (first - 5..first).collect();
                 more.extend(js);
                 js = more;
@@ -1386,19 +1396,6 @@ fn gcv_select(
                 }
                 let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
                 return (rows, fits, i, extended, notes);
-            }
-            // no rung fits every grid point (a quantised channel whose levels are as far
-            // apart as the largest bandwidth, say): wider bandwidths first
-            None if js[0] > -20 => {
-                let first = js[0];
-                notes.push(format!(
-                    "GCV: no bandwidth from h_{first} = {:.6e} down gives a fit at every grid point: ladder extended upwards",
-                    rows[0].bandwidth
-                ));
-                let mut more: Vec<i32> = (first - 5..first).collect();
-                more.extend(js);
-                js = more;
-                extended = true;
             }
             None => {
                 notes.push(format!(
@@ -1441,7 +1438,7 @@ pub const MAGNITUDE_LIMITS: (f64, f64) = (1e-30, 1e30);
 /// Refuses values (centred, from `lo` to `hi`) for the fast path when their largest
 /// magnitude is outside
 /// [`MAGNITUDE_LIMITS`], naming `what` and the power of ten to rescale by.
-pub(crate) fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), String> {
+fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), String> {
     let (min, max) = MAGNITUDE_LIMITS;
     let mag = lo.abs().max(hi.abs());
     if (min..=max).contains(&mag) {
@@ -1485,6 +1482,15 @@ pub fn missing_se_note(
         "{} fitted grid point(s) have no standard error (se NaN): their local systems (condition number up to {worst:.1e}) are too ill-conditioned for the sandwich form, which squares it",
         missing.len()
     ))
+}
+
+/// The note of a model whose trace and GCV are not defined: grid points without a
+/// local fit (`status`) at the bandwidth(s) `at`.
+pub fn undefined_trace_note(status: &[PointStatus], at: &str) -> String {
+    let failed = status.iter().filter(|s| **s != PointStatus::Ok).count();
+    format!(
+        "trace and GCV not defined: {failed} grid point(s) have no local fit at {at} (see status)"
+    )
 }
 
 /// Whether the last iterate's RSS `rss` ends above the least one, `best_rss`, by more
@@ -2259,14 +2265,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     };
     let trace = trace.unwrap_or(f64::NAN);
     if trace.is_nan() {
-        let failed = coef
-            .status
-            .iter()
-            .filter(|s| **s != PointStatus::Ok)
-            .count();
-        notes.push(format!(
-            "trace and GCV not defined: {failed} grid point(s) have no local fit at h = {h:.6e} (see status)"
-        ));
+        notes.push(undefined_trace_note(&coef.status, &format!("h = {h:.6e}")));
     }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();

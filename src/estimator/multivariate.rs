@@ -41,7 +41,7 @@ use kiddo::{Chebyshev, ImmutableKdTree};
 use rayon::prelude::*;
 
 use super::arma::fit_arma;
-use super::fit::{FarmaParams, ma_cls, missing_se_note};
+use super::fit::{FarmaParams, ma_cls, missing_se_note, undefined_trace_note};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::sandwich_diag;
@@ -609,25 +609,25 @@ fn gcv_select2(
                 js = (next..next + 10).collect();
                 extended = true;
             }
-            Some(0) if rows[0].j > -10 => {
+            // the minimum at the largest bandwidths, or no pair that fits every grid
+            // point: wider bandwidths
+            Some(0) | None if rows[0].j > -10 => {
                 let first = rows[0].j;
-                notes.push(format!(
-                    "GCV minimum at the largest bandwidths of the ladder (j = {first}): extended upwards"
-                ));
+                notes.push(if best.is_some() {
+                    format!(
+                        "GCV minimum at the largest bandwidths of the ladder (j = {first}): extended upwards"
+                    )
+                } else {
+                    format!(
+                        "GCV: no bandwidth pair of the ladder from j = {first} down gives a fit at every grid point: extended upwards"
+                    )
+                });
                 js = (first - 5..first).collect();
                 extended = true;
             }
             Some(i) => {
                 let f = fits.swap_remove(i);
                 return (rows, f, i, extended, notes);
-            }
-            None if rows[0].j > -10 => {
-                let first = rows[0].j;
-                notes.push(format!(
-                    "GCV: no bandwidth pair of the ladder from j = {first} down gives a fit at every grid point: extended upwards"
-                ));
-                js = (first - 5..first).collect();
-                extended = true;
             }
             None => {
                 notes.push(
@@ -839,15 +839,8 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     // the returned model's GCV, from its own RSS (as the 1-D fit's)
     let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
     if trace.is_nan() {
-        let failed = final_fit
-            .status
-            .iter()
-            .filter(|s| **s != PointStatus::Ok)
-            .count();
-        notes.push(format!(
-            "trace and GCV not defined: {failed} grid point(s) have no local fit at bandwidths ({:.6e}, {:.6e}) (see status)",
-            h.0, h.1
-        ));
+        let at = format!("bandwidths ({:.6e}, {:.6e})", h.0, h.1);
+        notes.push(undefined_trace_note(&final_fit.status, &at));
     }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let sigma2 = rss / m;
