@@ -97,6 +97,39 @@ pub(super) fn warn_gaps(store: &crate::store::Store, log: &std::path::Path) {
     }
 }
 
+/// Grid points x samples x channels of a direct-path fit with GCV above which it gets
+/// a warning. The direct path gathers and sums every grid point's support at every
+/// rung of its two GCV ladders (and the ladder's upward extensions, whose windows hold
+/// every sample), so its cost grows as G N. Measured on a 2-core machine (AMD EPYC,
+/// 2026-11-26, `farma fit --method direct`): 1.2 us per grid point and sample for the
+/// bench's FARMA(2,1,1) at N = 1e5, G = 201 (23.7 s), and 1.8, 2.4 and 3.7 us at
+/// N = 5,000, G = 2,000 for orders 1,0,1, 2,1,1 and 3,3,3 (an ARMA series whose GCV
+/// extends the ladder upwards); so this threshold is about half a minute or more there.
+pub const DIRECT_COST_WARN: f64 = 2e7;
+
+/// The warning for a direct-path fit of `channels` channels of `n` samples on `grid`
+/// points, when G N channels exceeds [`DIRECT_COST_WARN`] (none on the fast path, nor
+/// with a fixed bandwidth: one rung per f-step).
+pub fn direct_cost_warning(
+    path: FitPath,
+    grid: usize,
+    n: usize,
+    channels: usize,
+    fixed_bandwidth: bool,
+) -> Option<String> {
+    if path != FitPath::Direct || fixed_bandwidth {
+        return None;
+    }
+    let cost = grid as f64 * n as f64 * channels as f64;
+    (cost > DIRECT_COST_WARN).then(|| {
+        format!(
+            "--method direct gathers every grid point's support at every rung of its GCV ladders: {grid} grid points x {n} samples x {channels} channel(s) = {cost:.1e}, about 1.2-3.7 us each on 2 cores (measured for orders 1,0,1 to 3,3,3): {:.1}-{:.1} min on such a machine; the fast path (the default, --method fast) gives the same fit to 1e-9 in far less, as do a coarser --grid or a fixed --bandwidth H",
+            cost * 1.2e-6 / 60.0,
+            cost * 3.7e-6 / 60.0
+        )
+    })
+}
+
 /// The options of a 2-D index are a usage error with the 1-D index (they would be
 /// silently ignored, and the user would read a 1-D model as the one asked for).
 fn reject_index2_options(a: &FitArgs) -> Result<()> {
@@ -144,6 +177,15 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     warn_gaps(&store, &a.log);
     let names = store.select_channels(&a.channel)?;
+    if let Some(w) = direct_cost_warning(
+        a.method,
+        a.grid,
+        store.n_samples(),
+        names.len(),
+        a.bandwidth.is_some(),
+    ) {
+        eprintln!("farma: warning: {w}");
+    }
     let params = FarmaParams {
         p,
         q,
@@ -235,4 +277,23 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         a.output.display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_costly_direct_fit_gets_a_warning_with_its_estimate() {
+        // the bench's direct fit, 201 points on 1e5 samples (23.7 s measured): a warning
+        let w = direct_cost_warning(FitPath::Direct, 201, 100_000, 1, false).expect("a warning");
+        assert!(w.contains("2.0e7") && w.contains("--method fast"), "{w}");
+        // the default grid on 20,000 samples: none
+        assert!(direct_cost_warning(FitPath::Direct, 201, 20_000, 1, false).is_none());
+        // three channels of 40,000 samples: 2.4e7, a warning
+        assert!(direct_cost_warning(FitPath::Direct, 201, 40_000, 3, false).is_some());
+        // the fast path, or a fixed bandwidth: none
+        assert!(direct_cost_warning(FitPath::Fast, 5000, 1_000_000, 1, false).is_none());
+        assert!(direct_cost_warning(FitPath::Direct, 5000, 1_000_000, 1, true).is_none());
+    }
 }

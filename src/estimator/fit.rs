@@ -1312,11 +1312,22 @@ fn gcv_select(
     let mut extended = false;
     // whether the kept ladder table holds this smoother's residuals yet
     let mut fresh = false;
+    // the direct path's rung fits so far: an extension fits only its new rungs
+    let mut direct_fits: std::collections::BTreeMap<i32, RungFit> = Default::default();
     loop {
         let hs: Vec<f64> = js.iter().map(|j| ladder_h(*j, range)).collect();
         let fits = match sm.path {
             FitPath::Fast => sm.ladder_cached(&js, range, cache, &mut fresh),
-            FitPath::Direct => sm.ladder_direct(&hs),
+            FitPath::Direct => {
+                let new: Vec<i32> = js
+                    .iter()
+                    .copied()
+                    .filter(|j| !direct_fits.contains_key(j))
+                    .collect();
+                let new_hs: Vec<f64> = new.iter().map(|j| ladder_h(*j, range)).collect();
+                direct_fits.extend(new.into_iter().zip(sm.ladder_direct(&new_hs)));
+                js.iter().map(|j| direct_fits[j].clone()).collect()
+            }
         };
         let rows: Vec<GcvRow> = hs
             .iter()
