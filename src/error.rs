@@ -90,6 +90,11 @@ pub enum Error {
         source: std::io::Error,
     },
 
+    /// The reader of stdout closed it (`farma ... --json | head -1`): the command stops
+    /// printing and exits 0 without a message (its outputs are already committed).
+    #[error("stdout closed by its reader")]
+    StdoutClosed,
+
     /// A bug or an unexpected library failure.
     #[error("internal error: {0}")]
     Internal(String),

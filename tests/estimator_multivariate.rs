@@ -249,3 +249,69 @@ fn two_d_fit_recovers_a_temperature_dependent_coefficient_and_1d_cannot() {
         m2.coef.slope2[centre]
     );
 }
+
+/// A linear AR(1) with an unrelated second index: GCV keeps choosing the widest
+/// bandwidths, the ladder is extended upwards to its limit, and the fit says that the
+/// optimum may lie beyond (as the 1-D fit does); gcv.parquet's `j` is the rung the
+/// notes name, not the row number (both had been missing in 2-D: found by a helper's
+/// fuzzing).
+#[test]
+fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
+    let n = 3000;
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (mut x, mut z) = (vec![0.0f64; n], vec![0.0f64; n]);
+    for t in 1..n {
+        let g: f64 = StandardNormal.sample(&mut rng);
+        let w: f64 = StandardNormal.sample(&mut rng);
+        x[t] = 0.5 * x[t - 1] + g;
+        z[t] = z[t - 1] + 0.1 * w;
+    }
+    let m = fit2(
+        &x,
+        &z,
+        &Farma2Params {
+            base: FarmaParams {
+                p: 1,
+                q: 0,
+                d: 1,
+                ..FarmaParams::default()
+            },
+            d2: 1,
+            grid: (7, 7),
+            bandwidth: None,
+        },
+    )
+    .unwrap();
+    let rows = &m.gcv_table;
+    let best = rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.gcv.is_finite())
+        .min_by(|a, b| a.1.gcv.total_cmp(&b.1.gcv))
+        .map(|(i, _)| i)
+        .unwrap();
+    eprintln!(
+        "best j {} of {:?}; notes {:?}",
+        rows[best].j,
+        rows.iter().map(|r| r.j).collect::<Vec<_>>(),
+        m.notes
+    );
+    assert_eq!(best, 0, "the widest rung is chosen");
+    assert!(rows[0].j < 0, "the ladder was extended upwards");
+    assert!(
+        m.notes
+            .iter()
+            .any(|s| s.contains("the end of the ladder's extensions")),
+        "{:?}",
+        m.notes
+    );
+    let table = farma::estimator::multivariate::gcv_table2(&[("x".to_string(), &m)]).unwrap();
+    let j = table
+        .column_by_name("j")
+        .unwrap()
+        .as_any()
+        .downcast_ref::<arrow_array::Int64Array>()
+        .unwrap();
+    let want: Vec<i64> = rows.iter().map(|r| r.j as i64).collect();
+    assert_eq!(j.values().to_vec(), want);
+}

@@ -409,6 +409,17 @@ fn fit_never_ends_above_its_linear_start() {
         "{:?} vs {se}",
         &m.se[..3]
     );
+    // the fit says it returned its linear start, and its state refuses an update: the
+    // state's sums are those of the local fits the fit rejected (an update had solved
+    // them, and two new samples changed f by 0.12: found by a helper's fuzzing)
+    assert!(m.linear_start);
+    let st = farma::estimator::update::state_from_fit("gyro", &x, &m);
+    assert!(st.linear_start);
+    let Err(err) = farma::estimator::update::update(&st, &x[..10], 1.0) else {
+        panic!("an update of a linear-start state was accepted");
+    };
+    let err = err.to_string();
+    assert!(err.contains("linear ARMA start"), "{err}");
 }
 
 /// The streaming Gauss-Newton of the linear start against the stored-array one of

@@ -453,6 +453,26 @@ fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
     // the unedited state still reads back
     write_state(&path, &[&st], &[]).unwrap();
     assert_eq!(read_state(&path).unwrap().0[0], st);
+    // a state marked linear_start round-trips with it; a state file without the column
+    // (written before it) reads as false
+    let mut lin = st.clone();
+    lin.linear_start = true;
+    write_state(&path, &[&lin], &[]).unwrap();
+    assert!(read_state(&path).unwrap().0[0].linear_start);
+    let table = farma::estimator::update::state_table(&[&st]).unwrap();
+    let old = table
+        .project(
+            &(0..table.num_columns())
+                .filter(|&i| table.schema().field(i).name() != "linear_start")
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
+    assert_eq!(old.num_columns() + 1, table.num_columns());
+    farma::output::write_parquet(&path, &old, &farma::estimator::update::state_metadata(&[]))
+        .unwrap();
+    let back = read_state(&path).unwrap().0;
+    assert!(!back[0].linear_start);
+    assert_eq!(back[0], st);
 }
 
 /// New samples far off the model's scale make the RLS recursions non-finite: the

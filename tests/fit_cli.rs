@@ -310,3 +310,85 @@ fn fit_names_a_spike_that_leaves_no_grid() {
     assert!(err.contains("an outlier so large"), "{err}");
     assert!(!out.exists());
 }
+
+/// A closed stdout (`farma fit --json | head -c 0`) ends the run quietly with exit 0,
+/// the tables written; a stdout that cannot be written (a full disk, `> /dev/full`)
+/// is an output error, exit 1 with a message. Both had panicked (exit 101) in
+/// `println!` (found by a helper's fuzzing).
+#[test]
+fn fit_json_into_a_closed_or_full_stdout_is_no_panic() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let args = |out: &str| {
+        vec![
+            "fit".to_string(),
+            log.to_str().unwrap().to_string(),
+            "--channel".into(),
+            "gyro_x".into(),
+            "--grid".into(),
+            "41".into(),
+            "--json".into(),
+            "-o".into(),
+            dir.path().join(out).to_str().unwrap().to_string(),
+        ]
+    };
+    // the reader closes the pipe before the fit prints
+    let mut child = Command::new(env!("CARGO_BIN_EXE_farma"))
+        .args(args("closed"))
+        .env("FARMA_CACHE_DIR", dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    assert!(dir.path().join("closed/coef.parquet").exists());
+    let full = std::path::Path::new("/dev/full");
+    if full.exists() {
+        let o = Command::new(env!("CARGO_BIN_EXE_farma"))
+            .args(args("full"))
+            .env("FARMA_CACHE_DIR", dir.path())
+            .stdout(std::fs::File::create(full).unwrap())
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("cannot write <stdout>") && !stderr(&o).contains("panicked"),
+            "{}",
+            stderr(&o)
+        );
+    }
+}
+
+/// `--channel all` on a log with a time column only is an error naming the log (it had
+/// fitted nothing and written empty tables and an empty state with exit 0: found by a
+/// helper's fuzzing).
+#[test]
+fn fit_of_all_channels_of_a_log_without_any_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("time_only.csv");
+    std::fs::write(&log, "time_s\n0\n0.1\n0.2\n0.3\n").unwrap();
+    let out = dir.path().join("o");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "all",
+            "--save-state",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("time_only.csv") && stderr(&o).contains("no data channels"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.join("coef.parquet").exists());
+}

@@ -249,6 +249,18 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
+    // this 1,1,1 fit of gyro_x returned its linear ARMA start: the state holds no fitted
+    // local model, and update refuses it (it had solved the rejected local fits)
+    let r = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("'gyro_x'") && err.contains("linear ARMA start"),
+        "{err}"
+    );
+    assert!(!out.join("state.parquet").exists());
+    // a model with local fits (2,1,1 on 31 points, as the first test)
+    let model = fit_state(d, &old, "2,1,1", "31");
     // gyro_x times 1e20
     let text = std::fs::read_to_string(&new).unwrap();
     let mut lines = text.lines();

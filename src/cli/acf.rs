@@ -93,26 +93,26 @@ pub fn run(a: AcfArgs, progress: &Progress) -> Result<()> {
                 "variance": c.variance,
                 "output": a.output.as_ref().map(|p| p.display().to_string()),
             });
-            println!("{o}");
+            outln!("{o}");
         }
         return Ok(());
     }
-    println!(
+    outln!(
         "log       {} ({} samples at {} Hz)",
         a.log.display(),
         len,
         rate_hz
     );
     for (name, c) in &results {
-        println!();
-        println!(
+        outln!();
+        outln!(
             "channel {name}: autocorrelation, band +-{:.4e} (1.96/sqrt(N); * outside)",
             c.band
         );
-        println!("{:>10} {:>14} {:>14}", "lag", "lag_s", "acf");
+        outln!("{:>10} {:>14} {:>14}", "lag", "lag_s", "acf");
         for (k, &v) in c.acf.iter().enumerate() {
             let mark = if k > 0 && v.abs() > c.band { " *" } else { "" };
-            println!("{:>10} {:>14.6e} {:>14.6e}{mark}", k, lag_s(k), v);
+            outln!("{:>10} {:>14.6e} {:>14.6e}{mark}", k, lag_s(k), v);
         }
     }
     Ok(())

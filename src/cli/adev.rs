@@ -232,31 +232,38 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             if let Some(p) = &a.spec_out {
                 o.insert("spec_out".into(), json!(p.display().to_string()));
             }
-            println!("{}", Value::Object(o));
+            outln!("{}", Value::Object(o));
         }
         return Ok(());
     }
-    println!(
+    outln!(
         "log       {} ({} samples at {} Hz, {} taus)",
         a.log.display(),
         n,
         rate_hz,
         grid_name(grid)
     );
-    println!(
+    outln!(
         "interval  {:.1} % from Greenhall's EDF, noise alpha = {}",
         100.0 * a.confidence,
         a.alpha
     );
     for (name, cs) in &results {
         for c in cs {
-            println!();
-            println!(
+            outln!();
+            outln!(
                 "{:<16} {:<5} {:>14} {:>10} {:>14} {:>14} {:>14} {:>12}",
-                "channel", "kind", "tau_s", "m", "dev", "lo", "hi", "edf"
+                "channel",
+                "kind",
+                "tau_s",
+                "m",
+                "dev",
+                "lo",
+                "hi",
+                "edf"
             );
             for p in &c.points {
-                println!(
+                outln!(
                     "{:<16} {:<5} {:>14.6e} {:>10} {:>14.6e} {:>14.6e} {:>14.6e} {:>12.4e}",
                     name,
                     c.kind.name(),
@@ -270,7 +277,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             }
         }
     }
-    print_terms(&idents);
+    print_terms(&idents)?;
     Ok(())
 }
 
@@ -310,22 +317,27 @@ fn terms_fit_json(id: &Identification) -> Value {
     })
 }
 
-fn print_terms(idents: &[(String, Result<Identification>, f64)]) {
-    println!();
-    println!(
+fn print_terms(idents: &[(String, Result<Identification>, f64)]) -> Result<()> {
+    outln!();
+    outln!(
         "noise terms (IEEE Std 952) fitted to the octave Allan variance; uncertainty: one standard uncertainty; u = the channel's unit"
     );
-    println!(
+    outln!(
         "{:<16} {:<18} {:<6} {:>14} {:>12} {:<10}",
-        "channel", "kind", "param", "value", "unc", "unit"
+        "channel",
+        "kind",
+        "param",
+        "value",
+        "unc",
+        "unit"
     );
     for (name, id, _) in idents {
         let Ok(id) = id else {
-            println!("{name:<16} (none: the log is too short)");
+            outln!("{name:<16} (none: the log is too short)");
             continue;
         };
         for t in &id.terms {
-            println!(
+            outln!(
                 "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10}",
                 name,
                 t.term.kind_name(),
@@ -335,7 +347,7 @@ fn print_terms(idents: &[(String, Result<Identification>, f64)]) {
                 t.term.coef_unit()
             );
             if let Some(ct) = t.corr_time_s {
-                println!(
+                outln!(
                     "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10}",
                     name,
                     t.term.kind_name(),
@@ -346,7 +358,7 @@ fn print_terms(idents: &[(String, Result<Identification>, f64)]) {
                 );
             }
         }
-        println!(
+        outln!(
             "{:<16} fit: {} taus, deviance {:.3}, dispersion {:.3}",
             name,
             id.points.len(),
@@ -354,6 +366,7 @@ fn print_terms(idents: &[(String, Result<Identification>, f64)]) {
             id.dispersion
         );
     }
+    Ok(())
 }
 
 /// Averages must not straddle a gap: the rows (start, len) of the longest uniform

@@ -273,7 +273,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
             );
             v["replaced"] = json!(r.prep.replaced.len());
             v["stationary"] = json!(r.prep.stationary(a.prep.alpha));
-            println!("{v}");
+            outln!("{v}");
         }
     }
     if !a.json {

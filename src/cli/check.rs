@@ -232,7 +232,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             poly.push(poly_fit_curve(m, &grid, &f, &se, h, a.max_degree));
         }
         if a.json {
-            println!(
+            outln!(
                 "{}",
                 json!({
                     "channel": name,
@@ -246,36 +246,45 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
                 })
             );
         } else {
-            println!("channel {name}: FARMA({},{},{})", model.p, model.q, model.d);
-            println!(
+            outln!("channel {name}: FARMA({},{},{})", model.p, model.q, model.d);
+            outln!(
                 "  residual ACF: {} of {} lags outside +-{:.4}",
                 w.outside,
                 w.acf.len(),
                 w.band
             );
             for b in &w.ljung_box {
-                println!(
+                outln!(
                     "  Ljung-Box lag {:>3}: Q = {:>10.3} on {} df, p = {:.4}",
-                    b.lag, b.q, b.df, b.p_value
+                    b.lag,
+                    b.q,
+                    b.df,
+                    b.p_value
                 );
             }
             if let Some(pr) = &prediction {
-                println!(
+                outln!(
                     "  hold-out: last {} samples; ARMA({},{}) baseline fitted before it",
-                    pr.holdout, model.p, model.q
+                    pr.holdout,
+                    model.p,
+                    model.q
                 );
-                println!("      k     rmse FARMA      rmse ARMA");
+                outln!("      k     rmse FARMA      rmse ARMA");
                 for h in &pr.horizons {
-                    println!(
+                    outln!(
                         "  {:>5} {:>14.6e} {:>14.6e}",
-                        h.k, h.rmse_farma, h.rmse_arma
+                        h.k,
+                        h.rmse_farma,
+                        h.rmse_arma
                     );
                 }
             }
             for p in &poly {
-                println!(
+                outln!(
                     "  f_{} ~ degree {} in u = x - mean: {:?}",
-                    p.m, p.degree, p.coef
+                    p.m,
+                    p.degree,
+                    p.coef
                 );
             }
         }

@@ -33,7 +33,8 @@ pub struct FitArgs {
     /// Grid points over the central 98 % of the index values.
     #[arg(long, default_value_t = 201, value_name = "N")]
     pub grid: usize,
-    /// Computation of the local fits.
+    /// Computation of the local fits (a 2-D index, --index lag,CHANNEL, always takes
+    /// the direct path: KD-tree gather per grid point).
     #[arg(long, value_enum, default_value_t = FitPath::Fast)]
     pub method: FitPath,
     /// Start of the alternation (`literal`: the paper's scheme, for comparison).
@@ -245,6 +246,12 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|(n, m)| Ok(update::state_from_fit(n, store.column(n)?, m)))
             .collect::<Result<_>>()?;
+        for s in states.iter().filter(|s| s.linear_start) {
+            eprintln!(
+                "farma: warning: {}: the fit returned its linear ARMA start; its state is written, but `farma update` refuses it (no fitted local model to continue): fit the concatenated log instead",
+                s.channel
+            );
+        }
         let refs: Vec<_> = states.iter().collect();
         let table = update::state_table(&refs)?;
         out.parquet(STATE_FILE, &table, &update::state_metadata(&md))?;
@@ -268,7 +275,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             eprintln!("farma: note: {n}: {note}");
         }
         if a.json {
-            println!("{}", fit_json(n, m, &coef_path.display().to_string()));
+            outln!("{}", fit_json(n, m, &coef_path.display().to_string()));
         }
     }
     eprintln!(

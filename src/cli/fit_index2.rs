@@ -111,6 +111,11 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         },
         other => other,
     })?;
+    if names.contains(&index2) && d2 == 0 {
+        return Err(Error::Usage(format!(
+            "--index lag,{index2} --index-lag 0: the second index would be the fitted channel's own current value, the x_t the model predicts; use --index-lag 1 or more"
+        )));
+    }
     if names.contains(&index2) && d2 == d {
         return Err(Error::Usage(format!(
             "--index lag,{index2}: the second index is the fitted channel at the same lag; use --index-lag to pick another lag"
@@ -242,7 +247,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 "grid": [m.grid.g1.len(), m.grid.g2.len()],
                 "notes": m.notes,
             });
-            println!("{v}");
+            outln!("{v}");
         }
     }
     eprintln!(

@@ -111,7 +111,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     if a.json {
-        println!("{json}");
+        outln!("{json}");
     } else {
         print!("{}", text(&d));
     }

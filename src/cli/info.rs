@@ -54,33 +54,36 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
             "gaps": meta.segments.len().saturating_sub(1),
             "repairs": meta.repairs,
         });
-        println!("{v}");
+        outln!("{v}");
         return Ok(());
     }
-    println!("log       {} ({})", a.log.display(), meta.source_format);
-    println!(
+    outln!("log       {} ({})", a.log.display(), meta.source_format);
+    outln!(
         "samples   {} in {} segment(s)",
         store.n_samples(),
         meta.segments.len()
     );
-    println!(
+    outln!(
         "rate      {} Hz (from {})",
         store.sample_rate_hz(),
         meta.time_source
     );
-    println!("duration  {:.3} s", store.duration_s());
+    outln!("duration  {:.3} s", store.duration_s());
     if meta.repairs.is_empty() {
-        println!("repairs   none");
+        outln!("repairs   none");
     }
     for r in &meta.repairs {
-        println!(
+        outln!(
             "repair    {} {} x{}: {}",
-            r.kind, r.channel, r.count, r.detail
+            r.kind,
+            r.channel,
+            r.count,
+            r.detail
         );
     }
     if meta.segments.len() > 1 {
         for s in &meta.segments {
-            println!(
+            outln!(
                 "segment   rows {}..{} from t = {} s",
                 s.start,
                 s.start + s.len,
@@ -88,15 +91,25 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
             );
         }
     }
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{:<16} {:>12} {:>14} {:>14} {:>14} {:>14}",
-        "channel", "n", "mean", "std", "min", "max"
+        "channel",
+        "n",
+        "mean",
+        "std",
+        "min",
+        "max"
     );
     for s in &summaries {
-        println!(
+        outln!(
             "{:<16} {:>12} {:>14.6e} {:>14.6e} {:>14.6e} {:>14.6e}",
-            s.name, s.n, s.mean, s.std, s.min, s.max
+            s.name,
+            s.n,
+            s.mean,
+            s.std,
+            s.min,
+            s.max
         );
     }
     Ok(())

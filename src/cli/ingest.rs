@@ -43,7 +43,7 @@ pub fn run(a: IngestArgs, progress: &Progress) -> Result<()> {
         );
     }
     if a.json {
-        println!("{}", serde_json::to_string(&meta).expect("serializable"));
+        outln!("{}", serde_json::to_string(&meta).expect("serializable"));
     }
     Ok(())
 }

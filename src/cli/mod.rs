@@ -4,6 +4,17 @@
 //! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
 //! 2 bad input or usage (see [`crate::error`]).
 
+/// Writes one line of results to stdout, returning from the enclosing function with
+/// the error of a failed write ([`write_stdout`]), where `println!` would panic.
+macro_rules! outln {
+    () => {
+        $crate::cli::write_stdout(format_args!("\n"))?
+    };
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
 mod acf;
 mod adev;
 mod analyze;
@@ -137,12 +148,26 @@ impl LogArgs {
 pub fn main() -> i32 {
     let cli = Cli::parse();
     match run(cli) {
-        Ok(()) => EXIT_OK,
+        Ok(()) | Err(Error::StdoutClosed) => EXIT_OK,
         Err(e) => {
             eprintln!("farma: error: {e}");
             e.exit_code()
         }
     }
+}
+
+/// Writes results to stdout. A reader that closed the pipe (`| head`) gives
+/// [`Error::StdoutClosed`] (exit 0, nothing more printed); any other failure (a full
+/// disk behind `> file`) an [`Error::OutputIo`] on `<stdout>` (exit 1).
+pub(crate) fn write_stdout(args: std::fmt::Arguments) -> Result<()> {
+    use std::io::Write;
+    std::io::stdout()
+        .lock()
+        .write_fmt(args)
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::BrokenPipe => Error::StdoutClosed,
+            _ => Error::output_io(std::path::Path::new("<stdout>"), e),
+        })
 }
 
 /// Commits an output set ([`crate::output::OutputSet::commit`]) and says on stderr

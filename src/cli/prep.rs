@@ -145,11 +145,11 @@ pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
     super::commit_outputs(set, PREP_OUTPUTS)?;
     for c in &chans {
         if a.json {
-            println!("{}", prep_json(c, prm.alpha));
+            outln!("{}", prep_json(c, prm.alpha));
         } else {
-            println!("channel {}", c.name);
+            outln!("channel {}", c.name);
             for s in &c.steps {
-                println!("  {:<20} {}", s.step, s.detail);
+                outln!("  {:<20} {}", s.step, s.detail);
             }
         }
     }

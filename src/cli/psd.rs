@@ -151,19 +151,19 @@ pub fn run(a: PsdArgs, progress: &Progress) -> Result<()> {
                 "n_bins": r.n_bins,
                 "output": a.output.as_ref().map(|p| p.display().to_string()),
             });
-            println!("{o}");
+            outln!("{o}");
         }
         return Ok(());
     }
-    println!(
+    outln!(
         "log       {} ({} samples at {} Hz)",
         a.log.display(),
         len,
         rate_hz
     );
     for r in &rows {
-        println!();
-        println!(
+        outln!();
+        outln!(
             "channel {}: Welch PSD, Hann window, {} segments of {} samples, 50 % overlap, one-sided [u^2/Hz]{}",
             r.name,
             r.n_segments,
@@ -174,11 +174,13 @@ pub fn run(a: PsdArgs, progress: &Progress) -> Result<()> {
                 String::new()
             }
         );
-        println!("{:>14} {:>14} {:>8}", "freq_hz", "psd", "bins");
+        outln!("{:>14} {:>14} {:>8}", "freq_hz", "psd", "bins");
         for i in 0..r.psd.len() {
-            println!(
+            outln!(
                 "{:>14.6e} {:>14.6e} {:>8}",
-                r.freq_hz[i], r.psd[i], r.n_bins[i]
+                r.freq_hz[i],
+                r.psd[i],
+                r.n_bins[i]
             );
         }
     }

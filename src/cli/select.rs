@@ -177,7 +177,7 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
             o => o,
         })?;
         if a.json {
-            println!("{}", select_json(n, &sel, con.as_ref()));
+            outln!("{}", select_json(n, &sel, con.as_ref()));
         } else {
             print!("{}", select_text(n, &sel, con.as_ref()));
         }

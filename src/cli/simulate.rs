@@ -192,9 +192,9 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
             "channels": summaries,
             "elapsed_s": elapsed_s,
         });
-        println!("{v}");
+        outln!("{v}");
     } else {
-        println!(
+        outln!(
             "wrote {} ({}): {} channel(s), {} samples at {} Hz ({} s), seed {} replica {}",
             a.output.display(),
             format.as_str(),
@@ -206,9 +206,11 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
             out.replica
         );
         for s in &summaries {
-            println!(
+            outln!(
                 "  {:<16} mean {:>14.6e}  std {:>14.6e}",
-                s.name, s.mean, s.std
+                s.name,
+                s.mean,
+                s.std
             );
         }
     }

@@ -154,7 +154,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
             v["method"] = "rls".into();
             v["forgetting"] = a.forgetting.into();
             v["n_new"] = u.w.len().into();
-            println!("{v}");
+            outln!("{v}");
         }
     }
     eprintln!(

@@ -285,6 +285,9 @@ pub struct FittedFarma {
     pub n_rows: usize,
     /// Residuals e_t for every t.
     pub residuals: Vec<f64>,
+    /// Whether the fit returned its linear ARMA start (the alternation ended above it:
+    /// constant f_m, no local systems); `farma update` has no local fits to continue.
+    pub linear_start: bool,
     /// Messages for the user (ladder extensions, filled points).
     pub notes: Vec<String>,
     /// Where the time went.
@@ -2312,6 +2315,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         n,
         n_rows: n - pp,
         residuals: e,
+        linear_start: returned_start,
         notes,
         timings,
     })

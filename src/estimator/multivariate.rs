@@ -626,6 +626,14 @@ fn gcv_select2(
                 extended = true;
             }
             Some(i) => {
+                if i == 0 || i == last {
+                    // at an end no further extension reaches (as in 1-D)
+                    notes.push(format!(
+                        "GCV minimum at the {} bandwidths h_j (j = {}), the end of the ladder's extensions: the optimum may lie beyond it",
+                        if i == 0 { "largest" } else { "smallest" },
+                        rows[i].j
+                    ));
+                }
                 let f = fits.swap_remove(i);
                 return (rows, f, i, extended, notes);
             }
@@ -993,9 +1001,10 @@ pub fn gcv_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
     let (mut ch, mut j, mut h1, mut h2, mut rss) = (vec![], vec![], vec![], vec![], vec![]);
     let (mut tr, mut gcv, mut nf, mut chosen) = (vec![], vec![], vec![], vec![]);
     for (name, m) in models {
-        for (k, r) in m.gcv_table.iter().enumerate() {
+        for r in &m.gcv_table {
             ch.push(name.clone());
-            j.push(k as i64);
+            // the rung, as the notes name it (h_j = 1.1^-j (range_1/2, range_2/2))
+            j.push(r.j as i64);
             h1.push(r.bandwidth.0);
             h2.push(r.bandwidth.1);
             rss.push(r.rss);

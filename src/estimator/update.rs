@@ -59,7 +59,8 @@ use std::sync::Arc;
 
 use arrow_array::builder::{Float64Builder, ListBuilder, UInt64Builder};
 use arrow_array::{
-    Array, ArrayRef, Float64Array, Int64Array, ListArray, RecordBatch, StringArray, UInt64Array,
+    Array, ArrayRef, BooleanArray, Float64Array, Int64Array, ListArray, RecordBatch, StringArray,
+    UInt64Array,
 };
 use rayon::prelude::*;
 
@@ -112,6 +113,11 @@ pub struct ChannelState {
     pub rows: f64,
     /// The forgetting factor of the last update (1 after a fit).
     pub forgetting: f64,
+    /// The fit returned its linear ARMA start ([`FittedFarma::linear_start`]): the
+    /// sums above are of the local fits it rejected, so [`update`] refuses the channel.
+    /// Column `linear_start` of the state file (absent in files written before it:
+    /// false).
+    pub linear_start: bool,
 }
 
 impl ChannelState {
@@ -524,6 +530,7 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
         rss: (lag..x.len()).map(|t| e[t] * e[t]).sum(),
         rows: (x.len() - lag) as f64,
         forgetting: 1.0,
+        linear_start: m.linear_start,
     };
     for t in lag..x.len() {
         for i in 0..q {
@@ -575,6 +582,11 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
         .check()
         .and_then(|()| state.check_invertible())
         .map_err(Error::Usage)?;
+    if state.linear_start {
+        return Err(Error::Usage(
+            "its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead".into(),
+        ));
+    }
     if new.is_empty() {
         return Err(Error::Usage("no new samples".into()));
     }
@@ -872,6 +884,7 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
         n: st.n as usize,
         n_rows: st.n as usize - lag,
         residuals: es[lag..].to_vec(),
+        linear_start: false,
         notes,
         timings: Default::default(),
     };
@@ -1080,6 +1093,12 @@ pub fn state_table(states: &[&ChannelState]) -> Result<RecordBatch> {
         ("rss", f(&|s| s.rss)),
         ("rows", f(&|s| s.rows)),
         ("forgetting", f(&|s| s.forgetting)),
+        (
+            "linear_start",
+            Arc::new(BooleanArray::from(
+                states.iter().map(|s| s.linear_start).collect::<Vec<_>>(),
+            )),
+        ),
         ("n_support", Arc::new(nsup.finish())),
     ];
     for (name, mut l) in names.iter().zip(lists) {
@@ -1247,6 +1266,19 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 rss: rss.value(row),
                 rows: rows.value(row),
                 forgetting: lam.value(row),
+                linear_start: match b.column_by_name("linear_start") {
+                    None => false,
+                    Some(c) => {
+                        let c = c
+                            .as_any()
+                            .downcast_ref::<BooleanArray>()
+                            .ok_or_else(|| wrong("linear_start"))?;
+                        if c.is_null(row) {
+                            return Err(null_in("linear_start", row));
+                        }
+                        c.value(row)
+                    }
+                },
             };
             s.check()
                 .and_then(|()| s.check_invertible())

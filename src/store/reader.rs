@@ -189,6 +189,12 @@ impl Store {
     pub fn select_channels(&self, selection: &str) -> Result<Vec<String>> {
         let all = self.channel_names();
         if selection.trim() == "all" {
+            if all.is_empty() {
+                return Err(Error::column(
+                    &self.label,
+                    "--channel all: the log has no data channels (only a time column)",
+                ));
+            }
             return Ok(all.iter().map(|s| s.to_string()).collect());
         }
         let mut out = Vec::new();
