@@ -277,7 +277,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         }
     }
     if !a.json {
-        print!("{text}");
+        out!("{text}");
     }
     eprintln!(
         "farma: {} channel(s) analysed in {secs:.2} s; tables and summary.txt in {}",

@@ -113,7 +113,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
     if a.json {
         outln!("{json}");
     } else {
-        print!("{}", text(&d));
+        out!("{}", text(&d));
     }
     Ok(())
 }

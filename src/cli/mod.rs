@@ -4,8 +4,15 @@
 //! errors go to stderr. Exit codes: 0 success, 1 failure not caused by the input,
 //! 2 bad input or usage (see [`crate::error`]).
 
-/// Writes one line of results to stdout, returning from the enclosing function with
-/// the error of a failed write ([`write_stdout`]), where `println!` would panic.
+/// Writes results to stdout as `print!` does, returning from the enclosing function
+/// with the error of a failed write ([`write_stdout`]), where `print!` would panic.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!($($arg)*))?
+    };
+}
+
+/// [`out!`] with a newline, as `println!`.
 macro_rules! outln {
     () => {
         $crate::cli::write_stdout(format_args!("\n"))?

@@ -179,7 +179,7 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
         if a.json {
             outln!("{}", select_json(n, &sel, con.as_ref()));
         } else {
-            print!("{}", select_text(n, &sel, con.as_ref()));
+            out!("{}", select_text(n, &sel, con.as_ref()));
         }
         done.push((n.clone(), sel, con));
     }

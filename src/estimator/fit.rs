@@ -1071,12 +1071,12 @@ impl<'a> Smoother<'a> {
     }
 
     /// Fits (and RSS, trace where every point is Ok) for each bandwidth, on the
-    /// direct path (the fast path's ladders go through [`Smoother::ladder_cached`]).
-    fn ladder_direct(&self, hs: &[f64]) -> Vec<RungFit> {
-        let index = DirectIndex::build(&self.prob);
+    /// direct path (the fast path's ladders go through [`Smoother::ladder_cached`]),
+    /// with `index` the KD-tree over this problem's index values.
+    fn ladder_direct(&self, index: &DirectIndex, hs: &[f64]) -> Vec<RungFit> {
         hs.iter()
             .map(|&h| {
-                let f = direct::fit_grid(&self.prob, &index, self.grid, h);
+                let f = direct::fit_grid(&self.prob, index, self.grid, h);
                 let rt = f
                     .all_ok()
                     .then(|| direct::rss_trace(&self.prob, self.grid, &f));
@@ -1315,7 +1315,9 @@ fn gcv_select(
     let mut extended = false;
     // whether the kept ladder table holds this smoother's residuals yet
     let mut fresh = false;
-    // the direct path's rung fits so far: an extension fits only its new rungs
+    // the direct path's KD-tree (built once) and rung fits so far: an extension fits
+    // only its new rungs
+    let mut direct_index: Option<DirectIndex> = None;
     let mut direct_fits: std::collections::BTreeMap<i32, RungFit> = Default::default();
     loop {
         let hs: Vec<f64> = js.iter().map(|j| ladder_h(*j, range)).collect();
@@ -1328,7 +1330,8 @@ fn gcv_select(
                     .filter(|j| !direct_fits.contains_key(j))
                     .collect();
                 let new_hs: Vec<f64> = new.iter().map(|j| ladder_h(*j, range)).collect();
-                direct_fits.extend(new.into_iter().zip(sm.ladder_direct(&new_hs)));
+                let index = direct_index.get_or_insert_with(|| DirectIndex::build(&sm.prob));
+                direct_fits.extend(new.into_iter().zip(sm.ladder_direct(index, &new_hs)));
                 js.iter().map(|j| direct_fits[j].clone()).collect()
             }
         };
@@ -2272,8 +2275,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             (trace, table.se_factors(&grid, &f))
         }
         FitPath::Direct => {
-            let (f, rt) = sm.ladder_direct(&[h]).remove(0);
-            let factors = direct::se_factors(&prob, &DirectIndex::build(&prob), &grid, &f);
+            let index = DirectIndex::build(&prob);
+            let (f, rt) = sm.ladder_direct(&index, &[h]).remove(0);
+            let factors = direct::se_factors(&prob, &index, &grid, &f);
             (rt.map(|(_, tr)| tr), factors)
         }
     };

@@ -1187,6 +1187,15 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
             get!("forgetting", Float64Array),
         );
         let nsup = get!("n_support", ListArray);
+        // absent in state files written before it: false
+        let linear_start = match b.column_by_name("linear_start") {
+            None => None,
+            Some(c) => Some(
+                c.as_any()
+                    .downcast_ref::<BooleanArray>()
+                    .ok_or_else(|| wrong("linear_start"))?,
+            ),
+        };
         // a list field with a missing value (its own or one of its entries)
         let null_in = |name: &str, row: usize| {
             Error::format(
@@ -1266,18 +1275,10 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                 rss: rss.value(row),
                 rows: rows.value(row),
                 forgetting: lam.value(row),
-                linear_start: match b.column_by_name("linear_start") {
+                linear_start: match linear_start {
                     None => false,
-                    Some(c) => {
-                        let c = c
-                            .as_any()
-                            .downcast_ref::<BooleanArray>()
-                            .ok_or_else(|| wrong("linear_start"))?;
-                        if c.is_null(row) {
-                            return Err(null_in("linear_start", row));
-                        }
-                        c.value(row)
-                    }
+                    Some(c) if c.is_null(row) => return Err(null_in("linear_start", row)),
+                    Some(c) => c.value(row),
                 },
             };
             s.check()
