@@ -1064,8 +1064,8 @@ impl<'a> Smoother<'a> {
                 fit
             }
             FitPath::Direct => {
-                let index = DirectIndex::build(&self.prob);
-                direct::fit_grid(&self.prob, &index, self.grid, h)
+                let index = cache.direct_index(&self.prob);
+                direct::fit_grid(&self.prob, index, self.grid, h)
             }
         }
     }
@@ -1096,6 +1096,9 @@ struct StepCache {
     index: Option<(f64, Option<IntervalIndex>)>,
     /// The last GCV ladder's table.
     ladder: Option<LadderCache>,
+    /// The direct path's KD-tree over the index values U_t = x_(t-d), which do not
+    /// change during a fit: built once.
+    direct: Option<DirectIndex>,
 }
 
 impl StepCache {
@@ -1114,6 +1117,12 @@ impl StepCache {
             self.index = Some((h, index));
         }
         self.index.as_ref().and_then(|(_, ix)| ix.as_ref())
+    }
+
+    /// The direct path's KD-tree of `prob`'s index values (built on first use; every
+    /// problem of one fit has the same series, delay and rows).
+    fn direct_index(&mut self, prob: &VcProblem) -> &DirectIndex {
+        self.direct.get_or_insert_with(|| DirectIndex::build(prob))
     }
 
     /// Whatever index is kept, for the grid cells.
@@ -1315,9 +1324,7 @@ fn gcv_select(
     let mut extended = false;
     // whether the kept ladder table holds this smoother's residuals yet
     let mut fresh = false;
-    // the direct path's KD-tree (built once) and rung fits so far: an extension fits
-    // only its new rungs
-    let mut direct_index: Option<DirectIndex> = None;
+    // the direct path's rung fits so far: an extension fits only its new rungs
     let mut direct_fits: std::collections::BTreeMap<i32, RungFit> = Default::default();
     loop {
         let hs: Vec<f64> = js.iter().map(|j| ladder_h(*j, range)).collect();
@@ -1330,7 +1337,7 @@ fn gcv_select(
                     .filter(|j| !direct_fits.contains_key(j))
                     .collect();
                 let new_hs: Vec<f64> = new.iter().map(|j| ladder_h(*j, range)).collect();
-                let index = direct_index.get_or_insert_with(|| DirectIndex::build(&sm.prob));
+                let index = cache.direct_index(&sm.prob);
                 direct_fits.extend(new.into_iter().zip(sm.ladder_direct(index, &new_hs)));
                 js.iter().map(|j| direct_fits[j].clone()).collect()
             }
@@ -2275,9 +2282,9 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             (trace, table.se_factors(&grid, &f))
         }
         FitPath::Direct => {
-            let index = DirectIndex::build(&prob);
-            let (f, rt) = sm.ladder_direct(&index, &[h]).remove(0);
-            let factors = direct::se_factors(&prob, &index, &grid, &f);
+            let index = cache.direct_index(&prob);
+            let (f, rt) = sm.ladder_direct(index, &[h]).remove(0);
+            let factors = direct::se_factors(&prob, index, &grid, &f);
             (rt.map(|(_, tr)| tr), factors)
         }
     };
