@@ -466,3 +466,59 @@ fn prefix_refined_linear_start_reaches_the_full_data_optimum() {
         assert!((u - v).abs() < 1e-4, "{u} vs {v}");
     }
 }
+
+#[test]
+fn a_bandwidth_re_selected_at_the_last_alternation_is_not_taken_without_a_fit() {
+    // On this series the RSS settles in alternation 5 at GCV's first choice, and the
+    // re-check at the settled residuals chooses another bandwidth (seed found by a
+    // search over seeds 0..80 at n 1,000, 3,000 and 10,000, for a fit whose last
+    // iterate is its best, so that no earlier iterate is returned). With --max-iter 5
+    // no alternation is left to fit at it: the model must stay at the bandwidth its
+    // coefficients were fitted at (it had reported the new one), not converged, and
+    // say so.
+    let x = simulate(3000, 44);
+    let run = |max_iter| {
+        let params = FarmaParams {
+            p: 2,
+            q: 1,
+            d: 1,
+            max_iter,
+            ..FarmaParams::default()
+        }
+        .validate(x.len())
+        .unwrap();
+        fit(&x, &params).unwrap()
+    };
+    let free = run(100);
+    let went_on = free
+        .notes
+        .iter()
+        .find(|n| n.starts_with("alternation 5: the RSS settled"))
+        .expect("the re-check chose another bandwidth in alternation 5");
+    assert!(went_on.contains("went on at it"), "{went_on}");
+    let before = run(4);
+    let cut = run(5);
+    assert!(!cut.converged);
+    assert!(!cut.notes.iter().any(|n| n.contains("ended above")));
+    assert_eq!(
+        cut.bandwidth, before.bandwidth,
+        "the bandwidth its coefficients were fitted at"
+    );
+    let best = cut
+        .gcv_table
+        .iter()
+        .filter(|r| r.gcv.is_finite())
+        .min_by(|a, b| a.gcv.total_cmp(&b.gcv))
+        .unwrap();
+    assert_ne!(
+        best.bandwidth, cut.bandwidth,
+        "the re-check's table, its minimum elsewhere"
+    );
+    assert!(
+        cut.notes
+            .iter()
+            .any(|n| n.contains("--max-iter 5 ends the alternation here: NOT converged")),
+        "{:?}",
+        cut.notes
+    );
+}

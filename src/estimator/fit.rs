@@ -2183,9 +2183,19 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 at.gcv_s += lap();
                 timings.alternations.push(at.clone());
                 reselections += 1;
+                if rows[best].bandwidth != h && iterations == prm.max_iter {
+                    // no alternation left to fit at the new bandwidth: the model stays
+                    // at h (its coefficients are the f-step's at h), not converged
+                    notes.push(format!(
+                        "alternation {iterations}: the RSS settled at bandwidth {h:.6e}; GCV at those residuals chose {:.6e}, but --max-iter {} ends the alternation here: NOT converged, the model is at the bandwidth it settled at (the GCV table is the re-check's)",
+                        rows[best].bandwidth, prm.max_iter
+                    ));
+                    gcv_table = rows;
+                    break;
+                }
                 if rows[best].bandwidth != h {
                     notes.push(format!(
-                        "bandwidth re-selected after convergence: {h:.6e} -> {:.6e}",
+                        "alternation {iterations}: the RSS settled at bandwidth {h:.6e}; GCV at those residuals chose {:.6e}, and the alternation went on at it",
                         rows[best].bandwidth
                     ));
                     ladder_extended |= ext;
