@@ -392,3 +392,86 @@ fn fit_of_all_channels_of_a_log_without_any_is_refused() {
     );
     assert!(!out.join("coef.parquet").exists());
 }
+
+/// A NaN in a column that is not used does not block a fit of the others (under the
+/// default --nan reject): only the columns a command reads are checked. The column
+/// itself, `--channel all`, a 2-D index on it and `farma ingest` of the whole file
+/// are refused, exit 2, naming the file, column and line (ingest also suggests
+/// --columns). The bad column had blocked every fit of the log, with only `--nan
+/// interpolate` suggested (found by a helper's fuzzing).
+#[test]
+fn a_nan_in_a_column_not_used_does_not_block_the_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    // the fixture with an extra column `junk`, NaN at data row 10 (line 11)
+    let mut text = String::new();
+    for (i, line) in src.lines().filter(|l| !l.starts_with('#')).enumerate() {
+        let extra = match i {
+            0 => "junk".to_string(),
+            10 => "NaN".to_string(),
+            _ => format!("{}", (i % 7) as f64),
+        };
+        text.push_str(&format!("{line},{extra}\n"));
+    }
+    let log = dir.path().join("junk.csv");
+    std::fs::write(&log, text).unwrap();
+    let l = log.to_str().unwrap();
+    let fit = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec!["fit", l, "--grid", "41", "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        (farma(&args, dir.path()), out)
+    };
+    let (o, out) = fit(&["--channel", "gyro_x"], "ok");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(out.join("coef.parquet").exists());
+    // the same fit as on the fixture without the column
+    let (o, clean) = fit(&["--channel", "gyro_x", "--columns", "gyro_x"], "clean");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for f in ["coef.parquet", "params.parquet"] {
+        assert!(
+            std::fs::read(out.join(f)).unwrap() == std::fs::read(clean.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    for (flags, out) in [
+        (&["--channel", "junk"][..], "bad1"),
+        (&["--channel", "all"][..], "bad2"),
+        (
+            &[
+                "--channel",
+                "gyro_x",
+                "--order",
+                "1,0,1",
+                "--index",
+                "lag,junk",
+            ][..],
+            "bad3",
+        ),
+    ] {
+        let (o, out) = fit(flags, out);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+        for want in [
+            "junk.csv",
+            "column 'junk'",
+            "1 non-finite",
+            "line 11",
+            "--nan interpolate",
+        ] {
+            assert!(err.contains(want), "{flags:?}: no '{want}' in {err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{flags:?} wrote {}", out.display());
+    }
+    // converting the whole file is refused, with --columns suggested
+    let store = dir.path().join("s.arrow");
+    let o = farma(&["ingest", l, "-o", store.to_str().unwrap()], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("column 'junk'") && err.contains("line 11") && err.contains("--columns"),
+        "{err}"
+    );
+    assert!(!store.exists());
+}
