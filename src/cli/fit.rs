@@ -242,9 +242,14 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         out.parquet("residuals.parquet", &residual_table(&refs)?, &md)?;
     }
     if a.save_state {
+        let t_last = super::update::last_time(&store)?;
         let states: Vec<_> = fits
             .par_iter()
-            .map(|(n, m)| Ok(update::state_from_fit(n, store.column(n)?, m)))
+            .map(|(n, m)| {
+                let mut s = update::state_from_fit(n, store.column(n)?, m);
+                s.t_last = t_last;
+                Ok(s)
+            })
             .collect::<Result<_>>()?;
         for s in states.iter().filter(|s| s.linear_start) {
             eprintln!(
