@@ -422,3 +422,81 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
         "{err}"
     );
 }
+
+/// A new log of one row with a time column is updated when the rate comes from
+/// `--rate` (one row has no interval to take it from); without it the message says to
+/// give it. It had failed as "too short" even with --rate, while the same row without
+/// a time column worked (found by a helper's fuzzing).
+#[test]
+fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
+    use farma::estimator::update::{LastTime, read_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let one = slice_log(d, "one.csv", 2000, 2001, None); // t = 200 s
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let out = d.join("out");
+    let o = farma(&["update", s(&model), s(&one), "-o", s(&out), "--json"], d);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("one.csv") && err.contains("a single row") && err.contains("--rate"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let o = farma(
+        &[
+            "update",
+            s(&model),
+            s(&one),
+            "-o",
+            s(&out),
+            "--rate",
+            "10",
+            "--json",
+        ],
+        d,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    let lines: Vec<serde_json::Value> = stdout(&o)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    for v in &lines {
+        assert_eq!(v["n_new"], serde_json::json!(1));
+        assert_eq!(v["n"], serde_json::json!(2001));
+    }
+    // the row's time stamp is kept: the next update must come after it
+    let (states, _) = read_state(&out.join("state.parquet")).unwrap();
+    assert!(matches!(states[0].t_last, LastTime::At(t) if (t - 200.0).abs() < 1e-9));
+    // the same as the row without its time column
+    let bare = d.join("bare.csv");
+    let text = std::fs::read_to_string(&one).unwrap();
+    let text: String = text
+        .lines()
+        .map(|l| format!("{}\n", l.split_once(',').unwrap().1))
+        .collect();
+    std::fs::write(&bare, text).unwrap();
+    let out2 = d.join("out2");
+    let o2 = farma(
+        &[
+            "update",
+            s(&model),
+            s(&bare),
+            "-o",
+            s(&out2),
+            "--rate",
+            "10",
+            "--json",
+        ],
+        d,
+    );
+    assert_eq!(o2.status.code(), Some(0), "{}", stderr(&o2));
+    assert_eq!(
+        stdout(&o).replace("/out/", "/X/"),
+        stdout(&o2).replace("/out2/", "/X/")
+    );
+}

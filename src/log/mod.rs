@@ -384,18 +384,36 @@ fn finalize(
 
     // Time base.
     let mut segments = vec![];
-    let (rate_hz, time_source) = if let Some(ti) = time_idx {
-        if n_rows < 2 {
-            return Err(Error::TooShort {
-                what: format!(
-                    "{}: sample interval from time column '{}'",
-                    path.display(),
-                    names[ti]
-                ),
-                need: 2,
-                have: n_rows as u64,
-            });
+    let (rate_hz, time_source) = if let Some(ti) = time_idx
+        && n_rows < 2
+    {
+        // one row has no sample interval: the rate from the file's metadata or
+        // --rate (as without a time column), the time of the row from the column
+        let rate = rate_meta_hz
+            .map(|r| (r, "metadata"))
+            .or(opts.rate_hz.map(|r| (r, "flag")));
+        match rate {
+            Some((r, source)) if n_rows == 1 => {
+                segments.push(Segment {
+                    start: 0,
+                    len: 1,
+                    t0_s: writer.column(ti)[0],
+                });
+                (r, source.to_string())
+            }
+            _ => {
+                return Err(Error::TooShort {
+                    what: format!(
+                        "{}: sample interval from time column '{}' (a single row has none: give the rate with --rate HZ)",
+                        path.display(),
+                        names[ti]
+                    ),
+                    need: 2,
+                    have: n_rows as u64,
+                });
+            }
         }
+    } else if let Some(ti) = time_idx {
         let t = writer.column(ti);
         let t0_s = t[0];
         let check = timebase::check_times(t, opts.time_tol)
