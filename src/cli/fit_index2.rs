@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use arrow_array::{Float64Array, Int64Array, StringArray};
+use arrow_array::{BooleanArray, Float64Array, Int64Array, StringArray};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -189,18 +189,22 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     out.parquet("params.parquet", &params_table2(&refs, &index2)?, &md)?;
     out.parquet("gcv.parquet", &gcv_table2(&refs)?, &md)?;
     if a.residuals {
-        let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
+        // in_fit: false for the first max(p,q,d,d2) samples (the warm-up, as in 1-D)
+        let (mut ch, mut t, mut r, mut in_fit) = (vec![], vec![], vec![], vec![]);
         for (n, m) in &fits {
+            let warm_up = m.n - m.n_rows;
             for (k, v) in m.residuals.iter().enumerate() {
                 ch.push(n.clone());
                 t.push(k as i64);
                 r.push(*v);
+                in_fit.push(k >= warm_up);
             }
         }
         let table = batch(vec![
             ("channel", Arc::new(StringArray::from(ch))),
             ("t", Arc::new(Int64Array::from(t))),
             ("residual", Arc::new(Float64Array::from(r))),
+            ("in_fit", Arc::new(BooleanArray::from(in_fit))),
         ])?;
         out.parquet("residuals.parquet", &table, &md)?;
     }
