@@ -193,6 +193,23 @@ fn fit_with_a_bad_index_exits_2() {
             ],
             "own current value",
         ),
+        // --grid is the 1-D grid: with a 2-D index it had been ignored silently (found
+        // by a helper's fuzzing)
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,temp_c",
+                "--grid",
+                "41",
+                "-o",
+                o,
+            ],
+            "--grid 41: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)",
+        ),
     ] {
         let r = farma(&args, dir.path());
         assert_eq!(r.status.code(), Some(2), "{args:?}: {}", stderr(&r));

@@ -83,6 +83,11 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             "--save-state: online updates (farma update) support the 1-D index only; drop --save-state or the second --index channel".into(),
         ));
     }
+    if let Some(g) = a.grid {
+        return Err(Error::Usage(format!(
+            "--grid {g}: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)"
+        )));
+    }
     if a.init == Init::Literal {
         return Err(Error::Usage(
             "--init literal: a 2-D index starts from the linear ARMA only".into(),
