@@ -108,7 +108,23 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
     super::fit::warn_gaps(&store, &a.log);
-    let names = store.select_channels(&a.channel)?;
+    let mut names = store.select_channels(&a.channel)?;
+    // `all` means every channel the index channel indexes: not the index itself (its
+    // model on itself at the same lag is refused below; name it to fit it)
+    if a.channel.trim() == "all" && names.contains(&index2) {
+        names.retain(|n| *n != index2);
+        if names.is_empty() {
+            return Err(Error::column(
+                &a.log,
+                format!(
+                    "--channel all --index lag,{index2}: the log's only channel is the index channel '{index2}'"
+                ),
+            ));
+        }
+        eprintln!(
+            "farma: note: --channel all --index lag,{index2}: '{index2}', the index channel, is not fitted (name it in --channel, with --index-lag, to fit it)"
+        );
+    }
     let z = store.column(&index2).map_err(|e| match e {
         Error::Column { path, msg } => Error::Column {
             path,
