@@ -210,6 +210,21 @@ fn fit_with_a_bad_index_exits_2() {
             ],
             "--grid 41: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)",
         ),
+        // the time column is no channel (it had been accepted as an index: found by a
+        // helper's fuzzing)
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,time_s",
+                "-o",
+                o,
+            ],
+            "multiaxis.csv: --index lag,time_s: 'time_s' is the log's time column, not a channel",
+        ),
     ] {
         let r = farma(&args, dir.path());
         assert_eq!(r.status.code(), Some(2), "{args:?}: {}", stderr(&r));

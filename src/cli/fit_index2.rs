@@ -108,6 +108,15 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
     super::fit::warn_gaps(&store, &a.log);
+    if store.meta().time_col.as_deref() == Some(index2.as_str()) {
+        return Err(Error::column(
+            &a.log,
+            format!(
+                "--index lag,{index2}: '{index2}' is the log's time column, not a channel (f_m that change with time are a trend: `farma prep` removes one); channels are: {}",
+                store.channel_names().join(", ")
+            ),
+        ));
+    }
     let mut names = store.select_channels(&a.channel)?;
     // `all` means every channel the index channel indexes: not the index itself (its
     // model on itself at the same lag is refused below; name it to fit it)
