@@ -500,3 +500,45 @@ fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
         stdout(&o2).replace("/out2/", "/X/")
     );
 }
+
+/// `farma update` on the folder of a 2-D fit says that updates support the 1-D index
+/// only; it had suggested `--save-state`, which a 2-D fit refuses (found by a helper's
+/// fuzzing).
+#[test]
+fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = d.join("model2d");
+    let o = farma(
+        &[
+            "fit",
+            s(&old),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "--index",
+            "lag,temp_c",
+            "--index-grid",
+            "5,5",
+            "-o",
+            s(&model),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = d.join("out");
+    let o = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("model2d")
+            && err.contains("2-D index (--index lag,temp_c)")
+            && err.contains("1-D index only"),
+        "{err}"
+    );
+    assert!(!err.contains("--save-state"), "{err}");
+    assert!(!out.exists());
+}

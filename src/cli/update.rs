@@ -48,6 +48,19 @@ pub struct UpdateArgs {
     pub json: bool,
 }
 
+/// The `index` of a 2-D fit's params.parquet metadata (`lag,CHANNEL`), if the model
+/// folder holds one (None for a 1-D fit, or when there is no readable params.parquet).
+fn model_index2(dir: &std::path::Path) -> Option<String> {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let file = std::fs::File::open(dir.join("params.parquet")).ok()?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).ok()?;
+    let kv = builder.metadata().file_metadata().key_value_metadata()?;
+    kv.iter()
+        .find(|e| e.key == "index2")
+        .and(kv.iter().find(|e| e.key == "index"))
+        .and_then(|e| e.value.clone())
+}
+
 /// Seconds for a message: six decimals, trailing zeros dropped (1.0999999999999943 is
 /// "1.1").
 fn secs(t: f64) -> String {
@@ -159,6 +172,13 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     }
     let state_path = a.model_dir.join(STATE_FILE);
     if !state_path.is_file() {
+        // a 2-D fit writes no state, and refuses --save-state
+        if let Some(index) = model_index2(&a.model_dir) {
+            return Err(Error::Usage(format!(
+                "{}: no {STATE_FILE}: the model was fitted with a 2-D index (--index {index}), and online updates support the 1-D index only; fit the concatenated log instead",
+                a.model_dir.display()
+            )));
+        }
         return Err(Error::Usage(format!(
             "{}: no {STATE_FILE} in the model folder: run farma fit with --save-state",
             a.model_dir.display()
