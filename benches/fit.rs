@@ -97,6 +97,7 @@ fn make_store(path: &Path, n: usize) {
         source_format: "generated".into(),
         source_size: 0,
         source_mtime_ns: 0,
+        nonfinite: vec![],
     };
     w.finish(&meta).unwrap();
 }

@@ -37,6 +37,7 @@ fn make_store(path: &std::path::Path, rows: usize) {
         source_format: "generated".into(),
         source_size: 0,
         source_mtime_ns: 0,
+        nonfinite: vec![],
     };
     w.finish(&meta).unwrap();
 }

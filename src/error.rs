@@ -39,13 +39,15 @@ pub enum Error {
     },
 
     /// NaN, infinite or missing values under `--nan reject`.
-    #[error("{}: column '{column}' has {count} non-finite or missing value(s) (NaN/Inf/empty), first at {first}; use --nan interpolate to replace them", path.display())]
+    #[error("{}: column '{column}' has {count} non-finite or missing value(s) (NaN/Inf/empty), first at {first}; {hint}", path.display())]
     NonFinite {
         path: PathBuf,
         column: String,
         count: u64,
         /// Human-readable list of the first positions ("line 12, line 40").
         first: String,
+        /// What to do about it.
+        hint: &'static str,
     },
 
     /// The time column is not strictly increasing or not uniformly sampled.

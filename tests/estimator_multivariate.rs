@@ -315,3 +315,95 @@ fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
     let want: Vec<i64> = rows.iter().map(|r| r.j as i64).collect();
     assert_eq!(j.values().to_vec(), want);
 }
+
+/// A fit whose RSS settles, after which GCV picks other bandwidths and the
+/// alternation goes on: its notes say what happened, and only a converged fit's notes
+/// say it converged. (They had said "bandwidths re-selected after convergence" also
+/// for fits that then ran into --max-iter without settling again: found by a helper's
+/// fuzzing, a 3-level temperature swinging between two pairs.)
+#[test]
+fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
+    let n = 1500;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let (mut x, mut e) = (vec![0.0f64; n], vec![0.0f64; n]);
+    for t in 0..n {
+        e[t] = StandardNormal.sample(&mut rng);
+        if t >= 2 {
+            x[t] = 0.5 * (-x[t - 1] * x[t - 1]).exp() * x[t - 1] - 0.2 * x[t - 2]
+                + e[t]
+                + 0.3 * e[t - 1];
+        }
+    }
+    let z = data(n, 1).1;
+    let run = |max_iter: usize| {
+        fit2(
+            &x,
+            &z,
+            &Farma2Params {
+                base: FarmaParams {
+                    p: 1,
+                    q: 1,
+                    d: 1,
+                    max_iter,
+                    ..FarmaParams::default()
+                },
+                d2: 1,
+                grid: (9, 9),
+                bandwidth: None,
+            },
+        )
+        .unwrap()
+    };
+    // with room to settle again: converged, the re-selection named with its alternation
+    let full = run(50);
+    eprintln!("{} alternations: {:?}", full.iterations, full.notes);
+    assert!(full.converged);
+    let settled_at = full
+        .notes
+        .iter()
+        .find_map(|s| {
+            s.strip_prefix("alternation ")?
+                .split(':')
+                .next()?
+                .parse::<usize>()
+                .ok()
+                .filter(|_| s.contains("GCV at those residuals chose"))
+        })
+        .expect("a bandwidth re-selection in this fit");
+    assert!(settled_at + 1 < full.iterations);
+    assert!(!full.notes.iter().any(|s| s.contains("NOT converged")));
+    // --max-iter ends it after the re-selection, before it settles again
+    let cut = run(settled_at + 2);
+    eprintln!("{:?}", cut.notes);
+    assert!(!cut.converged);
+    assert!(
+        !cut.notes.iter().any(|s| s.contains("after convergence")),
+        "{:?}",
+        cut.notes
+    );
+    assert!(
+        cut.notes.iter().any(|s| s.starts_with(
+            "NOT converged: after 1 bandwidth re-selection(s) the alternation did not settle again within --max-iter"
+        )),
+        "{:?}",
+        cut.notes
+    );
+    // --max-iter ends it at the alternation that settled: the model stays at the
+    // bandwidths it settled at, and says so
+    let at = run(settled_at);
+    assert!(!at.converged);
+    assert!(
+        at.notes
+            .iter()
+            .any(|s| s.contains("ends the alternation here: NOT converged")),
+        "{:?}",
+        at.notes
+    );
+    assert_ne!(at.bandwidth, cut.bandwidth);
+    let chosen = at
+        .gcv_table
+        .iter()
+        .filter(|r| r.bandwidth == at.bandwidth)
+        .count();
+    assert_eq!(chosen, 1, "gcv.parquet's chosen row is the model's pair");
+}

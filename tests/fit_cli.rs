@@ -392,3 +392,179 @@ fn fit_of_all_channels_of_a_log_without_any_is_refused() {
     );
     assert!(!out.join("coef.parquet").exists());
 }
+
+/// A NaN in a column that is not used does not block a fit of the others (under the
+/// default --nan reject): only the columns a command reads are checked. The column
+/// itself, `--channel all`, a 2-D index on it and `farma ingest` of the whole file
+/// are refused, exit 2, naming the file, column and line (ingest also suggests
+/// --columns). The bad column had blocked every fit of the log, with only `--nan
+/// interpolate` suggested (found by a helper's fuzzing).
+#[test]
+fn a_nan_in_a_column_not_used_does_not_block_the_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    // the fixture with an extra column `junk`, NaN at data row 10 (line 11)
+    let mut text = String::new();
+    for (i, line) in src.lines().filter(|l| !l.starts_with('#')).enumerate() {
+        let extra = match i {
+            0 => "junk".to_string(),
+            10 => "NaN".to_string(),
+            _ => format!("{}", (i % 7) as f64),
+        };
+        text.push_str(&format!("{line},{extra}\n"));
+    }
+    let log = dir.path().join("junk.csv");
+    std::fs::write(&log, text).unwrap();
+    let l = log.to_str().unwrap();
+    let fit = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec!["fit", l, "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        if !extra.contains(&"--index") {
+            args.extend_from_slice(&["--grid", "41"]);
+        }
+        (farma(&args, dir.path()), out)
+    };
+    let (o, out) = fit(&["--channel", "gyro_x"], "ok");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(out.join("coef.parquet").exists());
+    // the same fit as on the fixture without the column
+    let (o, clean) = fit(&["--channel", "gyro_x", "--columns", "gyro_x"], "clean");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for f in ["coef.parquet", "params.parquet"] {
+        assert!(
+            std::fs::read(out.join(f)).unwrap() == std::fs::read(clean.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    for (flags, out) in [
+        (&["--channel", "junk"][..], "bad1"),
+        (&["--channel", "all"][..], "bad2"),
+        (
+            &[
+                "--channel",
+                "gyro_x",
+                "--order",
+                "1,0,1",
+                "--index",
+                "lag,junk",
+            ][..],
+            "bad3",
+        ),
+    ] {
+        let (o, out) = fit(flags, out);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+        for want in [
+            "junk.csv",
+            "column 'junk'",
+            "1 non-finite",
+            "line 11",
+            "--nan interpolate",
+        ] {
+            assert!(err.contains(want), "{flags:?}: no '{want}' in {err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{flags:?} wrote {}", out.display());
+    }
+    // converting the whole file is refused, with --columns suggested
+    let store = dir.path().join("s.arrow");
+    let o = farma(&["ingest", l, "-o", store.to_str().unwrap()], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("column 'junk'") && err.contains("line 11") && err.contains("--columns"),
+        "{err}"
+    );
+    assert!(!store.exists());
+}
+
+/// Reads one Parquet file's record batches.
+fn read_parquet(path: &std::path::Path) -> Vec<arrow_array::RecordBatch> {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let file = std::fs::File::open(path).unwrap();
+    ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap()
+        .map(|b| b.unwrap())
+        .collect()
+}
+
+/// residuals.parquet flags the first max(p,q,d) samples (max(p,q,d,d2) with a 2-D
+/// index), whose lags reach before the series, with `in_fit` false: they are not
+/// residuals of the model, and the RSS of params.parquet is the sum of squares of the
+/// rows with `in_fit` true. They had been written unflagged beside the others (found
+/// by a helper's fuzzing).
+#[test]
+fn residuals_flag_the_warm_up_rows_outside_the_fit() {
+    use arrow_array::{Array, BooleanArray, Float64Array, Int64Array};
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    for (extra, warm_up) in [
+        (&["--order", "2,1,3", "--grid", "41"][..], 3i64),
+        (
+            &[
+                "--order",
+                "1,0,1",
+                "--index",
+                "lag,temp_c",
+                "--index-lag",
+                "4",
+                "--index-grid",
+                "7,7",
+            ][..],
+            4,
+        ),
+    ] {
+        let out = dir.path().join(format!("o{warm_up}"));
+        let mut args = vec![
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--residuals",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = farma(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let (mut t, mut r, mut in_fit) = (vec![], vec![], vec![]);
+        for b in read_parquet(&out.join("residuals.parquet")) {
+            let col = |n: &str| {
+                b.column_by_name(n)
+                    .unwrap_or_else(|| panic!("no {n}"))
+                    .clone()
+            };
+            let f = col("in_fit");
+            let f = f.as_any().downcast_ref::<BooleanArray>().unwrap();
+            assert_eq!(f.null_count(), 0);
+            in_fit.extend((0..f.len()).map(|k| f.value(k)));
+            let c = col("t");
+            t.extend_from_slice(c.as_any().downcast_ref::<Int64Array>().unwrap().values());
+            let c = col("residual");
+            r.extend_from_slice(c.as_any().downcast_ref::<Float64Array>().unwrap().values());
+        }
+        assert_eq!(in_fit.len(), 4000);
+        for k in 0..in_fit.len() {
+            assert_eq!(in_fit[k], t[k] >= warm_up, "{extra:?} t {}", t[k]);
+        }
+        let rss: f64 = (0..r.len())
+            .filter(|k| in_fit[*k])
+            .map(|k| r[k] * r[k])
+            .sum();
+        let params = &read_parquet(&out.join("params.parquet"))[0];
+        let want = params
+            .column_by_name("rss")
+            .unwrap()
+            .as_any()
+            .downcast_ref::<Float64Array>()
+            .unwrap()
+            .value(0);
+        assert!(
+            (rss - want).abs() <= 1e-9 * want,
+            "{extra:?}: rss of the in_fit rows {rss} vs params {want}"
+        );
+    }
+}

@@ -193,10 +193,117 @@ fn fit_with_a_bad_index_exits_2() {
             ],
             "own current value",
         ),
+        // --grid is the 1-D grid: with a 2-D index it had been ignored silently (found
+        // by a helper's fuzzing)
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,temp_c",
+                "--grid",
+                "41",
+                "-o",
+                o,
+            ],
+            "--grid 41: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)",
+        ),
+        // the time column is no channel (it had been accepted as an index: found by a
+        // helper's fuzzing)
+        (
+            vec![
+                "fit",
+                l,
+                "--channel",
+                "gyro_x",
+                "--index",
+                "lag,time_s",
+                "-o",
+                o,
+            ],
+            "multiaxis.csv: --index lag,time_s: 'time_s' is the log's time column, not a channel",
+        ),
     ] {
         let r = farma(&args, dir.path());
         assert_eq!(r.status.code(), Some(2), "{args:?}: {}", stderr(&r));
         assert!(stderr(&r).contains(needle), "{args:?}: {}", stderr(&r));
     }
     assert!(!out.join("coef.parquet").exists());
+}
+
+/// `--channel all` with a 2-D index fits every channel but the index channel (its
+/// model on itself at the same lag is refused), with a note that says so; a log whose
+/// only channel is the index channel is refused, exit 2. `all` had taken the index
+/// channel in, and the run failed on it (found by a helper's fuzzing).
+#[test]
+fn channel_all_with_a_2d_index_leaves_the_index_channel_out() {
+    use arrow_array::StringArray;
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let out = dir.path().join("o");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "all",
+            "--order",
+            "1,0,1",
+            "--index",
+            "lag,temp_c",
+            "--index-grid",
+            "5,5",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("'temp_c', the index channel, is not fitted"),
+        "{err}"
+    );
+    let file = File::open(out.join("params.parquet")).unwrap();
+    let mut fitted = vec![];
+    for b in ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap()
+    {
+        let b = b.unwrap();
+        let c = b.column_by_name("channel").unwrap();
+        let c = c.as_any().downcast_ref::<StringArray>().unwrap();
+        fitted.extend((0..c.len()).map(|k| c.value(k).to_string()));
+    }
+    assert_eq!(fitted, ["gyro_x", "gyro_y", "gyro_z"]);
+    // a log of the index channel alone
+    let only = dir.path().join("only.csv");
+    let text: String = (0..200)
+        .map(|k| format!("{},{}\n", k as f64 * 0.1, 20.0 + (k % 7) as f64))
+        .collect();
+    std::fs::write(&only, format!("time_s,temp_c\n{text}")).unwrap();
+    let out2 = dir.path().join("o2");
+    let o = farma(
+        &[
+            "fit",
+            only.to_str().unwrap(),
+            "--channel",
+            "all",
+            "--index",
+            "lag,temp_c",
+            "-o",
+            out2.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("only.csv") && err.contains("only channel is the index channel 'temp_c'"),
+        "{err}"
+    );
+    assert!(!out2.exists());
 }

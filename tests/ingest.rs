@@ -308,6 +308,49 @@ fn other_commands_read_csv_through_the_cache_once() {
     assert_eq!(s.n_samples(), 4000);
 }
 
+/// An edit that keeps the file's size and modification time (`cp -p`, `rsync -t`, an
+/// editor that restores the mtime) is not served from the stale cached store: the
+/// cache key holds the inode and ctime as well. It had read the old values (found by a
+/// helper's fuzzing).
+#[cfg(unix)]
+#[test]
+fn an_edit_keeping_size_and_mtime_is_not_read_from_a_stale_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let log = dir.path().join("log.csv");
+    let write = |digit: char| {
+        let mut text = String::from("time,x\n");
+        for i in 0..100 {
+            text.push_str(&format!("{}.{i:02},{digit}.{}\n", i / 100, i % 10));
+        }
+        std::fs::write(&log, text).unwrap();
+    };
+    let mean = || {
+        let o = farma(&["info", log.to_str().unwrap(), "--json"], &cache);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        v["channels"][0]["mean"].as_f64().unwrap()
+    };
+    write('1');
+    let before = std::fs::metadata(&log).unwrap();
+    let first = mean();
+    assert!((first - 1.45).abs() < 1e-12, "{first}");
+    // let the clock move on (the kernel's ctime ticks every few ms)
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    write('7'); // same length: every value 1.x becomes 7.x
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&log)
+        .unwrap()
+        .set_modified(before.modified().unwrap())
+        .unwrap();
+    let after = std::fs::metadata(&log).unwrap();
+    assert_eq!(after.len(), before.len());
+    assert_eq!(after.modified().unwrap(), before.modified().unwrap());
+    let second = mean();
+    assert!((second - 7.45).abs() < 1e-12, "stale cache: mean {second}");
+}
+
 #[test]
 fn info_json_has_the_contract_keys_and_correct_statistics() {
     let cache = tempfile::tempdir().unwrap();

@@ -63,7 +63,8 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 3000, None);
-    let new = slice_log(d, "new.csv", 3000, 4000, None);
+    let new = slice_log(d, "new.csv", 3000, 3600, None);
+    let later = slice_log(d, "later.csv", 3600, 4000, None);
     let model = fit_state(d, &old, "2,1,1", "31");
     assert!(model.join("state.parquet").exists());
     let run = |threads: &str, out: &str, extra: &[&str]| {
@@ -109,8 +110,8 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
         ] {
             assert!(v.get(k).is_some(), "missing key {k}");
         }
-        assert_eq!(v["n"], serde_json::json!(4000));
-        assert_eq!(v["n_new"], serde_json::json!(1000));
+        assert_eq!(v["n"], serde_json::json!(3600));
+        assert_eq!(v["n_new"], serde_json::json!(600));
         assert_eq!(v["method"], serde_json::json!("rls"));
     }
     assert_eq!(stdout(&one), stdout(&two).replace("/u2/", "/u1/"));
@@ -119,7 +120,7 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
         &[
             "update",
             s(&d.join("u1")),
-            s(&new),
+            s(&later),
             "-o",
             s(&d.join("u3")),
             "--forgetting",
@@ -130,7 +131,7 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(stdout(&o).lines().next().unwrap()).unwrap();
-    assert_eq!(v["n"], serde_json::json!(5000));
+    assert_eq!(v["n"], serde_json::json!(4000));
 }
 
 #[test]
@@ -284,4 +285,260 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     );
     assert!(!out.join("state.parquet").exists());
     assert!(!out.join("coef.parquet").exists());
+}
+
+/// Writes `src` (a CSV log with the time in its first column) to `name` in `dir`, with
+/// `by` seconds added to every time stamp.
+fn shift_time(dir: &Path, src: &Path, name: &str, by: f64) -> PathBuf {
+    let text: Vec<String> = std::fs::read_to_string(src)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                return l.to_string();
+            }
+            let (t, rest) = l.split_once(',').unwrap();
+            format!("{},{rest}", t.parse::<f64>().unwrap() + by)
+        })
+        .collect();
+    let p = dir.join(name);
+    std::fs::write(&p, text.join("\n") + "\n").unwrap();
+    p
+}
+
+/// `farma update` checks that the new log continues the fitted series in time: the
+/// fitted log itself, or a log whose clock restarts at 0, is refused (exit 2, nothing
+/// written; `--no-time-check` takes it with a warning); a gap between the two, or
+/// inside the new log (`--gaps split`), is bridged with a warning (as `farma fit`
+/// warns); the state records the last time stamp (`t_last_s`), also after an update,
+/// and a state file without that column (an older farma) is updated with a warning
+/// that nothing could be checked. All had been accepted silently (found by a helper's
+/// fuzzing).
+#[test]
+fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
+    use farma::estimator::update::{LastTime, read_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None); // t = 0 .. 199.9 s
+    let new = slice_log(d, "new.csv", 2000, 2500, None); // t = 200 .. 249.9 s
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let (states, _) = read_state(&model.join("state.parquet")).unwrap();
+    for st in &states {
+        assert!(
+            matches!(st.t_last, LastTime::At(t) if (t - 199.9).abs() < 1e-9),
+            "{:?}",
+            st.t_last
+        );
+    }
+    let update = |model: &Path, log: &Path, out: &str, extra: &[&str]| {
+        let out = d.join(out);
+        let mut args = vec!["update", s(model), s(log), "-o", s(&out)];
+        args.extend_from_slice(extra);
+        (farma(&args, d), out)
+    };
+    // the fitted log itself, and the new samples with a clock restarted at 0
+    let restarted = shift_time(d, &new, "restarted.csv", -200.0);
+    for (log, t0) in [(&old, "t = 0 s"), (&restarted, "t = 0 s")] {
+        let (o, out) = update(&model, log, "refused", &[]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(s(log))
+                && err.contains(t0)
+                && err.contains("not after the last sample")
+                && err.contains("t = 199.9 s")
+                && err.contains("--no-time-check"),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
+    let (o, out) = update(&model, &restarted, "restarted", &["--no-time-check"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("taken as its continuation"), "{err}");
+    assert!(out.join("state.parquet").exists());
+    // the continuation: no warning; its state records its own last time stamp
+    let (o, next) = update(&model, &new, "next", &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    let (states, _) = read_state(&next.join("state.parquet")).unwrap();
+    assert!(matches!(states[0].t_last, LastTime::At(t) if (t - 249.9).abs() < 1e-9));
+    // ... so the same samples cannot be added twice
+    let (o, _) = update(&next, &new, "twice", &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("t = 249.9 s"), "{}", stderr(&o));
+    // a gap of 10 samples between the fitted log and the new one: a warning
+    let gap = slice_log(d, "gap.csv", 2010, 2500, None);
+    let (o, _) = update(&model, &gap, "gap", &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("starts 1.1") && err.contains("reach across the gap"),
+        "{err}"
+    );
+    // a gap inside the new log, read with --gaps split: a warning, as fit gives
+    let split = d.join("split.csv");
+    let text: String = std::fs::read_to_string(&new)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(250..260).contains(i))
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    std::fs::write(&split, text).unwrap();
+    let (o, _) = update(&model, &split, "split", &["--gaps", "split"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("2 segments (gaps)"), "{err}");
+    // a state file without t_last_s (written before it): updated, with a warning
+    let table = farma::estimator::update::state_table(
+        &read_state(&model.join("state.parquet"))
+            .unwrap()
+            .0
+            .iter()
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let keep: Vec<usize> = (0..table.num_columns())
+        .filter(|&i| table.schema().field(i).name() != "t_last_s")
+        .collect();
+    let older = d.join("older");
+    std::fs::create_dir(&older).unwrap();
+    farma::output::write_parquet(
+        &older.join("state.parquet"),
+        &table.project(&keep).unwrap(),
+        &farma::estimator::update::state_metadata(&[("sample_rate_hz", "10".into())]),
+    )
+    .unwrap();
+    let (states, _) = read_state(&older.join("state.parquet")).unwrap();
+    assert_eq!(states[0].t_last, LastTime::NotRecorded);
+    let (o, _) = update(&older, &old, "older", &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("cannot check") && err.contains("no t_last_s column"),
+        "{err}"
+    );
+}
+
+/// A new log of one row with a time column is updated when the rate comes from
+/// `--rate` (one row has no interval to take it from); without it the message says to
+/// give it. It had failed as "too short" even with --rate, while the same row without
+/// a time column worked (found by a helper's fuzzing).
+#[test]
+fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
+    use farma::estimator::update::{LastTime, read_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let one = slice_log(d, "one.csv", 2000, 2001, None); // t = 200 s
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let out = d.join("out");
+    let o = farma(&["update", s(&model), s(&one), "-o", s(&out), "--json"], d);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("one.csv") && err.contains("a single row") && err.contains("--rate"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let o = farma(
+        &[
+            "update",
+            s(&model),
+            s(&one),
+            "-o",
+            s(&out),
+            "--rate",
+            "10",
+            "--json",
+        ],
+        d,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    let lines: Vec<serde_json::Value> = stdout(&o)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    for v in &lines {
+        assert_eq!(v["n_new"], serde_json::json!(1));
+        assert_eq!(v["n"], serde_json::json!(2001));
+    }
+    // the row's time stamp is kept: the next update must come after it
+    let (states, _) = read_state(&out.join("state.parquet")).unwrap();
+    assert!(matches!(states[0].t_last, LastTime::At(t) if (t - 200.0).abs() < 1e-9));
+    // the same as the row without its time column
+    let bare = d.join("bare.csv");
+    let text = std::fs::read_to_string(&one).unwrap();
+    let text: String = text
+        .lines()
+        .map(|l| format!("{}\n", l.split_once(',').unwrap().1))
+        .collect();
+    std::fs::write(&bare, text).unwrap();
+    let out2 = d.join("out2");
+    let o2 = farma(
+        &[
+            "update",
+            s(&model),
+            s(&bare),
+            "-o",
+            s(&out2),
+            "--rate",
+            "10",
+            "--json",
+        ],
+        d,
+    );
+    assert_eq!(o2.status.code(), Some(0), "{}", stderr(&o2));
+    assert_eq!(
+        stdout(&o).replace("/out/", "/X/"),
+        stdout(&o2).replace("/out2/", "/X/")
+    );
+}
+
+/// `farma update` on the folder of a 2-D fit says that updates support the 1-D index
+/// only; it had suggested `--save-state`, which a 2-D fit refuses (found by a helper's
+/// fuzzing).
+#[test]
+fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = d.join("model2d");
+    let o = farma(
+        &[
+            "fit",
+            s(&old),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "--index",
+            "lag,temp_c",
+            "--index-grid",
+            "5,5",
+            "-o",
+            s(&model),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = d.join("out");
+    let o = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("model2d")
+            && err.contains("2-D index (--index lag,temp_c)")
+            && err.contains("1-D index only"),
+        "{err}"
+    );
+    assert!(!err.contains("--save-state"), "{err}");
+    assert!(!out.exists());
 }

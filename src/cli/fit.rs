@@ -30,9 +30,10 @@ pub struct FitArgs {
     /// A fixed bandwidth instead of GCV.
     #[arg(long, value_name = "H")]
     pub bandwidth: Option<f64>,
-    /// Grid points over the central 98 % of the index values.
-    #[arg(long, default_value_t = 201, value_name = "N")]
-    pub grid: usize,
+    /// Grid points over the central 98 % of the index values [default: 201] (a 2-D
+    /// index takes --index-grid instead).
+    #[arg(long, value_name = "N")]
+    pub grid: Option<usize>,
     /// Computation of the local fits (a 2-D index, --index lag,CHANNEL, always takes
     /// the direct path: KD-tree gather per grid point).
     #[arg(long, value_enum, default_value_t = FitPath::Fast)]
@@ -73,6 +74,9 @@ pub struct FitArgs {
     #[arg(long)]
     pub json: bool,
 }
+
+/// The grid size of a 1-D fit when `--grid` is not given.
+pub const DEFAULT_GRID: usize = 201;
 
 /// The files `farma fit` (and `farma update`) can write into its output folder: a
 /// run removes those of an earlier run that it does not write.
@@ -178,9 +182,10 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     warn_gaps(&store, &a.log);
     let names = store.select_channels(&a.channel)?;
+    let grid = a.grid.unwrap_or(DEFAULT_GRID);
     if let Some(w) = direct_cost_warning(
         a.method,
-        a.grid,
+        grid,
         store.n_samples(),
         names.len(),
         a.bandwidth.is_some(),
@@ -191,7 +196,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         p,
         q,
         d,
-        grid_size: a.grid,
+        grid_size: grid,
         bandwidth: a.bandwidth,
         init: a.init,
         path: a.method,
@@ -242,9 +247,14 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         out.parquet("residuals.parquet", &residual_table(&refs)?, &md)?;
     }
     if a.save_state {
+        let t_last = super::update::last_time(&store)?;
         let states: Vec<_> = fits
             .par_iter()
-            .map(|(n, m)| Ok(update::state_from_fit(n, store.column(n)?, m)))
+            .map(|(n, m)| {
+                let mut s = update::state_from_fit(n, store.column(n)?, m);
+                s.t_last = t_last;
+                Ok(s)
+            })
             .collect::<Result<_>>()?;
         for s in states.iter().filter(|s| s.linear_start) {
             eprintln!(

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use arrow_array::{Float64Array, Int64Array, StringArray};
+use arrow_array::{BooleanArray, Float64Array, Int64Array, StringArray};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -83,6 +83,11 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             "--save-state: online updates (farma update) support the 1-D index only; drop --save-state or the second --index channel".into(),
         ));
     }
+    if let Some(g) = a.grid {
+        return Err(Error::Usage(format!(
+            "--grid {g}: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)"
+        )));
+    }
     if a.init == Init::Literal {
         return Err(Error::Usage(
             "--init literal: a 2-D index starts from the linear ARMA only".into(),
@@ -103,7 +108,32 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
     super::fit::warn_gaps(&store, &a.log);
-    let names = store.select_channels(&a.channel)?;
+    if store.meta().time_col.as_deref() == Some(index2.as_str()) {
+        return Err(Error::column(
+            &a.log,
+            format!(
+                "--index lag,{index2}: '{index2}' is the log's time column, not a channel (f_m that change with time are a trend: `farma prep` removes one); channels are: {}",
+                store.channel_names().join(", ")
+            ),
+        ));
+    }
+    let mut names = store.select_channels(&a.channel)?;
+    // `all` means every channel the index channel indexes: not the index itself (its
+    // model on itself at the same lag is refused below; name it to fit it)
+    if a.channel.trim() == "all" && names.contains(&index2) {
+        names.retain(|n| *n != index2);
+        if names.is_empty() {
+            return Err(Error::column(
+                &a.log,
+                format!(
+                    "--channel all --index lag,{index2}: the log's only channel is the index channel '{index2}'"
+                ),
+            ));
+        }
+        eprintln!(
+            "farma: note: --channel all --index lag,{index2}: '{index2}', the index channel, is not fitted (name it in --channel, with --index-lag, to fit it)"
+        );
+    }
     let z = store.column(&index2).map_err(|e| match e {
         Error::Column { path, msg } => Error::Column {
             path,
@@ -189,18 +219,22 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     out.parquet("params.parquet", &params_table2(&refs, &index2)?, &md)?;
     out.parquet("gcv.parquet", &gcv_table2(&refs)?, &md)?;
     if a.residuals {
-        let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
+        // in_fit: false for the first max(p,q,d,d2) samples (the warm-up, as in 1-D)
+        let (mut ch, mut t, mut r, mut in_fit) = (vec![], vec![], vec![], vec![]);
         for (n, m) in &fits {
+            let warm_up = m.n - m.n_rows;
             for (k, v) in m.residuals.iter().enumerate() {
                 ch.push(n.clone());
                 t.push(k as i64);
                 r.push(*v);
+                in_fit.push(k >= warm_up);
             }
         }
         let table = batch(vec![
             ("channel", Arc::new(StringArray::from(ch))),
             ("t", Arc::new(Int64Array::from(t))),
             ("residual", Arc::new(Float64Array::from(r))),
+            ("in_fit", Arc::new(BooleanArray::from(in_fit))),
         ])?;
         out.parquet("residuals.parquet", &table, &md)?;
     }

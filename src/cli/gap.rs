@@ -58,12 +58,13 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.real, progress)?;
     let x = store.column(&a.channel)?;
     let temperature_c = match &spec.temperature_channel {
-        Some(t) => Some(store.column(t).map_err(|_| {
-            Error::Usage(format!(
+        Some(t) => Some(store.column(t).map_err(|e| match e {
+            Error::Column { .. } => Error::Usage(format!(
                 "{}: the spec's temperature_channel '{t}' is not a column of the real log {}",
                 a.sim.display(),
                 a.real.display()
-            ))
+            )),
+            other => other,
         })?),
         None => None,
     };

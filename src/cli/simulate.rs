@@ -108,6 +108,8 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
                     }
                     Some((name.as_str(), &t[..n_samples]))
                 }
+                // a temperature column with NaN: the same error as for a channel
+                Err(e @ Error::NonFinite { .. }) => return Err(e),
                 Err(_) if needed => {
                     return Err(Error::Usage(format!(
                         "{}: no channel '{name}', the spec's temperature_channel; channels are: {} (hint: set the spec's temperature_channel to the log's temperature column)",

@@ -13,8 +13,8 @@ use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
-    Updated, read_state, state_metadata, state_table, update, update_params_table,
-    update_residual_table,
+    ChannelState, LastTime, Updated, read_state, state_metadata, state_table, update,
+    update_params_table, update_residual_table,
 };
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -37,11 +37,123 @@ pub struct UpdateArgs {
     /// Also write residuals.parquet (the new samples' residuals).
     #[arg(long)]
     pub residuals: bool,
+    /// Do not refuse a NEW_LOG whose time stamps do not come after the fitted log's
+    /// last one (a log whose clock restarts at 0): it is taken as the continuation.
+    #[arg(long)]
+    pub no_time_check: bool,
     #[command(flatten)]
     pub log_args: LogArgs,
     /// One JSON object per channel on stdout (JSON Lines).
     #[arg(long)]
     pub json: bool,
+}
+
+/// The `index` of a 2-D fit's params.parquet metadata (`lag,CHANNEL`), if the model
+/// folder holds one (None for a 1-D fit, or when there is no readable params.parquet).
+fn model_index2(dir: &std::path::Path) -> Option<String> {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let file = std::fs::File::open(dir.join("params.parquet")).ok()?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).ok()?;
+    let kv = builder.metadata().file_metadata().key_value_metadata()?;
+    kv.iter()
+        .find(|e| e.key == "index2")
+        .and(kv.iter().find(|e| e.key == "index"))
+        .and_then(|e| e.value.clone())
+}
+
+/// Seconds for a message: six decimals, trailing zeros dropped (1.0999999999999943 is
+/// "1.1").
+fn secs(t: f64) -> String {
+    let s = format!("{t:.6}");
+    let s = s.trim_end_matches('0');
+    s.strip_suffix('.').unwrap_or(s).to_string()
+}
+
+/// The time of a log's last sample, from its time column (the state's `t_last_s`).
+pub(super) fn last_time(store: &crate::store::Store) -> Result<LastTime> {
+    Ok(match &store.meta().time_col {
+        Some(tc) => match store.column(tc)?.last() {
+            Some(t) => LastTime::At(*t),
+            None => LastTime::NoTimeColumn,
+        },
+        None => LastTime::NoTimeColumn,
+    })
+}
+
+/// Checks that `store` (NEW_LOG) continues the fitted series in time: its first time
+/// stamp after the state's last one (an error, exit 2, unless `--no-time-check`),
+/// about one sample interval after it (else a warning: the update bridges the gap);
+/// a warning when there is nothing to check against.
+fn check_continuation(
+    a: &UpdateArgs,
+    states: &[ChannelState],
+    store: &crate::store::Store,
+) -> Result<()> {
+    let state_path = a.model_dir.join(STATE_FILE);
+    let new = a.new_log.display();
+    let cannot = |why: String| {
+        eprintln!(
+            "farma: warning: cannot check that {new} continues the fitted log in time: {why}"
+        );
+    };
+    if states.iter().any(|s| s.t_last == LastTime::NotRecorded) {
+        cannot(format!(
+            "{} has no t_last_s column (written by an older farma; a fit or update now records it)",
+            state_path.display()
+        ));
+        return Ok(());
+    }
+    let t_last = states
+        .iter()
+        .filter_map(|s| match s.t_last {
+            LastTime::At(t) => Some(t),
+            _ => None,
+        })
+        .reduce(f64::max);
+    let Some(t_last) = t_last else {
+        cannot("the fitted log had no time column".into());
+        return Ok(());
+    };
+    let LastTime::At(_) = last_time(store)? else {
+        cannot(format!(
+            "it has no time column (the fitted log's last sample is at t = {} s)",
+            secs(t_last)
+        ));
+        return Ok(());
+    };
+    let tc = store.meta().time_col.as_deref().unwrap_or_default();
+    let t0 = store.column(tc)?[0];
+    if t0 <= t_last {
+        if a.no_time_check {
+            eprintln!(
+                "farma: warning: {new} starts at t = {} s, not after the fitted log's last sample (t = {} s); taken as its continuation (--no-time-check)",
+                secs(t0),
+                secs(t_last)
+            );
+            return Ok(());
+        }
+        return Err(Error::Timestamps {
+            path: a.new_log.clone(),
+            msg: format!(
+                "starts at t = {} s, not after the last sample the model in {} has seen (t = {} s): an update continues the fitted series, so the new log must come after it in time (the fitted log itself, or one that overlaps it?); for a log whose clock restarts, --no-time-check",
+                secs(t0),
+                a.model_dir.display(),
+                secs(t_last)
+            ),
+        });
+    }
+    let dt = 1.0 / store.sample_rate_hz();
+    let gap = t0 - t_last;
+    if (gap - dt).abs() > a.log_args.time_tol * dt {
+        eprintln!(
+            "farma: warning: {new} starts {} s after the last sample the model has seen (t = {} s), {:.2} sample intervals of {} s: updated as one series, the lags x_(t-m) and residuals of its first samples reach across the gap",
+            secs(gap),
+            secs(t_last),
+            gap / dt,
+            secs(dt)
+        );
+    }
+    Ok(())
 }
 
 pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
@@ -60,6 +172,13 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     }
     let state_path = a.model_dir.join(STATE_FILE);
     if !state_path.is_file() {
+        // a 2-D fit writes no state, and refuses --save-state
+        if let Some(index) = model_index2(&a.model_dir) {
+            return Err(Error::Usage(format!(
+                "{}: no {STATE_FILE}: the model was fitted with a 2-D index (--index {index}), and online updates support the 1-D index only; fit the concatenated log instead",
+                a.model_dir.display()
+            )));
+        }
         return Err(Error::Usage(format!(
             "{}: no {STATE_FILE} in the model folder: run farma fit with --save-state",
             a.model_dir.display()
@@ -86,8 +205,11 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     for s in &states {
         store.column(&s.channel)?;
     }
+    check_continuation(&a, &states, &store)?;
+    super::fit::warn_gaps(&store, &a.new_log);
+    let t_last = last_time(&store)?;
     let t0 = Instant::now();
-    let ups: Vec<(String, Updated)> = states
+    let mut ups: Vec<(String, Updated)> = states
         .par_iter()
         .map(|s| {
             let x = store.column(&s.channel)?;
@@ -102,6 +224,9 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         })
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();
+    for (_, u) in &mut ups {
+        u.state.t_last = t_last;
+    }
     let mut out = OutputSet::new(&a.output)?;
     let items: Vec<(String, &Updated)> = ups.iter().map(|(n, u)| (n.clone(), u)).collect();
     let models: Vec<(String, &FittedFarma)> =

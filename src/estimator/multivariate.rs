@@ -26,7 +26,8 @@
 //!   samples), `singular`) is filled with the f of the nearest grid point with a fit
 //!   (distance in scaled units, ties to the lower index) and flagged.
 //! - The alternation (ARMA start, f-step, Gauss-Newton b-step, residual recursion,
-//!   GCV on the first f-step and again after convergence) is the one of
+//!   GCV on the first f-step and again each time the RSS settles, at most twice; a
+//!   new pair continues the alternation) is the one of
 //!   [`super::fit`](fn@super::fit), written here for the 2-D smoother: fit.rs's loop is built around
 //!   its 1-D smoother and is being restructured for speed; `ma_cls` and `fit_arma`
 //!   are shared. Index values before the first sample: x is 0 (as in 1-D), z is z_0.
@@ -761,6 +762,9 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let mut ladder_extended = false;
     let mut filled = vec![false; gl];
     let (mut iterations, mut converged, mut reselections) = (0, false, 0);
+    // the bandwidth pairs the alternation has run at, in order (GCV's choices)
+    let mut visited: Vec<(f64, f64)> = Vec::new();
+    let mut stopped_at_reselection = false;
     let mut need_gcv = params.bandwidth.is_none();
     while iterations < prm.max_iter {
         iterations += 1;
@@ -815,11 +819,27 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
                 };
                 let (rows, _, best, ext, nt) = gcv_select2(&sm, half);
                 reselections += 1;
-                if rows[best].bandwidth != h {
+                if rows[best].bandwidth != h && iterations == prm.max_iter {
+                    // no alternation left to fit at the new pair: the model stays at h
+                    // (its coefficients are the f-step's at h), not converged
                     notes.push(format!(
-                        "bandwidths re-selected after convergence: ({:.6e}, {:.6e}) -> ({:.6e}, {:.6e})",
+                        "alternation {iterations}: the RSS settled at bandwidths ({:.6e}, {:.6e}); GCV at those residuals chose ({:.6e}, {:.6e}), but --max-iter {} ends the alternation here: NOT converged, the model is at the bandwidths it settled at",
+                        h.0, h.1, rows[best].bandwidth.0, rows[best].bandwidth.1, prm.max_iter
+                    ));
+                    stopped_at_reselection = true;
+                    break;
+                }
+                if rows[best].bandwidth != h {
+                    // the alternation settled at h, but has not converged: it goes on
+                    // at the new pair, and may not settle again within --max-iter
+                    notes.push(format!(
+                        "alternation {iterations}: the RSS settled at bandwidths ({:.6e}, {:.6e}); GCV at those residuals chose ({:.6e}, {:.6e}), and the alternation went on at them",
                         h.0, h.1, rows[best].bandwidth.0, rows[best].bandwidth.1
                     ));
+                    if visited.is_empty() {
+                        visited.push(h);
+                    }
+                    visited.push(rows[best].bandwidth);
                     ladder_extended |= ext;
                     notes.extend(nt);
                     h = rows[best].bandwidth;
@@ -831,6 +851,24 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
             converged = true;
             break;
         }
+    }
+    if !converged && !stopped_at_reselection && !visited.is_empty() {
+        let fmt = |h: (f64, f64)| format!("({:.6e}, {:.6e})", h.0, h.1);
+        let swing = visited[..visited.len() - 1].contains(&h);
+        notes.push(format!(
+            "NOT converged: after {} bandwidth re-selection(s) the alternation did not settle again within --max-iter {} alternations; the model is at bandwidths {}, GCV's last choice{}",
+            visited.len() - 1,
+            prm.max_iter,
+            fmt(h),
+            if swing {
+                format!(
+                    "; GCV swung back and forth ({}): fix the pair with --bandwidth H1 --bandwidth2 H2, or raise --max-iter",
+                    visited.iter().map(|v| fmt(*v)).collect::<Vec<_>>().join(" -> ")
+                )
+            } else {
+                String::new()
+            }
+        ));
     }
     let prob = Vc2Problem {
         e: &e,

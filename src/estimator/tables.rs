@@ -175,17 +175,26 @@ pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
     ])
 }
 
-/// Residuals: channel, t (sample index), residual.
+/// Residuals: channel, t (sample index), residual, in_fit (false for the first
+/// max(p,q,d) samples, whose lags reach before the series: the recursion's warm-up,
+/// not residuals of the model, and not in its RSS).
 pub fn residual_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
-    let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
+    let (mut ch, mut t, mut r, mut in_fit) = (vec![], vec![], vec![], vec![]);
     for (name, m) in models {
+        let warm_up = m.n - m.n_rows;
         for (k, v) in m.residuals.iter().enumerate() {
             ch.push(name.clone());
             t.push(k as i64);
             r.push(*v);
+            in_fit.push(k >= warm_up);
         }
     }
-    batch(vec![("channel", s(ch)), ("t", i(t)), ("residual", f(r))])
+    batch(vec![
+        ("channel", s(ch)),
+        ("t", i(t)),
+        ("residual", f(r)),
+        ("in_fit", Arc::new(BooleanArray::from(in_fit))),
+    ])
 }
 
 /// The `--json` object of one channel (contract keys plus more).

@@ -75,6 +75,19 @@ use crate::output::batch;
 /// Version of the state file layout (file metadata `farma_state_version`).
 pub const STATE_VERSION: &str = "1";
 
+/// The time of the last sample the state has seen (column `t_last_s` of the state
+/// file): what `farma update` checks a new log against, so that it continues the
+/// fitted series in time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LastTime {
+    /// The state file has no `t_last_s` column (written before it): not known.
+    NotRecorded,
+    /// The log had no time column (its rate came from metadata or --rate): a null.
+    NoTimeColumn,
+    /// Seconds, from the log's time column.
+    At(f64),
+}
+
 /// What recursive least squares needs to continue a fitted channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChannelState {
@@ -118,6 +131,10 @@ pub struct ChannelState {
     /// Column `linear_start` of the state file (absent in files written before it:
     /// false).
     pub linear_start: bool,
+    /// The time of the last sample seen (fit plus updates); [`state_from_fit`] and
+    /// [`update`] leave it as [`LastTime::NoTimeColumn`] and as it was, the caller
+    /// sets it from the log's time column.
+    pub t_last: LastTime,
 }
 
 impl ChannelState {
@@ -169,6 +186,11 @@ impl ChannelState {
                 "{what} has the wrong length for p = {p}, q = {q}, G = {g}"
             ))
         };
+        if let LastTime::At(t) = self.t_last
+            && !t.is_finite()
+        {
+            return Err(format!("field 't_last_s': {t} is not a finite time"));
+        }
         if p == 0 || self.d == 0 || g < 2 {
             return Err(format!(
                 "p = {p}, d = {}, G = {g}: not a fitted model",
@@ -531,6 +553,7 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
         rows: (x.len() - lag) as f64,
         forgetting: 1.0,
         linear_start: m.linear_start,
+        t_last: LastTime::NoTimeColumn,
     };
     for t in lag..x.len() {
         for i in 0..q {
@@ -1099,6 +1122,18 @@ pub fn state_table(states: &[&ChannelState]) -> Result<RecordBatch> {
                 states.iter().map(|s| s.linear_start).collect::<Vec<_>>(),
             )),
         ),
+        (
+            "t_last_s",
+            Arc::new(Float64Array::from(
+                states
+                    .iter()
+                    .map(|s| match s.t_last {
+                        LastTime::At(t) => Some(t),
+                        LastTime::NotRecorded | LastTime::NoTimeColumn => None,
+                    })
+                    .collect::<Vec<_>>(),
+            )),
+        ),
         ("n_support", Arc::new(nsup.finish())),
     ];
     for (name, mut l) in names.iter().zip(lists) {
@@ -1196,6 +1231,15 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                     .ok_or_else(|| wrong("linear_start"))?,
             ),
         };
+        // absent in state files written before it: not recorded; null: no time column
+        let t_last = match b.column_by_name("t_last_s") {
+            None => None,
+            Some(c) => Some(
+                c.as_any()
+                    .downcast_ref::<Float64Array>()
+                    .ok_or_else(|| wrong("t_last_s"))?,
+            ),
+        };
         // a list field with a missing value (its own or one of its entries)
         let null_in = |name: &str, row: usize| {
             Error::format(
@@ -1280,6 +1324,11 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
                     Some(c) if c.is_null(row) => return Err(null_in("linear_start", row)),
                     Some(c) => c.value(row),
                 },
+                t_last: match t_last {
+                    None => LastTime::NotRecorded,
+                    Some(c) if c.is_null(row) => LastTime::NoTimeColumn,
+                    Some(c) => LastTime::At(c.value(row)),
+                },
             };
             s.check()
                 .and_then(|()| s.check_invertible())
@@ -1341,7 +1390,9 @@ pub fn update_params_table(items: &[(String, &Updated)]) -> Result<RecordBatch> 
     batch(cols)
 }
 
-/// Residuals of the new samples: channel, t (index in the whole series), residual.
+/// Residuals of the new samples: channel, t (index in the whole series), residual,
+/// in_fit (true: every new sample is a residual of the model, its lags in the state;
+/// the column of `farma fit`'s table, whose warm-up rows are false).
 pub fn update_residual_table(items: &[(String, &Updated)]) -> Result<RecordBatch> {
     let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
     for (name, u) in items {
@@ -1351,9 +1402,11 @@ pub fn update_residual_table(items: &[(String, &Updated)]) -> Result<RecordBatch
             r.push(*v);
         }
     }
+    let in_fit = vec![true; r.len()];
     batch(vec![
         ("channel", Arc::new(StringArray::from(ch))),
         ("t", Arc::new(Int64Array::from(t))),
         ("residual", Arc::new(Float64Array::from(r))),
+        ("in_fit", Arc::new(BooleanArray::from(in_fit))),
     ])
 }

@@ -1,9 +1,12 @@
 //! Where converted stores of CSV / Parquet / foreign Arrow logs are kept between runs.
 //!
 //! The file name is a 64-bit FNV-1a hash of the input's canonical path, size,
-//! modification time, the read options and the store format version, so an edited
-//! input or other options give a new entry. Entries are written atomically, so
-//! concurrent jobs never read half a store.
+//! modification time, on Unix also its device, inode and status-change time (ctime),
+//! the read options and the store format version, so an edited input or other options
+//! give a new entry. Size and mtime alone miss an edit that keeps both (`cp -p`, `rsync
+//! -t`, `touch -r` after an edit of the same length): such a copy writes into the file
+//! (a new ctime, which no one can set back) or replaces it (a new inode). Entries are
+//! written atomically, so concurrent jobs never read half a store.
 
 use std::path::{Path, PathBuf};
 
@@ -34,6 +37,28 @@ fn default_dir() -> PathBuf {
     std::env::temp_dir().join("farma-cache")
 }
 
+/// What changes with every write to a file besides its size and mtime: on Unix its
+/// device and inode (a file replaced by a rename) and its status-change time (a write
+/// into it, or a changed mtime: the kernel sets ctime, no user can set it back).
+#[cfg(unix)]
+fn file_version(path: &Path) -> Result<String> {
+    use std::os::unix::fs::MetadataExt;
+    let md = std::fs::metadata(path).map_err(|e| Error::input_io(path, e))?;
+    Ok(format!(
+        "{}:{}:{}.{:09}",
+        md.dev(),
+        md.ino(),
+        md.ctime(),
+        md.ctime_nsec()
+    ))
+}
+
+/// Elsewhere only size and modification time identify the version of a file.
+#[cfg(not(unix))]
+fn file_version(_path: &Path) -> Result<String> {
+    Ok(String::new())
+}
+
 /// The cached store for `input` under `opts`, or `None` when caching is off.
 pub(crate) fn store_path(
     input: &Path,
@@ -51,8 +76,9 @@ pub(crate) fn store_path(
         .map_err(|e| Error::input_io(input, e))?;
     let (size, mtime) = source_identity(input)?;
     let key = format!(
-        "{}\0{size}\0{mtime}\0{opts:?}\0{STORE_FORMAT_VERSION}\0{}",
+        "{}\0{size}\0{mtime}\0{}\0{opts:?}\0{STORE_FORMAT_VERSION}\0{}",
         canon.display(),
+        file_version(input)?,
         env!("CARGO_PKG_VERSION")
     );
     let stem = input

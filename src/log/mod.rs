@@ -21,7 +21,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub use csv::Delimiter;
 
 use crate::error::{Error, Result};
-use crate::store::{Repair, STORE_FORMAT_VERSION, Segment, Store, StoreMeta, StoreWriter};
+use crate::store::{
+    NonFiniteColumn, Repair, STORE_FORMAT_VERSION, Segment, Store, StoreMeta, StoreWriter,
+};
 
 /// Names recognised as the time column (seconds) when `--time-col` is not given.
 pub const TIME_COLUMN_NAMES: [&str; 4] = ["time", "time_s", "t", "timestamp"];
@@ -240,12 +242,34 @@ pub fn detect_format(path: &Path) -> Result<Format> {
 }
 
 /// Converts `input` into a store at `output` (written to a temporary file, then
-/// renamed). Returns the store's metadata.
+/// renamed). Returns the store's metadata. Under `--nan reject` a channel with
+/// non-finite values is an error (the whole file is converted, for any reader).
 pub fn ingest(
     input: &Path,
     output: &Path,
     opts: &LogOptions,
     progress: &Progress,
+) -> Result<StoreMeta> {
+    convert(input, output, opts, progress, NanCheck::Now)
+}
+
+/// When `--nan reject` checks a channel's values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum NanCheck {
+    /// At conversion: any channel with non-finite values is an error (`farma ingest`).
+    Now,
+    /// When a command reads the channel ([`Store::column`]): the values stay, listed in
+    /// the store's `nonfinite`, so a bad column that a command does not use does not
+    /// block it (the cached conversions of [`open_log`]).
+    OnRead,
+}
+
+fn convert(
+    input: &Path,
+    output: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+    nan_check: NanCheck,
 ) -> Result<StoreMeta> {
     opts.validate()?;
     let parsed = match detect_format(input)? {
@@ -253,11 +277,17 @@ pub fn ingest(
         Format::Parquet => columnar::read_parquet(input, output, opts, progress)?,
         Format::Arrow => columnar::read_arrow(input, output, opts, progress)?,
     };
-    finalize(parsed, input, output, opts)
+    finalize(parsed, input, output, opts, nan_check)
 }
 
 /// Time base, NaN policy, gap policy, metadata; then renames the store into place.
-fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> Result<StoreMeta> {
+fn finalize(
+    parsed: Parsed,
+    input: &Path,
+    output: &Path,
+    opts: &LogOptions,
+    nan_check: NanCheck,
+) -> Result<StoreMeta> {
     let Parsed {
         mut writer,
         format,
@@ -273,6 +303,7 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
         .as_ref()
         .map(|t| names.iter().position(|n| n == t).expect("time column kept"));
     let mut repairs = Vec::new();
+    let mut left_nonfinite = Vec::new();
 
     // Non-finite values: the time column never; channels by policy.
     if let Some(ti) = time_idx
@@ -304,12 +335,20 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
             .collect::<Vec<_>>()
             .join(", ");
         match opts.nan_policy {
+            NanPolicy::Reject if nan_check == NanCheck::OnRead => {
+                left_nonfinite.push(NonFiniteColumn {
+                    column: names[ci].clone(),
+                    count: nf.count,
+                    first,
+                });
+            }
             NanPolicy::Reject => {
                 return Err(Error::NonFinite {
                     path: path.clone(),
                     column: names[ci].clone(),
                     count: nf.count,
                     first,
+                    hint: "use --nan interpolate to replace them, or --columns to convert only the columns you need",
                 });
             }
             NanPolicy::Interpolate => {
@@ -345,18 +384,36 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
 
     // Time base.
     let mut segments = vec![];
-    let (rate_hz, time_source) = if let Some(ti) = time_idx {
-        if n_rows < 2 {
-            return Err(Error::TooShort {
-                what: format!(
-                    "{}: sample interval from time column '{}'",
-                    path.display(),
-                    names[ti]
-                ),
-                need: 2,
-                have: n_rows as u64,
-            });
+    let (rate_hz, time_source) = if let Some(ti) = time_idx
+        && n_rows < 2
+    {
+        // one row has no sample interval: the rate from the file's metadata or
+        // --rate (as without a time column), the time of the row from the column
+        let rate = rate_meta_hz
+            .map(|r| (r, "metadata"))
+            .or(opts.rate_hz.map(|r| (r, "flag")));
+        match rate {
+            Some((r, source)) if n_rows == 1 => {
+                segments.push(Segment {
+                    start: 0,
+                    len: 1,
+                    t0_s: writer.column(ti)[0],
+                });
+                (r, source.to_string())
+            }
+            _ => {
+                return Err(Error::TooShort {
+                    what: format!(
+                        "{}: sample interval from time column '{}' (a single row has none: give the rate with --rate HZ)",
+                        path.display(),
+                        names[ti]
+                    ),
+                    need: 2,
+                    have: n_rows as u64,
+                });
+            }
         }
+    } else if let Some(ti) = time_idx {
         let t = writer.column(ti);
         let t0_s = t[0];
         let check = timebase::check_times(t, opts.time_tol)
@@ -459,6 +516,7 @@ fn finalize(parsed: Parsed, input: &Path, output: &Path, opts: &LogOptions) -> R
         source_format: format.to_string(),
         source_size,
         source_mtime_ns,
+        nonfinite: left_nonfinite,
     };
     writer.finish(&meta)?;
     Ok(meta)
@@ -508,14 +566,14 @@ pub fn open_log(
             {
                 return Ok(s.with_label(path));
             }
-            ingest(path, &cached, opts, progress)?;
+            convert(path, &cached, opts, progress, NanCheck::OnRead)?;
             Ok(Store::open(&cached)?.with_label(path))
         }
         None => {
             let dir =
                 tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
             let tmp = dir.path().join("log.arrow");
-            ingest(path, &tmp, opts, progress)?;
+            convert(path, &tmp, opts, progress, NanCheck::OnRead)?;
             // The map keeps the data alive after the temporary folder is removed.
             Ok(Store::open(&tmp)?.with_label(path))
         }

@@ -195,6 +195,7 @@ fn write_store(
         source_format: "simulate".into(),
         source_size: 0,
         source_mtime_ns: 0,
+        nonfinite: vec![],
     };
     w.finish(&meta)
 }

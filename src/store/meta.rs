@@ -6,8 +6,9 @@ use serde::{Deserialize, Serialize};
 pub const META_KEY: &str = "farma.meta";
 /// Schema-metadata key holding the sample rate in Hz (plain number, for any Arrow tool).
 pub const RATE_KEY: &str = "sample_rate_hz";
-/// Version of the store layout and metadata; bumped when either changes.
-pub const STORE_FORMAT_VERSION: u32 = 1;
+/// Version of the store layout and metadata; bumped when either changes (2: the
+/// `nonfinite` list).
+pub const STORE_FORMAT_VERSION: u32 = 2;
 
 /// A run of rows sampled uniformly at the store's rate.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -33,6 +34,18 @@ pub struct Repair {
     pub detail: String,
 }
 
+/// A channel that holds NaN, infinite or missing values, kept as they are: a cached
+/// conversion under `--nan reject` checks only the columns a command uses, so a bad
+/// column that is not used does not block the others; reading this one is an error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NonFiniteColumn {
+    pub column: String,
+    /// Number of non-finite or missing values.
+    pub count: u64,
+    /// The first positions in the source ("line 12, line 40").
+    pub first: String,
+}
+
 /// Everything about a store that is not a channel value.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StoreMeta {
@@ -55,4 +68,8 @@ pub struct StoreMeta {
     /// Size in bytes and modification time (ns since the epoch) of the source.
     pub source_size: u64,
     pub source_mtime_ns: u128,
+    /// Channels whose non-finite values were left in place (see [`NonFiniteColumn`]);
+    /// absent (empty) in stores written before format version 2.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub nonfinite: Vec<NonFiniteColumn>,
 }

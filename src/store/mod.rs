@@ -14,6 +14,8 @@ mod meta;
 mod reader;
 mod writer;
 
-pub use meta::{META_KEY, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment, StoreMeta};
+pub use meta::{
+    META_KEY, NonFiniteColumn, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment, StoreMeta,
+};
 pub use reader::Store;
 pub use writer::{StoreWriter, output_permissions};

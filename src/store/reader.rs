@@ -165,8 +165,19 @@ impl Store {
             .collect()
     }
 
-    /// The values of a column (channel or time column), borrowed from the map.
+    /// The values of a column (channel or time column), borrowed from the map. A
+    /// channel that holds non-finite values (left in place by a conversion under
+    /// `--nan reject`, see [`super::NonFiniteColumn`]) is an [`Error::NonFinite`].
     pub fn column(&self, name: &str) -> Result<&[f64]> {
+        if let Some(nf) = self.meta.nonfinite.iter().find(|c| c.column == name) {
+            return Err(Error::NonFinite {
+                path: self.label.clone(),
+                column: nf.column.clone(),
+                count: nf.count,
+                first: nf.first.clone(),
+                hint: "use --nan interpolate to replace them",
+            });
+        }
         let idx = self.batch.schema_ref().index_of(name).map_err(|_| {
             Error::column(
                 &self.label,
