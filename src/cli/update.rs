@@ -114,15 +114,17 @@ fn check_continuation(
         cannot("the fitted log had no time column".into());
         return Ok(());
     };
-    let LastTime::At(_) = last_time(store)? else {
+    let times = match &store.meta().time_col {
+        Some(tc) => store.column(tc)?,
+        None => &[],
+    };
+    let Some(&t0) = times.first() else {
         cannot(format!(
             "it has no time column (the fitted log's last sample is at t = {} s)",
             secs(t_last)
         ));
         return Ok(());
     };
-    let tc = store.meta().time_col.as_deref().unwrap_or_default();
-    let t0 = store.column(tc)?[0];
     if t0 <= t_last {
         if a.no_time_check {
             eprintln!(
