@@ -47,7 +47,7 @@ pub enum Error {
         /// Human-readable list of the first positions ("line 12, line 40").
         first: String,
         /// What to do about it.
-        hint: &'static str,
+        hint: String,
     },
 
     /// The time column is not strictly increasing or not uniformly sampled.

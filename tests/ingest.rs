@@ -381,6 +381,62 @@ fn info_json_has_the_contract_keys_and_correct_statistics() {
 }
 
 #[test]
+fn info_describes_a_channel_with_missing_values_instead_of_refusing_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    // `aux` empty at data row 4 (line 6) and NaN at row 9 (line 11)
+    let mut text = String::from("time_s,gyro,aux\n");
+    let mut kept = Vec::new();
+    for i in 0..40 {
+        let aux = match i {
+            4 => String::new(),
+            9 => "NaN".into(),
+            _ => {
+                let v = (i * i % 13) as f64 * 0.25;
+                kept.push(v);
+                format!("{v}")
+            }
+        };
+        text += &format!("{},{},{aux}\n", i as f64 * 0.1, (i % 5) as f64);
+    }
+    let log = dir.path().join("holes.csv");
+    std::fs::write(&log, text).unwrap();
+    let l = log.to_str().unwrap();
+    let o = farma(&["info", l, "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let aux = &v["channels"][1];
+    assert_eq!(aux["name"], "aux");
+    assert_eq!(aux["n"].as_u64(), Some(38));
+    assert_eq!(aux["n_nonfinite"].as_u64(), Some(2));
+    let mean = kept.iter().sum::<f64>() / 38.0;
+    assert!(
+        (aux["mean"].as_f64().unwrap() - mean).abs() < 1e-12,
+        "{aux}"
+    );
+    assert_eq!(aux["max"].as_f64(), Some(3.0));
+    assert_eq!(v["channels"][0]["n_nonfinite"].as_u64(), Some(0));
+    assert_eq!(v["nonfinite"][0]["column"], "aux");
+    assert_eq!(v["nonfinite"][0]["first"], "line 6, line 11");
+    // the text names the column, its count and lines
+    let o = farma(&["info", l], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("nonfinite aux x2: first at line 6, line 11"),
+        "{out}"
+    );
+    // a command that reads every channel is refused, naming the ones it could take
+    let o = farma(&["adev", l, "--channel", "all", "--json"], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("column 'aux'") && err.contains("--channel gyro takes the others"),
+        "{err}"
+    );
+    assert!(stdout(&o).is_empty());
+}
+
+#[test]
 fn quoted_names_and_cells_follow_rfc4180() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("quoted.csv");

@@ -1,4 +1,6 @@
-//! `farma info LOG`: what a log holds.
+//! `farma info LOG`: what a log holds. A channel with non-finite or missing values is
+//! described, not refused: its statistics are over its finite values, and the count
+//! and first lines of the others are listed.
 
 use std::path::PathBuf;
 
@@ -27,7 +29,7 @@ pub struct InfoArgs {
 
 pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
-    let names = store.select_channels(&a.channel)?;
+    let names = store.select_channels_with_nonfinite(&a.channel)?;
     if store.n_samples() < 2 {
         return Err(Error::TooShort {
             what: format!("{}: info (standard deviation)", a.log.display()),
@@ -37,9 +39,10 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
     }
     let summaries: Vec<ChannelSummary> = names
         .par_iter()
-        .map(|n| Ok(summarize(n, store.column(n)?)))
+        .map(|n| Ok(summarize(n, store.column_with_nonfinite(n)?)))
         .collect::<Result<_>>()?;
     let meta = store.meta();
+    let nonfinite: Vec<_> = names.iter().filter_map(|n| store.nonfinite(n)).collect();
     if a.json {
         let v = json!({
             "log": a.log.display().to_string(),
@@ -53,6 +56,7 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
             "segments": meta.segments,
             "gaps": meta.segments.len().saturating_sub(1),
             "repairs": meta.repairs,
+            "nonfinite": nonfinite,
         });
         outln!("{v}");
         return Ok(());
@@ -79,6 +83,14 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
             r.channel,
             r.count,
             r.detail
+        );
+    }
+    for c in &nonfinite {
+        outln!(
+            "nonfinite {} x{}: first at {} (left out of its statistics; commands that read it refuse it: --nan interpolate replaces them)",
+            c.column,
+            c.count,
+            c.first
         );
     }
     if meta.segments.len() > 1 {

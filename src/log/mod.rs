@@ -348,7 +348,7 @@ fn finalize(
                     column: names[ci].clone(),
                     count: nf.count,
                     first,
-                    hint: "use --nan interpolate to replace them, or --columns to convert only the columns you need",
+                    hint: "use --nan interpolate to replace them, or --columns to convert only the columns you need".into(),
                 });
             }
             NanPolicy::Interpolate => {

@@ -1,5 +1,9 @@
 //! Per-channel summary: count, mean, sample standard deviation, min, max.
 //!
+//! Non-finite values (NaN, infinities: a channel that holds missing values, see
+//! `Store::nonfinite`) are left out and counted apart; every statistic is over the
+//! finite values.
+//!
 //! Formula: the series is cut into fixed blocks of 65,536 values; each block's mean and
 //! sum of squared deviations are computed in two passes over the block, and blocks are
 //! combined in order with the pairwise update of Chan, Golub and LeVeque (1979),
@@ -15,7 +19,10 @@ const BLOCK: usize = 1 << 16;
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ChannelSummary {
     pub name: String,
+    /// Number of finite values, those the statistics are over.
     pub n: u64,
+    /// Number of non-finite values (NaN, infinities), left out.
+    pub n_nonfinite: u64,
     pub mean: f64,
     /// Sample standard deviation (divisor n - 1); NaN when n < 2.
     pub std: f64,
@@ -33,15 +40,16 @@ struct Moments {
 }
 
 impl Moments {
+    /// The moments of the block's finite values (n = 0, mean and min/max NaN or
+    /// infinite when it has none).
     fn of_block(x: &[f64]) -> Moments {
-        let n = x.len() as f64;
-        let mean = x.iter().sum::<f64>() / n;
-        let m2 = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>();
-        let (min, max) = x
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(*v), b.max(*v))
-            });
+        let finite = || x.iter().copied().filter(|v| v.is_finite());
+        let n = finite().count() as f64;
+        let mean = finite().sum::<f64>() / n;
+        let m2 = finite().map(|v| (v - mean) * (v - mean)).sum::<f64>();
+        let (min, max) = finite().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
         Moments {
             n,
             mean,
@@ -52,6 +60,13 @@ impl Moments {
     }
 
     fn merge(self, o: Moments) -> Moments {
+        // a block without finite values adds nothing (its mean is NaN)
+        if o.n == 0.0 {
+            return self;
+        }
+        if self.n == 0.0 {
+            return o;
+        }
         let n = self.n + o.n;
         let delta = o.mean - self.mean;
         Moments {
@@ -64,7 +79,7 @@ impl Moments {
     }
 }
 
-/// Summarizes `x` (non-empty).
+/// Summarizes `x` (non-empty); its non-finite values are counted and left out.
 pub fn summarize(name: &str, x: &[f64]) -> ChannelSummary {
     assert!(!x.is_empty(), "summarize needs at least one value");
     let blocks: Vec<Moments> = x.par_chunks(BLOCK).map(Moments::of_block).collect();
@@ -72,17 +87,19 @@ pub fn summarize(name: &str, x: &[f64]) -> ChannelSummary {
         .into_iter()
         .reduce(Moments::merge)
         .expect("non-empty");
+    let n = m.n as u64;
     ChannelSummary {
         name: name.to_string(),
-        n: x.len() as u64,
-        mean: m.mean,
-        std: if x.len() > 1 {
+        n,
+        n_nonfinite: x.len() as u64 - n,
+        mean: if n > 0 { m.mean } else { f64::NAN },
+        std: if n > 1 {
             (m.m2 / (m.n - 1.0)).sqrt()
         } else {
             f64::NAN
         },
-        min: m.min,
-        max: m.max,
+        min: if n > 0 { m.min } else { f64::NAN },
+        max: if n > 0 { m.max } else { f64::NAN },
     }
 }
 
@@ -104,5 +121,29 @@ mod tests {
         assert!((s.std - var.sqrt()).abs() <= 1e-9 * var.sqrt());
         assert_eq!(s.min, x.iter().cloned().fold(f64::INFINITY, f64::min));
         assert_eq!(s.max, x.iter().cloned().fold(f64::NEG_INFINITY, f64::max));
+        assert_eq!(s.n_nonfinite, 0);
+    }
+
+    #[test]
+    fn non_finite_values_are_counted_and_left_out() {
+        // NaN and infinities in the first and third blocks, and a block of NaN only
+        let mut x: Vec<f64> = (0..(4 * BLOCK + 5))
+            .map(|i| ((i * 7919) % 1000) as f64 * 1e-3 - 0.3)
+            .collect();
+        for i in [3, 70, 2 * BLOCK + 1, 2 * BLOCK + 9] {
+            x[i] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][i % 3];
+        }
+        x[BLOCK..2 * BLOCK].fill(f64::NAN);
+        let s = summarize("x", &x);
+        let kept: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+        let direct = summarize("x", &kept);
+        assert_eq!(s.n, kept.len() as u64);
+        assert_eq!(s.n_nonfinite, (BLOCK + 4) as u64);
+        assert!((s.mean - direct.mean).abs() <= 1e-12);
+        assert!((s.std - direct.std).abs() <= 1e-12);
+        assert_eq!((s.min, s.max), (direct.min, direct.max));
+        let none = summarize("x", &[f64::NAN, f64::NAN]);
+        assert_eq!((none.n, none.n_nonfinite), (0, 2));
+        assert!(none.mean.is_nan() && none.std.is_nan() && none.min.is_nan());
     }
 }

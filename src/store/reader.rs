@@ -10,7 +10,7 @@ use arrow_buffer::Buffer;
 use arrow_schema::DataType;
 use memmap2::Mmap;
 
-use super::meta::{META_KEY, StoreMeta};
+use super::meta::{META_KEY, NonFiniteColumn, StoreMeta};
 use crate::error::{Error, Result};
 
 /// A memory-mapped store. Cheap to open; channel slices borrow the map.
@@ -169,15 +169,29 @@ impl Store {
     /// channel that holds non-finite values (left in place by a conversion under
     /// `--nan reject`, see [`super::NonFiniteColumn`]) is an [`Error::NonFinite`].
     pub fn column(&self, name: &str) -> Result<&[f64]> {
-        if let Some(nf) = self.meta.nonfinite.iter().find(|c| c.column == name) {
+        if let Some(nf) = self.nonfinite(name) {
             return Err(Error::NonFinite {
                 path: self.label.clone(),
                 column: nf.column.clone(),
                 count: nf.count,
                 first: nf.first.clone(),
-                hint: "use --nan interpolate to replace them",
+                hint: "use --nan interpolate to replace them".into(),
             });
         }
+        self.column_with_nonfinite(name)
+    }
+
+    /// The non-finite or missing values a channel holds (left in place by a conversion
+    /// under `--nan reject`), None for a channel without.
+    pub fn nonfinite(&self, name: &str) -> Option<&NonFiniteColumn> {
+        self.meta.nonfinite.iter().find(|c| c.column == name)
+    }
+
+    /// The values of a column as [`Store::column`], but a channel that holds
+    /// non-finite values is returned with them (NaN for a missing value; see
+    /// [`Store::nonfinite`]): for `farma info`, which describes such a channel instead
+    /// of refusing it.
+    pub fn column_with_nonfinite(&self, name: &str) -> Result<&[f64]> {
         let idx = self.batch.schema_ref().index_of(name).map_err(|_| {
             Error::column(
                 &self.label,
@@ -196,8 +210,21 @@ impl Store {
         Ok(arr.values().as_ref())
     }
 
-    /// Resolves a channel selection: `all`, or a comma-separated list of names.
+    /// Resolves a channel selection: `all`, or a comma-separated list of names. `all`
+    /// with a channel that holds non-finite values (see [`Store::nonfinite`]) is an
+    /// [`Error::NonFinite`] naming it and the channels without; a named one is refused
+    /// when it is read ([`Store::column`]).
     pub fn select_channels(&self, selection: &str) -> Result<Vec<String>> {
+        self.select(selection, true)
+    }
+
+    /// [`Store::select_channels`], but `all` keeps the channels that hold non-finite
+    /// values (`farma info`, which describes them).
+    pub fn select_channels_with_nonfinite(&self, selection: &str) -> Result<Vec<String>> {
+        self.select(selection, false)
+    }
+
+    fn select(&self, selection: &str, refuse_nonfinite: bool) -> Result<Vec<String>> {
         let all = self.channel_names();
         if selection.trim() == "all" {
             if all.is_empty() {
@@ -205,6 +232,46 @@ impl Store {
                     &self.label,
                     "--channel all: the log has no data channels (only a time column)",
                 ));
+            }
+            // a channel with non-finite values is refused here, before any work,
+            // naming the channels that could be taken instead
+            let bad: Vec<&NonFiniteColumn> = all
+                .iter()
+                .filter(|_| refuse_nonfinite)
+                .filter_map(|name| self.nonfinite(name))
+                .collect();
+            if let Some(first) = bad.first() {
+                let good: Vec<&str> = all
+                    .iter()
+                    .copied()
+                    .filter(|name| self.nonfinite(name).is_none())
+                    .collect();
+                let others = match bad.len() {
+                    1 => String::new(),
+                    k => format!(
+                        " (and {} more: {})",
+                        k - 1,
+                        bad[1..]
+                            .iter()
+                            .map(|c| format!("'{}'", c.column))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                };
+                let instead = if good.is_empty() {
+                    "no channel of the log is without them".to_string()
+                } else {
+                    format!("--channel {} takes the others", good.join(","))
+                };
+                return Err(Error::NonFinite {
+                    path: self.label.clone(),
+                    column: first.column.clone(),
+                    count: first.count,
+                    first: first.first.clone(),
+                    hint: format!(
+                        "--channel all includes it{others}; {instead}, or --nan interpolate replaces them"
+                    ),
+                });
             }
             return Ok(all.iter().map(|s| s.to_string()).collect());
         }
