@@ -139,7 +139,7 @@ fn the_literal_scheme_keeps_an_invertible_b_on_a_unit_root_ma() {
 /// fast path refuses the channel with the power of ten to rescale by (before, 1e40
 /// and 1e-55 failed as "no grid point has a local fit", and 1e-45 and 1e-50 returned
 /// fits with most grid points filled or the linear start), and the direct path fits
-/// it.
+/// it, inside its own `DIRECT_MAGNITUDE_LIMITS`.
 #[test]
 fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
     let x = simulate(5_000, 11);
@@ -199,6 +199,29 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
             (sigma2 - base_direct.sigma2).abs() < 1e-9 * base_direct.sigma2,
             "{scale:e}"
         );
+    }
+    // the direct path's own limits, DIRECT_MAGNITUDE_LIMITS: 1e+-130 fitted, the same
+    // fit; 1e+-200 refused with the power of ten to rescale by, not "the linear ARMA
+    // start failed (singular design)" as before (2026-11-26)
+    for scale in [1e-130, 1e130] {
+        let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
+        let m = fit(&xs, &direct).unwrap();
+        assert!((m.b[0] - base_direct.b[0]).abs() < 1e-9, "{scale:e}");
+    }
+    for (scale, by) in [(1e-200, "1e199"), (1e200, "1e-201")] {
+        let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
+        for prm in [&params, &direct] {
+            match fit(&xs, prm) {
+                Err(farma::Error::Usage(msg)) => assert!(
+                    msg.contains("other units")
+                        && msg.contains(&format!("scaled by about {by}"))
+                        && !msg.contains("--method direct"),
+                    "{scale:e}: {msg}"
+                ),
+                Err(e) => panic!("{scale:e}: {e}"),
+                Ok(m) => panic!("{scale:e}: fitted, b {:?}", m.b),
+            }
+        }
     }
 }
 

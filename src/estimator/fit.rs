@@ -1448,8 +1448,8 @@ fn gcv_select(
 /// sums of products of up to the 8th power of the values (x_a x_b (U - u_g)^k, shifted
 /// between centres by the binomial theorem), which overflow or lose their digits to
 /// underflow far enough from 1. The direct path (a KD-tree gather and a dense solve
-/// per grid point, squares of the values at most) has no such limit short of f64's
-/// own: the same fit at k = -55, -45, 40 and 60 below.
+/// per grid point, squares of the values at most) reaches further,
+/// [`DIRECT_MAGNITUDE_LIMITS`]: the same fit at k = -55, -45, 40 and 60 below.
 /// Measured (`farma fit --order 2,1,1` on a Gaussian series of 5,000 samples
 /// scaled by 10^k, its largest magnitude 3.9 10^k): the same b to 4e-12 relative and
 /// sigma^2 / 10^2k, trace and GCV / 10^2k to 1e-14 for k = -35, -30, -20, -10, 0, 10,
@@ -1459,11 +1459,32 @@ fn gcv_select(
 /// margin (sums over up to 1e10 samples).
 pub const MAGNITUDE_LIMITS: (f64, f64) = (1e-30, 1e30);
 
-/// Refuses values (centred, from `lo` to `hi`) for the fast path when their largest
-/// magnitude is outside
-/// [`MAGNITUDE_LIMITS`], naming `what` and the power of ten to rescale by.
-fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), String> {
-    let (min, max) = MAGNITUDE_LIMITS;
+/// The largest magnitudes of a channel's centred values that a direct-path fit
+/// (`FitPath::Direct`, and the 2-D index's fit) accepts: its sums are of squares of
+/// the values (the linear start's normal equations, the local systems, the RSS), which
+/// leave f64's range near 1e+-154 for one value, less the log10 of the number of
+/// samples. Measured (`farma fit --order 2,1,1 --method direct --grid 31` on an
+/// ARMA(1,1) series of 3,000 samples scaled by 10^k, 2026-11-26): the same b, trace
+/// and sigma^2 / 10^2k for k = -150, -140, -100, -60, 60, 100, 140, 150; at k = 155,
+/// 160 .. 190 and -160 .. -190 the linear start fails (its sums overflow, or underflow
+/// to zero), and at k = -155 sigma^2 is subnormal. The limits keep sums over up to
+/// 1e10 samples inside f64's normal range.
+pub const DIRECT_MAGNITUDE_LIMITS: (f64, f64) = (1e-140, 1e140);
+
+/// Refuses values (centred, from `lo` to `hi`) when their largest magnitude is
+/// outside the limits of `path` ([`MAGNITUDE_LIMITS`] for the fast path,
+/// [`DIRECT_MAGNITUDE_LIMITS`] for the direct one), naming `what` and the power of ten
+/// to rescale by.
+pub fn check_magnitude(
+    what: &str,
+    lo: f64,
+    hi: f64,
+    path: FitPath,
+) -> std::result::Result<(), String> {
+    let (min, max) = match path {
+        FitPath::Fast => MAGNITUDE_LIMITS,
+        FitPath::Direct => DIRECT_MAGNITUDE_LIMITS,
+    };
     let mag = lo.abs().max(hi.abs());
     if (min..=max).contains(&mag) {
         return Ok(());
@@ -1477,8 +1498,25 @@ fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), Stri
     } else {
         ("reaches only", " after removing the mean", "")
     };
+    let (dmin, dmax) = DIRECT_MAGNITUDE_LIMITS;
+    let why = match path {
+        FitPath::Fast if (dmin..=dmax).contains(&mag) => format!(
+            "the fast path's moment tables sum products of up to the 8th power of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude"
+        ),
+        FitPath::Fast => format!(
+            "the fast path's moment tables sum products of up to the 8th power of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude, and the direct path's sums of squares outside {dmin:.0e}..{dmax:.0e}"
+        ),
+        FitPath::Direct => format!(
+            "the fit's sums of squares of the values leave f64's range outside {min:.0e}..{max:.0e} in magnitude"
+        ),
+    };
+    let direct = if path == FitPath::Fast && (dmin..=dmax).contains(&mag) {
+        ", or fit with `--method direct` (slower, its limits are 1e-140..1e140)"
+    } else {
+        ""
+    };
     Err(format!(
-        "{what} {verb} {mag:.3e} in magnitude{after}: the fast path's moment tables sum products of up to the 8th power of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude; express it in other units (scaled by about 1e{}){spike}, or fit with `--method direct` (slower, no such limit)",
+        "{what} {verb} {mag:.3e} in magnitude{after}: {why}; express it in other units (scaled by about 1e{}){spike}{direct}",
         -mag.log10().round() as i64
     ))
 }
@@ -1928,9 +1966,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             "the channel is constant: nothing to fit".into(),
         ));
     }
-    if prm.path == FitPath::Fast {
-        check_magnitude("the channel", xmin, xmax).map_err(Error::Usage)?;
-    }
+    check_magnitude("the channel", xmin, xmax, prm.path).map_err(Error::Usage)?;
     let qs = quantiles(
         |t| x[t - d],
         pp..n,

@@ -42,7 +42,7 @@ use kiddo::{Chebyshev, ImmutableKdTree};
 use rayon::prelude::*;
 
 use super::arma::fit_arma;
-use super::fit::{FarmaParams, ma_cls, missing_se_note, undefined_trace_note};
+use super::fit::{FarmaParams, FitPath, ma_cls, missing_se_note, undefined_trace_note};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::sandwich_diag;
@@ -710,6 +710,17 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     if range.1 <= 0.0 {
         return bad("the index channel is constant: it cannot index anything".into());
     }
+    // the 2-D fit sums squares of the values and of their products with the index
+    // offsets (z - c), as the direct path does
+    super::fit::check_magnitude("the channel", x_lo, x_hi, FitPath::Direct)
+        .map_err(Error::Usage)?;
+    super::fit::check_magnitude(
+        "the index channel's spread (max - min)",
+        0.0,
+        range.1,
+        FitPath::Direct,
+    )
+    .map_err(Error::Usage)?;
     let half = (range.0 / 2.0, range.1 / 2.0);
     let q1 = quantile_pair((pp..n).map(|t| x[t - d]).collect(), prm.grid_quantiles);
     let q2 = quantile_pair((pp..n).map(|t| z[t - d2]).collect(), prm.grid_quantiles);
