@@ -545,3 +545,48 @@ fn a_bandwidth_re_selected_at_the_last_alternation_is_not_taken_without_a_fit() 
         cut.notes
     );
 }
+
+/// A spike in the channel stretches the bandwidth ladder (it starts at half the span
+/// of the index values): the fit says so, naming the span against the central
+/// values' spread and `farma prep`; without the spike, and at a fixed bandwidth, no
+/// such note.
+#[test]
+fn a_spike_is_named_as_stretching_the_ladder() {
+    let mut x = simulate(5_000, 3);
+    let params = FarmaParams {
+        grid_size: 41,
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let clean = fit(&x, &params).unwrap();
+    assert!(
+        !clean.notes.iter().any(|n| n.contains("outlier")),
+        "{:?}",
+        clean.notes
+    );
+    x[2500] = 200.0;
+    let m = fit(&x, &params).unwrap();
+    let note = m
+        .notes
+        .iter()
+        .find(|n| n.contains("stretches the bandwidth ladder"))
+        .unwrap_or_else(|| panic!("no note: {:?}", m.notes));
+    assert!(
+        note.contains("x_(t-1)") && note.contains("farma prep"),
+        "{note}"
+    );
+    let fixed = FarmaParams {
+        grid_size: 41,
+        bandwidth: Some(0.5),
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let m = fit(&x, &fixed).unwrap();
+    assert!(
+        !m.notes.iter().any(|n| n.contains("outlier")),
+        "{:?}",
+        m.notes
+    );
+}

@@ -42,7 +42,9 @@ use kiddo::{Chebyshev, ImmutableKdTree};
 use rayon::prelude::*;
 
 use super::arma::fit_arma;
-use super::fit::{FarmaParams, FitPath, ma_cls, missing_se_note, undefined_trace_note};
+use super::fit::{
+    FarmaParams, FitPath, ma_cls, missing_se_note, stretched_ladder_note, undefined_trace_note,
+};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::sandwich_diag;
@@ -770,6 +772,20 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let mut h = params.bandwidth.unwrap_or((f64::NAN, f64::NAN));
     let mut gcv_table = Vec::new();
     let mut notes = Vec::new();
+    if params.bandwidth.is_none() {
+        notes.extend(stretched_ladder_note(
+            &format!("the index values x_(t-{d}) (less the channel's mean)"),
+            (x_lo, x_hi),
+            q1,
+            prm.grid_quantiles,
+        ));
+        notes.extend(stretched_ladder_note(
+            &format!("the index channel's values (lag {d2})"),
+            (z_lo, z_hi),
+            q2,
+            prm.grid_quantiles,
+        ));
+    }
     let mut ladder_extended = false;
     let mut filled = vec![false; gl];
     let (mut iterations, mut converged, mut reselections) = (0, false, 0);
