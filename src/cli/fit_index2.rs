@@ -11,7 +11,7 @@ use serde_json::json;
 use super::fit::{FitArgs, parse_order};
 use crate::error::{Error, Result};
 use crate::estimator::multivariate::{
-    Farma2Params, Fitted2, coef_table2, fit2, gcv_table2, params_table2,
+    Farma2Params, Fitted2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
 };
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
@@ -105,6 +105,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         }
     };
     let grid = parse_pair(a.index_grid.as_deref().unwrap_or("21,21"))?;
+    check_grid2(grid)?;
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
     super::fit::warn_gaps(&store, &a.log);
