@@ -568,3 +568,83 @@ fn residuals_flag_the_warm_up_rows_outside_the_fit() {
         );
     }
 }
+
+/// Values beyond the direct path's reach (1e200, 1e-200 in magnitude) are refused with
+/// the power of ten to rescale by, on the fast path (which no longer sends them to
+/// `--method direct`), the direct path and a 2-D index alike, exit 2. The fast path's
+/// refusal had said "or fit with `--method direct` (slower, no such limit)", and the
+/// direct path (and a 2-D index) then failed with "the linear ARMA start failed
+/// (singular design)" (found by a helper's fuzzing). At 1e100 the fast path still
+/// points to the direct path, which fits it.
+#[test]
+fn values_beyond_the_direct_paths_reach_are_refused_with_the_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let log_at = |scale: f64| {
+        let mut text = String::from("time_s,gyro_x,temp_c\n");
+        let mut x = 0.0f64;
+        for i in 0..1000 {
+            // an AR(1) of a deterministic pseudo-random drive
+            x = 0.5 * x + (((i * 7919) % 1009) as f64 / 1009.0 - 0.5);
+            text.push_str(&format!(
+                "{},{:e},{}\n",
+                i as f64 * 0.1,
+                x * scale,
+                20.0 + i as f64 * 0.01
+            ));
+        }
+        let log = dir.path().join(format!("s{scale:e}.csv"));
+        std::fs::write(&log, text).unwrap();
+        log
+    };
+    let out = dir.path().join("o");
+    let run = |log: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        farma(&args, dir.path())
+    };
+    for (scale, power) in [(1e200, "1e-200"), (1e-200, "1e200")] {
+        let log = log_at(scale);
+        for extra in [
+            &[][..],
+            &["--method", "direct"][..],
+            &["--index", "lag,temp_c"][..],
+        ] {
+            let o = run(&log, extra);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{scale:e} {extra:?}: {err}");
+            assert!(err.contains("gyro_x"), "{scale:e} {extra:?}: {err}");
+            assert!(
+                err.contains(&format!("other units (scaled by about {power})")),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(
+                !err.contains("--method direct"),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(
+                !err.contains("singular design"),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(!out.exists());
+        }
+    }
+    let log = log_at(1e100);
+    let o = run(&log, &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("or fit with `--method direct` (slower; it takes 1e-140..1e140)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&log, &["--method", "direct"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}

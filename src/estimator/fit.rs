@@ -1448,8 +1448,8 @@ fn gcv_select(
 /// sums of products of up to the 8th power of the values (x_a x_b (U - u_g)^k, shifted
 /// between centres by the binomial theorem), which overflow or lose their digits to
 /// underflow far enough from 1. The direct path (a KD-tree gather and a dense solve
-/// per grid point, squares of the values at most) has no such limit short of f64's
-/// own: the same fit at k = -55, -45, 40 and 60 below.
+/// per grid point, squares of the values at most) reaches much further, to
+/// [`DIRECT_MAGNITUDE_LIMITS`]: the same fit at k = -55, -45, 40 and 60 below.
 /// Measured (`farma fit --order 2,1,1` on a Gaussian series of 5,000 samples
 /// scaled by 10^k, its largest magnitude 3.9 10^k): the same b to 4e-12 relative and
 /// sigma^2 / 10^2k, trace and GCV / 10^2k to 1e-14 for k = -35, -30, -20, -10, 0, 10,
@@ -1458,6 +1458,17 @@ fn gcv_select(
 /// returned; at k = 40 and -55 no local fit at all. The limits keep 5 orders of
 /// margin (sums over up to 1e10 samples).
 pub const MAGNITUDE_LIMITS: (f64, f64) = (1e-30, 1e30);
+
+/// The largest magnitudes of a channel's centred values that a direct-path fit
+/// (`FitPath::Direct`, and every fit with a 2-D index) accepts: its linear start and
+/// local systems sum squares of the values over the samples, which overflow, or
+/// underflow into subnormals, far enough from 1. Measured (`farma fit --order 2,1,1
+/// --method direct` on an AR(1) series of 2,000 samples scaled by 10^k): the same b to
+/// 3e-11 and sigma^2 / 10^2k to 1e-14 for k = -150 .. 150; at k = 152 b off by 5e-3;
+/// at k = 154 and -156 "the linear ARMA start failed (singular design)", which is all
+/// such a channel had been told (the fast path's refusal sent it here). The limits
+/// keep 10 orders of margin (sums of squares over up to 1e10 samples).
+pub const DIRECT_MAGNITUDE_LIMITS: (f64, f64) = (1e-140, 1e140);
 
 /// Refuses values (centred, from `lo` to `hi`) for the fast path when their largest
 /// magnitude is outside
@@ -1468,6 +1479,12 @@ fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), Stri
     if (min..=max).contains(&mag) {
         return Ok(());
     }
+    let (dmin, dmax) = DIRECT_MAGNITUDE_LIMITS;
+    let direct = if (dmin..=dmax).contains(&mag) {
+        format!(", or fit with `--method direct` (slower; it takes {dmin:.0e}..{dmax:.0e})")
+    } else {
+        String::new()
+    };
     let (verb, after, spike) = if mag > max {
         (
             "reaches",
@@ -1478,7 +1495,31 @@ fn check_magnitude(what: &str, lo: f64, hi: f64) -> std::result::Result<(), Stri
         ("reaches only", " after removing the mean", "")
     };
     Err(format!(
-        "{what} {verb} {mag:.3e} in magnitude{after}: the fast path's moment tables sum products of up to the 8th power of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude; express it in other units (scaled by about 1e{}){spike}, or fit with `--method direct` (slower, no such limit)",
+        "{what} {verb} {mag:.3e} in magnitude{after}: the fast path's moment tables sum products of up to the 8th power of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude; express it in other units (scaled by about 1e{}){spike}{direct}",
+        -mag.log10().round() as i64
+    ))
+}
+
+/// Refuses values (centred, from `lo` to `hi`) for the direct path (and a 2-D index)
+/// when their largest magnitude is outside [`DIRECT_MAGNITUDE_LIMITS`], naming `what`
+/// and the power of ten to rescale by.
+pub(crate) fn check_direct_magnitude(
+    what: &str,
+    lo: f64,
+    hi: f64,
+) -> std::result::Result<(), String> {
+    let (min, max) = DIRECT_MAGNITUDE_LIMITS;
+    let mag = lo.abs().max(hi.abs());
+    if (min..=max).contains(&mag) {
+        return Ok(());
+    }
+    let (verb, after) = if mag > max {
+        ("reaches", "")
+    } else {
+        ("reaches only", " after removing the mean")
+    };
+    Err(format!(
+        "{what} {verb} {mag:.3e} in magnitude{after}: the local systems and the linear start sum squares of the values, which leave f64's range outside {min:.0e}..{max:.0e} in magnitude; express it in other units (scaled by about 1e{})",
         -mag.log10().round() as i64
     ))
 }
@@ -1930,6 +1971,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     }
     if prm.path == FitPath::Fast {
         check_magnitude("the channel", xmin, xmax).map_err(Error::Usage)?;
+    } else {
+        check_direct_magnitude("the channel", xmin, xmax).map_err(Error::Usage)?;
     }
     let qs = quantiles(
         |t| x[t - d],

@@ -728,6 +728,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     if range.1 <= 0.0 {
         return bad("the index channel is constant: it cannot index anything".into());
     }
+    super::fit::check_direct_magnitude("the channel", x_lo, x_hi).map_err(Error::Usage)?;
     let half = (range.0 / 2.0, range.1 / 2.0);
     let q1 = quantile_pair((pp..n).map(|t| x[t - d]).collect(), prm.grid_quantiles);
     let q2 = quantile_pair((pp..n).map(|t| z[t - d2]).collect(), prm.grid_quantiles);
