@@ -648,3 +648,64 @@ fn values_beyond_the_direct_paths_reach_are_refused_with_the_scale() {
     let o = run(&log, &["--method", "direct"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// Several channels that fail are all named, in channel order, with a last line that
+/// counts them, exit 2, nothing written; a problem of the request itself (the order)
+/// is said once, not once per channel. The run had named one failing channel, not
+/// necessarily the first (c2 of c1, c2 here), so that each rerun found the next
+/// (found by a helper's fuzzing).
+#[test]
+fn every_failing_channel_is_named_in_channel_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_s,a,c1,c2\n");
+    let mut x = 0.0f64;
+    for i in 0..1000 {
+        x = 0.5 * x + (((i * 7919) % 1009) as f64 / 1009.0 - 0.5);
+        text.push_str(&format!("{},{x},1.5,2.5\n", i as f64 * 0.1));
+    }
+    let log = dir.path().join("two_constant.csv");
+    std::fs::write(&log, text).unwrap();
+    let out = dir.path().join("o");
+    let run = |order: &str| {
+        farma(
+            &[
+                "fit",
+                log.to_str().unwrap(),
+                "--channel",
+                "all",
+                "--order",
+                order,
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            dir.path(),
+        )
+    };
+    for _ in 0..3 {
+        let o = run("1,0,1");
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        let c1 = err
+            .find("channel 'c1': the channel is constant")
+            .expect(&err);
+        let c2 = err
+            .find("channel 'c2': the channel is constant")
+            .expect(&err);
+        assert!(c1 < c2, "{err}");
+        assert!(
+            err.contains("2 of 3 channels failed (above); nothing was written"),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(stdout(&o), "");
+        assert!(!out.exists());
+    }
+    let o = run("0,1,1");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(
+        err.matches("p and d must be at least 1").count(),
+        1,
+        "{err}"
+    );
+}

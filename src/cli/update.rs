@@ -211,20 +211,23 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     super::fit::warn_gaps(&store, &a.new_log);
     let t_last = last_time(&store)?;
     let t0 = Instant::now();
-    let mut ups: Vec<(String, Updated)> = states
-        .par_iter()
-        .map(|s| {
-            let x = store.column(&s.channel)?;
-            let u = update(s, x, a.forgetting).map_err(|e| match e {
-                Error::Usage(msg) => Error::Column {
-                    path: a.new_log.clone(),
-                    msg: format!("channel '{}': {msg}", s.channel),
-                },
-                other => other,
-            })?;
-            Ok((s.channel.clone(), u))
-        })
-        .collect::<Result<_>>()?;
+    let mut ups: Vec<(String, Updated)> = super::every_channel(
+        states
+            .par_iter()
+            .map(|s| {
+                let x = store.column(&s.channel)?;
+                let u = update(s, x, a.forgetting).map_err(|e| match e {
+                    Error::Usage(msg) => Error::Column {
+                        path: a.new_log.clone(),
+                        msg: format!("channel '{}': {msg}", s.channel),
+                    },
+                    other => other,
+                })?;
+                Ok((s.channel.clone(), u))
+            })
+            .collect(),
+        "an update continues every channel of the model together",
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     for (_, u) in &mut ups {
         u.state.t_last = t_last;

@@ -678,15 +678,15 @@ fn gcv_select2(
     }
 }
 
-/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}).
-pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2> {
+/// The checks of a 2-D fit of `n` samples on the index channel `z` that do not depend
+/// on the fitted channel: the index lag, the grid and the bandwidths, the length, and
+/// the index channel (finite, not constant). [`fit2`] makes them; a run over several
+/// channels makes them once before, so that such a problem is said once, not once per
+/// channel.
+pub fn check_fit2(n: usize, z: &[f64], params: &Farma2Params) -> Result<()> {
     let prm = &params.base;
     let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
-    let n = series.len();
     let bad = |m: String| Err(Error::Usage(m));
-    if z.len() != n {
-        return bad("the index channel and the series differ in length".into());
-    }
     if d2 > 1000 {
         return bad(format!("--index-lag: at most 1000 (got {d2})"));
     }
@@ -710,6 +710,24 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     if z.iter().any(|v| !v.is_finite()) {
         return bad("the index channel holds NaN or infinite values".into());
     }
+    let (z_lo, z_hi) = range_of(z);
+    if z_hi - z_lo <= 0.0 {
+        return bad("the index channel is constant: it cannot index anything".into());
+    }
+    Ok(())
+}
+
+/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}).
+pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2> {
+    let prm = &params.base;
+    let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
+    let n = series.len();
+    let bad = |m: String| Err(Error::Usage(m));
+    if z.len() != n {
+        return bad("the index channel and the series differ in length".into());
+    }
+    check_fit2(n, z, params)?;
+    let pp = p.max(q).max(d).max(d2);
     let mean = if prm.demean {
         series.iter().sum::<f64>() / n as f64
     } else {
@@ -724,9 +742,6 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let range = (x_hi - x_lo, z_hi - z_lo);
     if range.0 <= 0.0 {
         return bad("the channel is constant: nothing to fit".into());
-    }
-    if range.1 <= 0.0 {
-        return bad("the index channel is constant: it cannot index anything".into());
     }
     super::fit::check_direct_magnitude("the channel", x_lo, x_hi).map_err(Error::Usage)?;
     let half = (range.0 / 2.0, range.1 / 2.0);
