@@ -709,3 +709,41 @@ fn every_failing_channel_is_named_in_channel_order() {
         "{err}"
     );
 }
+
+/// `-o FILE/sub` (a folder under a file) is refused before the work, exit 2, the file
+/// kept, for `farma fit` (1-D and 2-D index) and `farma update`: it had failed only when
+/// the outputs were written, after the fit, with exit 1 ("Not a directory") (found by a
+/// helper's fuzzing). The log and the model are not reached (missing here).
+#[test]
+fn an_output_folder_under_a_file_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a_file");
+    std::fs::write(&file, "kept").unwrap();
+    let out = file.join("sub").join("deeper");
+    let missing = dir.path().join("missing.csv");
+    let (o, m) = (out.to_str().unwrap(), missing.to_str().unwrap());
+    for args in [
+        vec!["fit", m, "--channel", "gyro_x", "-o", o],
+        vec![
+            "fit",
+            m,
+            "--channel",
+            "gyro_x",
+            "--index",
+            "lag,temp_c",
+            "-o",
+            o,
+        ],
+        vec!["update", dir.path().to_str().unwrap(), m, "-o", o],
+    ] {
+        let r = farma(&args, dir.path());
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("{} exists and is not a folder", file.display())),
+            "{args:?}: {err}"
+        );
+        assert_eq!(stdout(&r), "");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept");
+    }
+}
