@@ -211,6 +211,26 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     super::fit::warn_gaps(&store, &a.new_log);
     let t_last = last_time(&store)?;
     let t0 = Instant::now();
+    // a channel whose fit returned its linear start is the model's problem, not the
+    // new log's: named with the state file (it had been named with NEW_LOG)
+    super::every_channel(
+        states
+            .iter()
+            .map(|s| -> Result<()> {
+                if !s.linear_start {
+                    return Ok(());
+                }
+                Err(Error::format(
+                    &state_path,
+                    format!(
+                        "channel '{}': its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead",
+                        s.channel
+                    ),
+                ))
+            })
+            .collect(),
+        "an update continues every channel of the model together",
+    )?;
     let mut ups: Vec<(String, Updated)> = super::every_channel(
         states
             .par_iter()
