@@ -595,3 +595,48 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(!out.exists());
 }
+
+/// A state whose `sample_rate_hz` metadata is not a positive number ('abc', NaN, 0)
+/// is refused naming the state file and the key, exit 2: 'abc' and NaN had been
+/// skipped, the new log's rate left unchecked, and 0 had been read as a model fitted
+/// at 0 Hz (found by a helper's fuzzing).
+#[test]
+fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
+    use farma::estimator::update::{read_state, write_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let (states, md) = read_state(&model.join("state.parquet")).unwrap();
+    let out = d.join("out");
+    for rate in ["abc", "NaN", "0"] {
+        let bad = d.join(format!("bad_{rate}"));
+        std::fs::create_dir(&bad).unwrap();
+        let md: Vec<(&str, String)> = md
+            .iter()
+            .filter(|(k, _)| k != "farma_state_version")
+            .map(|(k, v)| {
+                let v = if k == "sample_rate_hz" {
+                    rate.to_string()
+                } else {
+                    v.clone()
+                };
+                (k.as_str(), v)
+            })
+            .collect();
+        let refs: Vec<_> = states.iter().collect();
+        write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+        let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{rate}: {err}");
+        assert!(
+            err.contains("state.parquet")
+                && err.contains(&format!(
+                    "sample_rate_hz = '{rate}' is not a positive number"
+                )),
+            "{rate}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

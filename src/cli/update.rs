@@ -187,10 +187,20 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         )));
     }
     let (states, md) = read_state(&state_path)?;
-    let model_rate: Option<f64> = md
-        .iter()
-        .find(|(k, _)| k == "sample_rate_hz")
-        .and_then(|(_, v)| v.parse().ok());
+    // the rate the model was fitted at: a value that is not a positive number is an
+    // edited or corrupt state (it had been skipped, and the rate left unchecked)
+    let model_rate: Option<f64> = match md.iter().find(|(k, _)| k == "sample_rate_hz") {
+        None => None,
+        Some((_, v)) => match v.trim().parse::<f64>() {
+            Ok(r) if r.is_finite() && r > 0.0 => Some(r),
+            _ => {
+                return Err(Error::format(
+                    &state_path,
+                    format!("metadata sample_rate_hz = '{v}' is not a positive number of Hz"),
+                ));
+            }
+        },
+    };
     let store = a.log_args.open(&a.new_log, progress)?;
     if let Some(r) = model_rate
         && (store.sample_rate_hz() - r).abs() > 1e-6 * r.abs()
