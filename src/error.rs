@@ -100,6 +100,29 @@ pub enum Error {
     /// A bug or an unexpected library failure.
     #[error("internal error: {0}")]
     Internal(String),
+
+    /// Several channels of one run failed: each one's error, in channel order (`of`
+    /// channels in the run); nothing was written. Shown as one `farma: error:` line
+    /// per channel and a last one that counts them and gives `hint`.
+    #[error("{}", channels_message(errors, *of, hint))]
+    Channels {
+        errors: Vec<Error>,
+        of: usize,
+        hint: &'static str,
+    },
+}
+
+fn channels_message(errors: &[Error], of: usize, hint: &str) -> String {
+    let mut s = String::new();
+    for e in errors {
+        s.push_str(&e.to_string());
+        s.push_str("\nfarma: error: ");
+    }
+    s.push_str(&format!(
+        "{} of {of} channels failed (above); nothing was written: a run writes the outputs of every channel or of none ({hint})",
+        errors.len()
+    ));
+    s
 }
 
 impl Error {
@@ -107,6 +130,12 @@ impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::OutputIo { .. } | Error::Internal(_) => EXIT_FAILURE,
+            // bad input if any channel's input was bad: that is the user's to fix
+            Error::Channels { errors, .. } => errors
+                .iter()
+                .map(Error::exit_code)
+                .max()
+                .unwrap_or(EXIT_FAILURE),
             _ => EXIT_BAD_INPUT,
         }
     }

@@ -573,3 +573,182 @@ fn residuals_flag_the_warm_up_rows_outside_the_fit() {
         );
     }
 }
+
+/// Values beyond the direct path's reach (1e200, 1e-200 in magnitude) are refused with
+/// the power of ten to rescale by, on the fast path (which no longer sends them to
+/// `--method direct`), the direct path and a 2-D index alike, exit 2. The fast path's
+/// refusal had said "or fit with `--method direct` (slower, no such limit)", and the
+/// direct path (and a 2-D index) then failed with "the linear ARMA start failed
+/// (singular design)" (found by a helper's fuzzing). At 1e100 the fast path still
+/// points to the direct path, which fits it.
+#[test]
+fn values_beyond_the_direct_paths_reach_are_refused_with_the_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let log_at = |scale: f64| {
+        let mut text = String::from("time_s,gyro_x,temp_c\n");
+        let mut x = 0.0f64;
+        for i in 0..1000 {
+            // an AR(1) of a deterministic pseudo-random drive
+            x = 0.5 * x + (((i * 7919) % 1009) as f64 / 1009.0 - 0.5);
+            text.push_str(&format!(
+                "{},{:e},{}\n",
+                i as f64 * 0.1,
+                x * scale,
+                20.0 + i as f64 * 0.01
+            ));
+        }
+        let log = dir.path().join(format!("s{scale:e}.csv"));
+        std::fs::write(&log, text).unwrap();
+        log
+    };
+    let out = dir.path().join("o");
+    let run = |log: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        farma(&args, dir.path())
+    };
+    for (scale, power) in [(1e200, "1e-200"), (1e-200, "1e200")] {
+        let log = log_at(scale);
+        for extra in [
+            &[][..],
+            &["--method", "direct"][..],
+            &["--index", "lag,temp_c"][..],
+        ] {
+            let o = run(&log, extra);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{scale:e} {extra:?}: {err}");
+            assert!(err.contains("gyro_x"), "{scale:e} {extra:?}: {err}");
+            assert!(
+                err.contains(&format!("other units (scaled by about {power})")),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(
+                !err.contains("--method direct"),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(
+                !err.contains("singular design"),
+                "{scale:e} {extra:?}: {err}"
+            );
+            assert!(!out.exists());
+        }
+    }
+    let log = log_at(1e100);
+    let o = run(&log, &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("or fit with `--method direct` (slower; it takes 1e-140..1e140)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&log, &["--method", "direct"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+/// Several channels that fail are all named, in channel order, with a last line that
+/// counts them, exit 2, nothing written; a problem of the request itself (the order)
+/// is said once, not once per channel. The run had named one failing channel, not
+/// necessarily the first (c2 of c1, c2 here), so that each rerun found the next
+/// (found by a helper's fuzzing).
+#[test]
+fn every_failing_channel_is_named_in_channel_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("time_s,a,c1,c2\n");
+    let mut x = 0.0f64;
+    for i in 0..1000 {
+        x = 0.5 * x + (((i * 7919) % 1009) as f64 / 1009.0 - 0.5);
+        text.push_str(&format!("{},{x},1.5,2.5\n", i as f64 * 0.1));
+    }
+    let log = dir.path().join("two_constant.csv");
+    std::fs::write(&log, text).unwrap();
+    let out = dir.path().join("o");
+    let run = |order: &str| {
+        farma(
+            &[
+                "fit",
+                log.to_str().unwrap(),
+                "--channel",
+                "all",
+                "--order",
+                order,
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            dir.path(),
+        )
+    };
+    for _ in 0..3 {
+        let o = run("1,0,1");
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        let c1 = err
+            .find("channel 'c1': the channel is constant")
+            .expect(&err);
+        let c2 = err
+            .find("channel 'c2': the channel is constant")
+            .expect(&err);
+        assert!(c1 < c2, "{err}");
+        assert!(
+            err.contains("2 of 3 channels failed (above); nothing was written"),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(stdout(&o), "");
+        assert!(!out.exists());
+    }
+    let o = run("0,1,1");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(
+        err.matches("p and d must be at least 1").count(),
+        1,
+        "{err}"
+    );
+}
+
+/// `-o FILE/sub` (a folder under a file) is refused before the work, exit 2, the file
+/// kept, for `farma fit` (1-D and 2-D index) and `farma update`: it had failed only when
+/// the outputs were written, after the fit, with exit 1 ("Not a directory") (found by a
+/// helper's fuzzing). The log and the model are not reached (missing here).
+#[test]
+fn an_output_folder_under_a_file_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a_file");
+    std::fs::write(&file, "kept").unwrap();
+    let out = file.join("sub").join("deeper");
+    let missing = dir.path().join("missing.csv");
+    let (o, m) = (out.to_str().unwrap(), missing.to_str().unwrap());
+    for args in [
+        vec!["fit", m, "--channel", "gyro_x", "-o", o],
+        vec![
+            "fit",
+            m,
+            "--channel",
+            "gyro_x",
+            "--index",
+            "lag,temp_c",
+            "-o",
+            o,
+        ],
+        vec!["update", dir.path().to_str().unwrap(), m, "-o", o],
+    ] {
+        let r = farma(&args, dir.path());
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("{} exists and is not a folder", file.display())),
+            "{args:?}: {err}"
+        );
+        assert_eq!(stdout(&r), "");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept");
+    }
+}

@@ -307,3 +307,46 @@ fn channel_all_with_a_2d_index_leaves_the_index_channel_out() {
     );
     assert!(!out2.exists());
 }
+
+/// `--index-grid` has an upper bound: 100000,100000 had the allocator abort the
+/// process (exit 134) and 18446744073709551615,3 panicked on a capacity overflow
+/// (exit 101) after the log was read (found by a helper's fuzzing). Both are refused,
+/// exit 2, before the log is read (a missing log is not reached), as is one point
+/// beyond the bound.
+#[test]
+fn an_index_grid_beyond_the_bound_is_refused_before_the_log_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for (log, grid) in [
+        (fixture("multiaxis.csv"), "100000,100000"),
+        (fixture("multiaxis.csv"), "18446744073709551615,3"),
+        (fixture("multiaxis.csv"), "13334,3"),
+        (dir.path().join("missing.csv"), "201,201"),
+    ] {
+        let args = [
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "--index",
+            "lag,temp_c",
+            "--index-grid",
+            grid,
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        let r = farma(&args, dir.path());
+        assert_eq!(r.status.code(), Some(2), "{grid}: {}", stderr(&r));
+        let err = stderr(&r);
+        assert!(!err.contains("panicked"), "{grid}: {err}");
+        assert!(
+            err.contains("--index-grid")
+                && (err.contains("at most 40000 grid points") || err.contains("at least 3")),
+            "{grid}: {err}"
+        );
+        assert_eq!(stdout(&r), "");
+        assert!(!out.exists(), "{grid}: the output folder was created");
+    }
+}

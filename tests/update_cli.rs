@@ -542,3 +542,101 @@ fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
     assert!(!err.contains("--save-state"), "{err}");
     assert!(!out.exists());
 }
+
+/// A state whose channel returned its linear start is refused naming the state file
+/// (it had been named as NEW_LOG's problem: "new.csv: channel 'gyro_x': its fit
+/// returned the linear ARMA start"); a state whose `n` is 2^64 - 1
+/// is refused naming the field (it had passed, and the update's sample count wrapped
+/// around, blamed on the new samples; a panic in a debug build) (found by a helper's
+/// fuzzing).
+#[test]
+fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
+    use farma::estimator::update::{read_state, write_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let out = d.join("out");
+    // this 1,1,1 fit of gyro_x returns its linear ARMA start (as in the test above)
+    let model = fit_state(d, &old, "1,1,1", "21");
+    let r = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!(
+            "{}: channel 'gyro_x': its fit returned the linear ARMA start",
+            model.join("state.parquet").display()
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("new.csv"), "{err}");
+    // a model with local fits, its n edited to 2^64 - 1
+    let d2 = d.join("second");
+    std::fs::create_dir(&d2).unwrap();
+    let model = fit_state(&d2, &old, "2,1,1", "31");
+    let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
+    states[0].n = u64::MAX;
+    let bad = d.join("bad");
+    std::fs::create_dir(&bad).unwrap();
+    let md: Vec<(&str, String)> = md
+        .iter()
+        .filter(|(k, _)| k != "farma_state_version")
+        .map(|(k, v)| (k.as_str(), v.clone()))
+        .collect();
+    let refs: Vec<_> = states.iter().collect();
+    write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+    let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("state.parquet") && err.contains("'gyro_x'") && err.contains("field 'n'"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists());
+}
+
+/// A state whose `sample_rate_hz` metadata is not a positive number ('abc', NaN, 0)
+/// is refused naming the state file and the key, exit 2: 'abc' and NaN had been
+/// skipped, the new log's rate left unchecked, and 0 had been read as a model fitted
+/// at 0 Hz (found by a helper's fuzzing).
+#[test]
+fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
+    use farma::estimator::update::{read_state, write_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let (states, md) = read_state(&model.join("state.parquet")).unwrap();
+    let out = d.join("out");
+    for rate in ["abc", "NaN", "0"] {
+        let bad = d.join(format!("bad_{rate}"));
+        std::fs::create_dir(&bad).unwrap();
+        let md: Vec<(&str, String)> = md
+            .iter()
+            .filter(|(k, _)| k != "farma_state_version")
+            .map(|(k, v)| {
+                let v = if k == "sample_rate_hz" {
+                    rate.to_string()
+                } else {
+                    v.clone()
+                };
+                (k.as_str(), v)
+            })
+            .collect();
+        let refs: Vec<_> = states.iter().collect();
+        write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+        let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{rate}: {err}");
+        assert!(
+            err.contains("state.parquet")
+                && err.contains(&format!(
+                    "sample_rate_hz = '{rate}' is not a positive number"
+                )),
+            "{rate}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

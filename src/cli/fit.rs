@@ -75,6 +75,9 @@ pub struct FitArgs {
     pub json: bool,
 }
 
+/// What to do when several channels of a fit fail ([`super::every_channel`]).
+pub(super) const FIT_CHANNELS_HINT: &str = "leave the failing ones out of --channel";
+
 /// The grid size of a 1-D fit when `--grid` is not given.
 pub const DEFAULT_GRID: usize = 201;
 
@@ -205,29 +208,36 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         demean: !a.no_demean,
         ..FarmaParams::default()
     };
+    // the parameters and the length are those of every channel: checked once
+    let valid = params
+        .clone()
+        .validate(store.n_samples())
+        .map_err(|e| match e {
+            Error::TooShort { what, need, have } => Error::TooShort {
+                what: format!("{}: {what}", a.log.display()),
+                need,
+                have,
+            },
+            other => other,
+        })?;
     let t0 = Instant::now();
-    let fits: Vec<(String, FittedFarma)> = names
-        .par_iter()
-        .map(|n| {
-            let x = store.column(n)?;
-            let valid = params.clone().validate(x.len()).map_err(|e| match e {
-                Error::TooShort { what, need, have } => Error::TooShort {
-                    what: format!("{}: channel {n}: {what}", a.log.display()),
-                    need,
-                    have,
-                },
-                other => other,
-            })?;
-            let m = fit(x, &valid).map_err(|e| match e {
-                Error::Usage(msg) => Error::Column {
-                    path: a.log.clone(),
-                    msg: format!("channel '{n}': {msg}"),
-                },
-                other => other,
-            })?;
-            Ok((n.clone(), m))
-        })
-        .collect::<Result<_>>()?;
+    let fits: Vec<(String, FittedFarma)> = super::every_channel(
+        names
+            .par_iter()
+            .map(|n| {
+                let x = store.column(n)?;
+                let m = fit(x, &valid).map_err(|e| match e {
+                    Error::Usage(msg) => Error::Column {
+                        path: a.log.clone(),
+                        msg: format!("channel '{n}': {msg}"),
+                    },
+                    other => other,
+                })?;
+                Ok((n.clone(), m))
+            })
+            .collect(),
+        FIT_CHANNELS_HINT,
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &FittedFarma)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();

@@ -11,7 +11,7 @@ use serde_json::json;
 use super::fit::{FitArgs, parse_order};
 use crate::error::{Error, Result};
 use crate::estimator::multivariate::{
-    Farma2Params, Fitted2, coef_table2, fit2, gcv_table2, params_table2,
+    Farma2Params, Fitted2, check_fit2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
 };
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
@@ -105,6 +105,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         }
     };
     let grid = parse_pair(a.index_grid.as_deref().unwrap_or("21,21"))?;
+    check_grid2(grid)?;
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
     super::fit::warn_gaps(&store, &a.log);
@@ -180,26 +181,39 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     if let Some(w) = cost_warning(grid, store.n_samples(), names.len(), bandwidth.is_some()) {
         eprintln!("farma: warning: {w}");
     }
+    // what does not depend on the fitted channel is checked once, not per channel
+    check_fit2(store.n_samples(), z, &params).map_err(|e| match e {
+        Error::Usage(msg) => Error::column(&a.log, msg),
+        Error::TooShort { what, need, have } => Error::TooShort {
+            what: format!("{}: {what}", a.log.display()),
+            need,
+            have,
+        },
+        other => other,
+    })?;
     let t0 = Instant::now();
-    let fits: Vec<(String, Fitted2)> = names
-        .par_iter()
-        .map(|n| {
-            let x = store.column(n)?;
-            let m = fit2(x, z, &params).map_err(|e| match e {
-                Error::Usage(msg) => Error::Column {
-                    path: a.log.clone(),
-                    msg: format!("channel '{n}': {msg}"),
-                },
-                Error::TooShort { what, need, have } => Error::TooShort {
-                    what: format!("{}: channel {n}: {what}", a.log.display()),
-                    need,
-                    have,
-                },
-                other => other,
-            })?;
-            Ok((n.clone(), m))
-        })
-        .collect::<Result<_>>()?;
+    let fits: Vec<(String, Fitted2)> = super::every_channel(
+        names
+            .par_iter()
+            .map(|n| {
+                let x = store.column(n)?;
+                let m = fit2(x, z, &params).map_err(|e| match e {
+                    Error::Usage(msg) => Error::Column {
+                        path: a.log.clone(),
+                        msg: format!("channel '{n}': {msg}"),
+                    },
+                    Error::TooShort { what, need, have } => Error::TooShort {
+                        what: format!("{}: channel {n}: {what}", a.log.display()),
+                        need,
+                        have,
+                    },
+                    other => other,
+                })?;
+                Ok((n.clone(), m))
+            })
+            .collect(),
+        super::fit::FIT_CHANNELS_HINT,
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &Fitted2)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();

@@ -189,6 +189,29 @@ pub(crate) fn commit_outputs(set: crate::output::OutputSet, outputs: &[&str]) ->
     Ok(())
 }
 
+/// The results of a run's per-channel work, in channel order: every value; or the
+/// error of the one channel that failed; or, when several did, all their errors in
+/// channel order ([`Error::Channels`]). A run writes the outputs of every channel or
+/// of none, and names every failing channel at once (it had named one of them, not
+/// necessarily the first, so that each rerun found the next).
+/// `hint` says what to do (in the last line of the message).
+pub(crate) fn every_channel<T>(results: Vec<Result<T>>, hint: &'static str) -> Result<Vec<T>> {
+    let of = results.len();
+    let mut values = Vec::with_capacity(of);
+    let mut errors = Vec::new();
+    for r in results {
+        match r {
+            Ok(v) => values.push(v),
+            Err(e) => errors.push(e),
+        }
+    }
+    match errors.len() {
+        0 => Ok(values),
+        1 => Err(errors.pop().expect("one error")),
+        _ => Err(Error::Channels { errors, of, hint }),
+    }
+}
+
 /// `--threads` is capped at this many threads per available core.
 pub const MAX_THREADS_PER_CORE: usize = 4;
 

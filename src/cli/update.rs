@@ -187,10 +187,20 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         )));
     }
     let (states, md) = read_state(&state_path)?;
-    let model_rate: Option<f64> = md
-        .iter()
-        .find(|(k, _)| k == "sample_rate_hz")
-        .and_then(|(_, v)| v.parse().ok());
+    // the rate the model was fitted at: a value that is not a positive number is an
+    // edited or corrupt state (it had been skipped, and the rate left unchecked)
+    let model_rate: Option<f64> = match md.iter().find(|(k, _)| k == "sample_rate_hz") {
+        None => None,
+        Some((_, v)) => match v.trim().parse::<f64>() {
+            Ok(r) if r.is_finite() && r > 0.0 => Some(r),
+            _ => {
+                return Err(Error::format(
+                    &state_path,
+                    format!("metadata sample_rate_hz = '{v}' is not a positive number of Hz"),
+                ));
+            }
+        },
+    };
     let store = a.log_args.open(&a.new_log, progress)?;
     if let Some(r) = model_rate
         && (store.sample_rate_hz() - r).abs() > 1e-6 * r.abs()
@@ -211,20 +221,43 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     super::fit::warn_gaps(&store, &a.new_log);
     let t_last = last_time(&store)?;
     let t0 = Instant::now();
-    let mut ups: Vec<(String, Updated)> = states
-        .par_iter()
-        .map(|s| {
-            let x = store.column(&s.channel)?;
-            let u = update(s, x, a.forgetting).map_err(|e| match e {
-                Error::Usage(msg) => Error::Column {
-                    path: a.new_log.clone(),
-                    msg: format!("channel '{}': {msg}", s.channel),
-                },
-                other => other,
-            })?;
-            Ok((s.channel.clone(), u))
-        })
-        .collect::<Result<_>>()?;
+    // a channel whose fit returned its linear start is the model's problem, not the
+    // new log's: named with the state file (it had been named with NEW_LOG)
+    super::every_channel(
+        states
+            .iter()
+            .map(|s| -> Result<()> {
+                if !s.linear_start {
+                    return Ok(());
+                }
+                Err(Error::format(
+                    &state_path,
+                    format!(
+                        "channel '{}': its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead",
+                        s.channel
+                    ),
+                ))
+            })
+            .collect(),
+        "an update continues every channel of the model together",
+    )?;
+    let mut ups: Vec<(String, Updated)> = super::every_channel(
+        states
+            .par_iter()
+            .map(|s| {
+                let x = store.column(&s.channel)?;
+                let u = update(s, x, a.forgetting).map_err(|e| match e {
+                    Error::Usage(msg) => Error::Column {
+                        path: a.new_log.clone(),
+                        msg: format!("channel '{}': {msg}", s.channel),
+                    },
+                    other => other,
+                })?;
+                Ok((s.channel.clone(), u))
+            })
+            .collect(),
+        "an update continues every channel of the model together",
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     for (_, u) in &mut ups {
         u.state.t_last = t_last;

@@ -1511,9 +1511,9 @@ pub fn check_magnitude(
         ),
     };
     let direct = if path == FitPath::Fast && (dmin..=dmax).contains(&mag) {
-        ", or fit with `--method direct` (slower, its limits are 1e-140..1e140)"
+        format!(", or fit with `--method direct` (slower; it takes {dmin:.0e}..{dmax:.0e})")
     } else {
-        ""
+        String::new()
     };
     Err(format!(
         "{what} {verb} {mag:.3e} in magnitude{after}: {why}; express it in other units (scaled by about 1e{}){spike}{direct}",

@@ -137,6 +137,11 @@ pub struct ChannelState {
     pub t_last: LastTime,
 }
 
+/// The most samples a state's `n` may count: f64's exact integers (rows, sigma2 and
+/// the tables take n as f64). An edited n of 2^64 - 1 had passed, and the update's
+/// count wrapped around (a panic in a debug build), blamed on the new samples.
+pub const MAX_STATE_N: u64 = 1 << 53;
+
 impl ChannelState {
     pub fn n_grid(&self) -> usize {
         self.grid.len()
@@ -285,6 +290,12 @@ impl ChannelState {
         if self.n <= lag as u64 {
             return Err(format!(
                 "field 'n' is {}: a fitted channel has more than max(p, q, d) = {lag} samples (the length of x_tail / e_tail)",
+                self.n
+            ));
+        }
+        if self.n > MAX_STATE_N {
+            return Err(format!(
+                "field 'n' is {}: more samples than any fit or update counts (at most 2^53)",
                 self.n
             ));
         }
@@ -831,7 +842,12 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
     st.x_tail = xs[xs.len() - lag..].to_vec();
     st.e_tail = es[es.len() - lag..].to_vec();
     let first_t = st.n;
-    st.n += nn as u64;
+    st.n = st.n.checked_add(nn as u64).ok_or_else(|| {
+        Error::Usage(format!(
+            "{nn} new samples after {} take the sample count past 2^64",
+            st.n
+        ))
+    })?;
     st.forgetting = lam;
 
     // the model: status, conditioning and S^-1 from the accumulated normal equations,

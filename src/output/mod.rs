@@ -120,13 +120,29 @@ impl OutputSet {
         })
     }
 
-    /// A usage error when `dir` exists and is not a folder: for a run to check
+    /// A usage error when `dir` exists and is not a folder, or when the nearest of
+    /// its parents that exists is not a folder (`-o FILE/sub`, which had failed only
+    /// when the outputs were written, after the work, exit 1): for a run to check
     /// before its work (nothing is created).
     pub fn check(dir: &Path) -> Result<()> {
         if dir.exists() && !dir.is_dir() {
             return Err(Error::Usage(format!(
                 "-o {}: exists and is not a folder",
                 dir.display()
+            )));
+        }
+        let existing = dir
+            .ancestors()
+            .skip(1)
+            .filter(|a| !a.as_os_str().is_empty())
+            .find(|a| a.exists());
+        if let Some(parent) = existing
+            && !parent.is_dir()
+        {
+            return Err(Error::Usage(format!(
+                "-o {}: {} exists and is not a folder",
+                dir.display(),
+                parent.display()
             )));
         }
         Ok(())
