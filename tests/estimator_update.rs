@@ -6,7 +6,9 @@
 use farma::estimator::direct::{DirectIndex, fit_grid};
 use farma::estimator::kernel::biweight;
 use farma::estimator::linalg::spd_solve_inverse;
-use farma::estimator::update::{ChannelState, read_state, state_from_fit, update, write_state};
+use farma::estimator::update::{
+    ChannelState, read_state, state_from_fit, state_from_fit_direct, update, write_state,
+};
 use farma::estimator::{FarmaParams, FitPath, FittedFarma, PointStatus, VcProblem, fit};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -561,4 +563,70 @@ fn strong_forgetting_and_a_level_shift_are_noted() {
         "b = {:?}: {notes}",
         u.model.b
     );
+}
+
+/// The fast path's state (its normal equations from moment tables) equals the direct
+/// pass's, its slow twin, for several orders, delays and bandwidths (GCV's and fixed,
+/// wide and narrow): S, S2 and C to 1e-11 of each matrix's scale, the kernel mass to
+/// 1e-12 relative, the support counts exactly; and the update from it gives the
+/// update from the direct state.
+#[test]
+fn the_tables_state_equals_the_direct_pass_state() {
+    let x = simulate(6000, 23);
+    let (old, new) = x.split_at(5000);
+    for (p, q, d, h) in [
+        (2, 1, 1, None),
+        (1, 0, 1, Some(0.3)),
+        (2, 2, 2, Some(2.5)),
+        (3, 1, 1, None),
+    ] {
+        let params = FarmaParams {
+            p,
+            q,
+            d,
+            grid_size: 41,
+            bandwidth: h,
+            ..FarmaParams::default()
+        }
+        .validate(old.len())
+        .unwrap();
+        let m = fit(old, &params).unwrap();
+        assert_eq!(m.path, FitPath::Fast);
+        let fast = state_from_fit("x", old, &m);
+        let slow = state_from_fit_direct("x", old, &m);
+        let what = format!("p {p} q {q} d {d} h {}", m.bandwidth);
+        assert_eq!(fast.n_support, slow.n_support, "{what}");
+        let close = |a: &[f64], b: &[f64], per: usize, name: &str| {
+            for (k, (ca, cb)) in a.chunks(per).zip(b.chunks(per)).enumerate() {
+                let scale = scale_of(cb).max(f64::MIN_POSITIVE);
+                for (u, v) in ca.iter().zip(cb) {
+                    assert!(
+                        (u - v).abs() <= 1e-11 * scale,
+                        "{what}: {name} at grid point {k}: {u} against {v}"
+                    );
+                }
+            }
+        };
+        let n = 2 * p;
+        close(&fast.gram, &slow.gram, n * n, "gram");
+        close(&fast.gram2, &slow.gram2, n * n, "gram2");
+        close(&fast.cross, &slow.cross, n * (1 + q), "cross");
+        for (u, v) in fast.kernel_mass.iter().zip(&slow.kernel_mass) {
+            assert!(
+                (u - v).abs() <= 1e-12 * v.abs().max(1e-300),
+                "{what}: mass {u} {v}"
+            );
+        }
+        let (uf, us) = (
+            update(&fast, new, 1.0).unwrap(),
+            update(&slow, new, 1.0).unwrap(),
+        );
+        for (u, v) in uf.model.coef.f.iter().zip(&us.model.coef.f) {
+            assert!(
+                (u - v).abs() <= 1e-9 * (1.0 + v.abs()),
+                "{what}: updated f {u} {v}"
+            );
+        }
+        assert!((uf.model.sigma2 - us.model.sigma2).abs() <= 1e-10 * us.model.sigma2);
+    }
 }

@@ -899,7 +899,8 @@ impl MomentTable {
         let wave = rayon::current_num_threads().max(1);
         let ne = self.count.len();
         let response: Vec<(usize, usize)> = (0..prob.p).map(|a| (a, prob.p)).collect();
-        let xy_only = self.pairs == response;
+        // (a response of its own is read in `block_any`)
+        let xy_only = self.pairs == response && prob.resp.is_none();
         // the sums leave the table while the blocks read it
         let mut total_m = std::mem::take(&mut self.m);
         let mut total_count = std::mem::take(&mut self.count);
@@ -970,11 +971,16 @@ impl MomentTable {
             }
             // y_t = x_t - sum b_m e_{t-m} (as VcProblem::y), when a family holds it
             if with_y {
-                let mut y = x[t];
-                for (mm, bm) in bb.iter().enumerate() {
-                    y -= bm * ee[t - mm - 1];
-                }
-                v[p] = y;
+                v[p] = match prob.resp {
+                    Some((r, lag)) => r[t - lag],
+                    None => {
+                        let mut y = x[t];
+                        for (mm, bm) in bb.iter().enumerate() {
+                            y -= bm * ee[t - mm - 1];
+                        }
+                        y
+                    }
+                };
             }
             let row = &mut m[e * width..(e + 1) * width];
             for (chunk, &(a, b)) in row.chunks_exact_mut(D1).zip(pairs) {
@@ -1428,6 +1434,53 @@ impl MomentTable {
             })
             .collect();
         per_g.concat()
+    }
+
+    /// The normal equations of the online state at bandwidth `h` from a table of the
+    /// design's families ([`Families::Design`], degree 10), for every grid point: S_g =
+    /// sum K(w) Z Z' (Z = (X, w X), w = (U - u_g)/h, row-major 2p x 2p), S2_g = sum
+    /// K(w)^2 Z Z', the support's sample count and kernel mass sum K(w): the sums of
+    /// `update::state_from_fit_direct` over the rows in [u_g - h, u_g + h), from the
+    /// window moments of [`MomentTable::se_factors`].
+    pub fn state_design(&self, grid: &[f64], h: f64) -> Vec<(Vec<f64>, Vec<f64>, u64, f64)> {
+        assert!(
+            self.deg >= 10 && self.pairs.last() == Some(&(self.p + 1, self.p + 1)),
+            "the design's families to degree 10"
+        );
+        let d1 = self.deg + 1;
+        let binom = binomial_table();
+        let cells = self.cells(grid);
+        let k2 = poly_mul(&BIWEIGHT, &BIWEIGHT);
+        (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let (acc, count) = self.window(&cells, g, h, 10, &binom);
+                let a1 = kernel_contraction(&acc, d1, h, &BIWEIGHT);
+                let a2 = kernel_contraction(&acc, d1, h, &k2);
+                let mass = a1(self.one_fam(), 0);
+                (self.local_lhs(&a1), self.local_lhs(&a2), count, mass)
+            })
+            .collect()
+    }
+
+    /// T_g = sum K(w) Z y (2p) at every grid point at bandwidth `h`, from a table of
+    /// the X_a y families ([`Families::Response`], degree 5 or more), the windows
+    /// summed as in [`MomentTable::fit_response`].
+    pub fn local_rhs_at(&self, grid: &[f64], h: f64) -> Vec<Vec<f64>> {
+        assert!(
+            self.deg >= 5,
+            "right-hand sides need moments up to degree 5"
+        );
+        let d1 = self.deg + 1;
+        let binom = binomial_table();
+        let cells = self.cells(grid);
+        (0..grid.len())
+            .into_par_iter()
+            .map(|g| {
+                let (acc, _) = self.window(&cells, g, h, self.deg.min(6), &binom);
+                self.local_rhs(&kernel_contraction(&acc, d1, h, &BIWEIGHT))
+            })
+            .collect()
     }
 }
 

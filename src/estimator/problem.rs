@@ -19,6 +19,10 @@ pub struct VcProblem<'a> {
     pub d: usize,
     /// First row used: max(p, q, d).
     pub start: usize,
+    /// Another response: y_t = r[t - lag] for `Some((r, lag))` (the online state's
+    /// cross moments, which hold x_t and each e_{t-j} apart); None for the model's
+    /// y_t = x_t - sum b_m e_{t-m}.
+    pub resp: Option<(&'a [f64], usize)>,
 }
 
 impl<'a> VcProblem<'a> {
@@ -32,6 +36,7 @@ impl<'a> VcProblem<'a> {
             p,
             d,
             start: p.max(b.len()).max(d),
+            resp: None,
         }
     }
 
@@ -49,6 +54,9 @@ impl<'a> VcProblem<'a> {
     /// Response y_t.
     #[inline]
     pub fn y(&self, t: usize) -> f64 {
+        if let Some((r, lag)) = self.resp {
+            return r[t - lag];
+        }
         let mut y = self.x[t];
         for (m, bm) in self.b.iter().enumerate() {
             y -= bm * self.e[t - m - 1];

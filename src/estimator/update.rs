@@ -67,8 +67,8 @@ use rayon::prelude::*;
 use super::fit::{FitPath, FittedFarma, Init, missing_se_note};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
-use super::moments::sandwich_diag;
-use super::problem::{GridFit, PointStatus};
+use super::moments::{Families, MomentTable, breakpoints, sandwich_diag};
+use super::problem::{GridFit, PointStatus, VcProblem};
 use crate::error::{Error, Result};
 use crate::output::batch;
 
@@ -488,16 +488,38 @@ impl Sums {
 }
 
 /// The state of a fitted channel: its normal equations at the fit's final residuals
-/// and b. One pass over the rows adds each row to the grid points whose support holds
-/// it (the rows of [`super::direct::fit_grid`]); rows are cut into fixed blocks (their
-/// size does not depend on the threads), blocks run in parallel and are added in
-/// order: the result does not depend on the number of threads.
+/// and b. On the fast path (`m.path` [`FitPath::Fast`]) the per-grid-point sums come
+/// from one-pass moment tables ([`sums_from_tables`]); otherwise, and in
+/// [`state_from_fit_direct`], its slow twin, from a pass that adds each row to every
+/// grid point whose support holds it ([`sums_direct`]). Either way the result does not
+/// depend on the number of threads.
 pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+    let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
+    let sums = match m.path {
+        FitPath::Fast => sums_from_tables(&x, m),
+        FitPath::Direct => sums_direct(&x, m),
+    };
+    state_with(channel, x, m, sums)
+}
+
+/// [`state_from_fit`] by the direct pass whatever the fit's path: the slow twin the
+/// tables' sums are tested against.
+pub fn state_from_fit_direct(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+    let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
+    let sums = sums_direct(&x, m);
+    state_with(channel, x, m, sums)
+}
+
+/// The normal equations of every grid point by a direct pass over the centred series
+/// `x`: each row is added to the grid points whose support holds it (the rows of
+/// [`super::direct::fit_grid`]); rows are cut into fixed blocks (their size does not
+/// depend on the threads), blocks run in parallel and are added in order. Its cost is
+/// rows x grid points per support (about 1 s at 1e6 samples and 201 grid points).
+fn sums_direct(x: &[f64], m: &FittedFarma) -> Sums {
     const BLOCK: usize = 1 << 15;
     const GROUP: usize = 32;
     let (p, q, d) = (m.p, m.q, m.d);
     let lag = p.max(q).max(d);
-    let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
     let e = &m.residuals;
     let h = m.bandwidth;
     let grid = &m.grid;
@@ -519,7 +541,7 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
                         if !(ug - h <= u && u < ug + h) {
                             continue;
                         }
-                        let kw = local_row(&x, e, (p, q, d), t, ug, h, &mut z, &mut r);
+                        let kw = local_row(x, e, (p, q, d), t, ug, h, &mut z, &mut r);
                         accumulate(
                             &mut acc.gram[k * n * n..(k + 1) * n * n],
                             &mut acc.cross[k * n * nc..(k + 1) * n * nc],
@@ -541,6 +563,84 @@ pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> Channel
             total.add(part);
         }
     }
+    total
+}
+
+/// The normal equations of every grid point from one-pass moment tables over the
+/// breakpoints u_g and u_g -+ h ([`MomentTable`], the fast path's exact sums): the
+/// design's families to degree 10 give S_g, S2_g, the kernel mass and the count
+/// ([`MomentTable::state_design`]); for each column r_c of r_t = (x_t, e_{t-1}, ..,
+/// e_{t-q}), a table of X_a r_c to degree 5 gives column c of C_g
+/// ([`MomentTable::local_rhs_at`]). 1 + (q + 1) passes of p(p+1)/2 + 1 and p families
+/// instead of a pass of rows x grid points per support: the same sums to rounding
+/// (tests/estimator_update.rs checks them against [`sums_direct`]).
+fn sums_from_tables(x: &[f64], m: &FittedFarma) -> Sums {
+    let (p, q, d) = (m.p, m.q, m.d);
+    let lag = p.max(q).max(d);
+    let (h, grid) = (m.bandwidth, &m.grid);
+    let (n, nc, g) = (2 * p, 1 + q, grid.len());
+    let e = &m.residuals;
+    let (umin, umax) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let breaks = || breakpoints(grid, &[h]);
+    // every row from max(p, q, d), as the direct pass; the response of column c
+    fn problem<'a>(
+        x: &'a [f64],
+        (p, d, lag): (usize, usize, usize),
+        resp: Option<(&'a [f64], usize)>,
+    ) -> VcProblem<'a> {
+        VcProblem {
+            start: lag,
+            resp,
+            ..VcProblem::new(x, &[], &[], p, d)
+        }
+    }
+    let design = MomentTable::build_families(
+        &problem(x, (p, d, lag), None),
+        breaks(),
+        umin,
+        umax,
+        10,
+        Families::Design,
+    );
+    let mut sums = Sums::zeros(g, p, q);
+    for (k, (s, s2, count, mass)) in design.state_design(grid, h).into_iter().enumerate() {
+        sums.gram[k * n * n..(k + 1) * n * n].copy_from_slice(&s);
+        sums.gram2[k * n * n..(k + 1) * n * n].copy_from_slice(&s2);
+        sums.count[k] = count;
+        sums.mass[k] = mass;
+    }
+    for c in 0..nc {
+        // column 0: x_t (the model's response with b = 0); column c: e_{t-c}
+        let resp = (c > 0).then_some((&e[..], c));
+        let table = MomentTable::build_families(
+            &problem(x, (p, d, lag), resp),
+            breaks(),
+            umin,
+            umax,
+            5,
+            Families::Response,
+        );
+        for (k, rhs) in table.local_rhs_at(grid, h).into_iter().enumerate() {
+            for i in 0..n {
+                sums.cross[k * n * nc + i * nc + c] = rhs[i];
+            }
+        }
+    }
+    sums
+}
+
+/// The state of a fitted channel from its centred series `x` and the grid points'
+/// normal equations `sums`.
+fn state_with(channel: &str, x: Vec<f64>, m: &FittedFarma, total: Sums) -> ChannelState {
+    let (p, q, d) = (m.p, m.q, m.d);
+    let lag = p.max(q).max(d);
+    let e = &m.residuals;
+    let h = m.bandwidth;
+    let grid = &m.grid;
     let mut st = ChannelState {
         channel: channel.to_string(),
         p,
