@@ -752,3 +752,67 @@ fn an_output_folder_under_a_file_is_refused_before_the_work() {
         assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept");
     }
 }
+
+/// A run killed while it writes leaves its temporary files (`.farma-HOST-PID-*.tmp`)
+/// behind (a helper's fuzzing: some 40 after 10 kills). The next run writing into that
+/// folder removes those of this machine whose process is gone, and says so; it leaves
+/// a live process's, another machine's and the older pattern's.
+#[test]
+fn temporary_files_of_killed_runs_are_removed_by_the_next_run() {
+    let Ok(raw) = std::fs::read_to_string("/proc/sys/kernel/hostname") else {
+        return; // not Linux: temporary files are not swept
+    };
+    let host: String = raw
+        .trim()
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    // PIDs above Linux's pid_max (4194304) never run; this test's own process does
+    let dead = [
+        format!(".farma-{host}-999999901-aB3xYz.tmp"),
+        format!(".farma-{host}-999999902-Qq0000.tmp"),
+    ];
+    let kept = [
+        format!(".farma-{host}-{}-aB3xYz.tmp", std::process::id()),
+        ".farma-otherhost-999999901-aB3xYz.tmp".to_string(),
+        ".farma-aB3xYz.tmp".to_string(),
+    ];
+    for name in dead.iter().chain(&kept) {
+        std::fs::write(out.join(name), b"partial").unwrap();
+    }
+    let o = farma(
+        &[
+            "fit",
+            fixture("multiaxis.csv").to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--grid",
+            "41",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("removed 2 temporary file(s)") && err.contains("killed runs"),
+        "{err}"
+    );
+    for name in &dead {
+        assert!(!out.join(name).exists(), "{name} left");
+    }
+    for name in &kept {
+        assert!(out.join(name).exists(), "{name} removed");
+    }
+    assert!(out.join("coef.parquet").exists());
+}

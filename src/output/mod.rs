@@ -32,19 +32,123 @@ pub fn batch(columns: Vec<(&str, ArrayRef)>) -> Result<RecordBatch> {
         .map_err(|e| Error::Internal(format!("output table: {e}")))
 }
 
-/// A temporary file in `path`'s folder (`.farma-*.tmp`, removed unless renamed), so
-/// that a rename puts it in place atomically.
+/// A temporary file in `path`'s folder (removed unless renamed), so that a rename puts
+/// it in place atomically: [`temp_in`] there.
 fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
+    temp_in(&dir, path)
+}
+
+/// A temporary file in folder `dir` for output `target` (named in errors), removed
+/// unless renamed: `.farma-HOST-PID-XXXXXX.tmp`, HOST this machine's name and PID this
+/// process's. A run killed while it writes (SIGKILL, a scheduler's time limit) cannot
+/// remove its temporary files; so before the first one in a folder, the files of that
+/// pattern whose HOST is this machine and whose process is gone are removed, with a
+/// note on stderr ([`sweep_stale_temps`]). Files of another machine (a shared folder),
+/// of a live process, or of the older `.farma-XXXXXX.tmp` pattern are left alone.
+pub(crate) fn temp_in(dir: &Path, target: &Path) -> Result<tempfile::NamedTempFile> {
+    sweep_stale_temps(dir);
+    let prefix = match host_name() {
+        Some(host) => format!(".farma-{host}-{}-", std::process::id()),
+        None => ".farma-".to_string(),
+    };
     tempfile::Builder::new()
-        .prefix(".farma-")
+        .prefix(&prefix)
         .suffix(".tmp")
         .permissions(crate::store::output_permissions())
-        .tempfile_in(&dir)
-        .map_err(|e| Error::output_io(path, e))
+        .tempfile_in(dir)
+        .map_err(|e| Error::output_io(target, e))
+}
+
+/// This machine's name for temporary files' names (letters, digits, `.` and `_`; any
+/// other character as `_`), from `/proc/sys/kernel/hostname`; None where that cannot
+/// be read (not Linux): temporary files are then named `.farma-XXXXXX.tmp` and never
+/// swept.
+fn host_name() -> Option<String> {
+    static HOST: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
+    HOST.get_or_init(|| {
+        let raw = std::fs::read_to_string("/proc/sys/kernel/hostname").ok()?;
+        let name: String = raw
+            .trim()
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '.' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        (!name.is_empty()).then_some(name)
+    })
+    .clone()
+}
+
+/// Removes from `dir` (once per folder and process) the temporary files
+/// `.farma-HOST-PID-XXXXXX.tmp` left by killed runs: HOST this machine ([`host_name`]),
+/// PID a process that no longer exists (`/proc/PID` absent). Says how many on stderr.
+/// Errors are ignored: a file that cannot be removed stays, as before.
+pub fn sweep_stale_temps(dir: &Path) {
+    static SWEPT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let Some(host) = host_name() else { return };
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let key = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+    {
+        let mut swept = SWEPT.lock().unwrap_or_else(|e| e.into_inner());
+        if swept.contains(&key) {
+            return;
+        }
+        swept.push(key);
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let me = std::process::id();
+    let mut removed = 0usize;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(pid) = stale_temp_pid(name, &host) else {
+            continue;
+        };
+        if pid == me || Path::new("/proc").join(pid.to_string()).exists() {
+            continue;
+        }
+        if entry.file_type().is_ok_and(|t| t.is_file())
+            && std::fs::remove_file(entry.path()).is_ok()
+        {
+            removed += 1;
+        }
+    }
+    if removed > 0 {
+        eprintln!(
+            "farma: note: removed {removed} temporary file(s) .farma-{host}-PID-*.tmp left in {} by killed runs",
+            dir.display()
+        );
+    }
+}
+
+/// The PID of a temporary file's name `.farma-HOST-PID-XXXXXX.tmp` when HOST is `host`
+/// (XXXXXX: letters and digits).
+fn stale_temp_pid(name: &str, host: &str) -> Option<u32> {
+    let rest = name
+        .strip_prefix(".farma-")?
+        .strip_suffix(".tmp")?
+        .strip_prefix(host)?
+        .strip_prefix('-')?;
+    let (pid, random) = rest.split_once('-')?;
+    if random.is_empty() || !random.chars().all(|c| c.is_ascii_alphanumeric()) {
+        return None;
+    }
+    if pid.is_empty() || !pid.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
 }
 
 /// Writes `text` to `path` atomically (a temporary file beside it, then a rename).
@@ -204,5 +308,31 @@ impl OutputSet {
             }
         }
         Ok(removed)
+    }
+}
+
+#[cfg(test)]
+mod temp_name_tests {
+    use super::stale_temp_pid;
+
+    #[test]
+    fn a_temporary_files_pid_is_read_only_for_this_host_and_pattern() {
+        assert_eq!(
+            stale_temp_pid(".farma-box1-4242-aB3xYz.tmp", "box1"),
+            Some(4242)
+        );
+        assert_eq!(stale_temp_pid(".farma-box1-4242-aB3xYz.tmp", "box2"), None);
+        // a host whose name is this one's with more after it
+        assert_eq!(stale_temp_pid(".farma-box1x-4242-aB3xYz.tmp", "box1"), None);
+        // the older pattern, and other files
+        assert_eq!(stale_temp_pid(".farma-aB3xYz.tmp", "box1"), None);
+        assert_eq!(
+            stale_temp_pid(".farma-box1-4242-aB3xYz.parquet", "box1"),
+            None
+        );
+        assert_eq!(stale_temp_pid("farma-box1-4242-aB3xYz.tmp", "box1"), None);
+        assert_eq!(stale_temp_pid(".farma-box1-42x2-aB3xYz.tmp", "box1"), None);
+        assert_eq!(stale_temp_pid(".farma-box1-4242-.tmp", "box1"), None);
+        assert_eq!(stale_temp_pid(".farma-box1-4242-a-b.tmp", "box1"), None);
     }
 }

@@ -19,7 +19,7 @@ use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 
 use crate::error::{Error, Result};
-use crate::store::{STORE_FORMAT_VERSION, Segment, StoreMeta, StoreWriter, output_permissions};
+use crate::store::{STORE_FORMAT_VERSION, Segment, StoreMeta, StoreWriter};
 
 /// Name of the time column of a simulated log.
 pub const TIME_COL: &str = "time";
@@ -66,12 +66,7 @@ fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile> {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    tempfile::Builder::new()
-        .prefix(".farma-")
-        .suffix(".tmp")
-        .permissions(output_permissions())
-        .tempfile_in(&dir)
-        .map_err(|e| Error::output_io(path, e))
+    crate::output::temp_in(&dir, path)
 }
 
 /// Writes `columns` (name, values; all of one length) with a leading time column to

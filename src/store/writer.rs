@@ -56,12 +56,7 @@ impl StoreWriter {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = tempfile::Builder::new()
-            .prefix(".farma-")
-            .suffix(".tmp")
-            .permissions(output_permissions())
-            .tempfile_in(&dir)
-            .map_err(|e| Error::output_io(target, e))?;
+        let tmp = crate::output::temp_in(&dir, target)?;
         let opts = IpcWriteOptions::default();
         let schema = schema_for(names, None);
 
