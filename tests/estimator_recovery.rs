@@ -590,3 +590,38 @@ fn a_spike_is_named_as_stretching_the_ladder() {
         m.notes
     );
 }
+
+/// Differenced white noise (MA(1) with b_1 = -1: an over-differenced channel) fits b_1
+/// near -1, and the fit says that its MA part is near the edge of invertibility and
+/// why; the bench's FARMA(2,1,1) (b_1 = -0.5) gets no such note.
+#[test]
+fn an_ma_part_near_the_edge_of_invertibility_is_named() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let w: Vec<f64> = (0..20_001)
+        .map(|_| StandardNormal.sample(&mut rng))
+        .collect();
+    let x: Vec<f64> = w.windows(2).map(|p| p[1] - p[0]).collect();
+    let params = FarmaParams {
+        grid_size: 41,
+        ..FarmaParams::default()
+    }
+    .validate(x.len())
+    .unwrap();
+    let m = fit(&x, &params).unwrap();
+    assert!(m.b[0] < -0.99, "b {:?}", m.b);
+    let note = m
+        .notes
+        .iter()
+        .find(|n| n.contains("near the edge of invertibility"))
+        .unwrap_or_else(|| panic!("no note: {:?}", m.notes));
+    assert!(
+        note.contains("over-differenced") && note.contains("farma prep"),
+        "{note}"
+    );
+    let clean = fit(&simulate(5_000, 3), &params).unwrap();
+    assert!(
+        !clean.notes.iter().any(|n| n.contains("invertibility")),
+        "{:?}",
+        clean.notes
+    );
+}

@@ -31,6 +31,10 @@ pub struct UpdateArgs {
     /// Output folder (coef.parquet, params.parquet, gcv.parquet, state.parquet[, residuals.parquet]).
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: PathBuf,
+    /// The model's channels to update (comma-separated, or all); the output folder's
+    /// model holds these only.
+    #[arg(long, default_value = "all")]
+    pub channel: String,
     /// Forgetting factor lambda in (0, 1]: a sample k steps old weighs lambda^k (1: none).
     #[arg(long, default_value_t = 1.0, value_name = "LAMBDA")]
     pub forgetting: f64,
@@ -158,6 +162,44 @@ fn check_continuation(
     Ok(())
 }
 
+/// The states of the channels `selection` names (`all`, or a comma-separated list of
+/// the model's channels, in the model's order); a name the model does not hold is a
+/// usage error naming the model's channels.
+fn select_states(
+    states: Vec<ChannelState>,
+    selection: &str,
+    state_path: &std::path::Path,
+) -> Result<Vec<ChannelState>> {
+    if selection.trim() == "all" {
+        return Ok(states);
+    }
+    let names: Vec<&str> = selection
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect();
+    if names.is_empty() {
+        return Err(Error::Usage("--channel: no channel named".into()));
+    }
+    for name in &names {
+        if !states.iter().any(|s| s.channel == *name) {
+            return Err(Error::Usage(format!(
+                "--channel {name}: the model in {} has no channel '{name}'; its channels are: {}",
+                state_path.display(),
+                states
+                    .iter()
+                    .map(|s| s.channel.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+    }
+    Ok(states
+        .into_iter()
+        .filter(|s| names.contains(&s.channel.as_str()))
+        .collect())
+}
+
 pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     if !(a.forgetting > 0.0 && a.forgetting <= 1.0) {
         return Err(Error::Usage(format!(
@@ -187,6 +229,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         )));
     }
     let (states, md) = read_state(&state_path)?;
+    let states = select_states(states, &a.channel, &state_path)?;
     // the rate the model was fitted at: a value that is not a positive number is an
     // edited or corrupt state (it had been skipped, and the rate left unchecked)
     let model_rate: Option<f64> = match md.iter().find(|(k, _)| k == "sample_rate_hz") {
@@ -223,6 +266,16 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     let t0 = Instant::now();
     // a channel whose fit returned its linear start is the model's problem, not the
     // new log's: named with the state file (it had been named with NEW_LOG)
+    let others: Vec<&str> = states
+        .iter()
+        .filter(|s| !s.linear_start)
+        .map(|s| s.channel.as_str())
+        .collect();
+    let instead = if others.is_empty() {
+        String::new()
+    } else {
+        format!(" (or --channel {} updates the others)", others.join(","))
+    };
     super::every_channel(
         states
             .iter()
@@ -233,7 +286,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
                 Err(Error::format(
                     &state_path,
                     format!(
-                        "channel '{}': its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead",
+                        "channel '{}': its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead{instead}",
                         s.channel
                     ),
                 ))

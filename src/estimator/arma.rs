@@ -163,6 +163,39 @@ pub fn ma_invertible(b: &[f64]) -> bool {
     true
 }
 
+/// The largest modulus of the roots of z^q + b_1 z^(q-1) + ... + b_q (the inverses of
+/// the roots of the MA polynomial 1 + b_1 B + ... + b_q B^q): below 1 exactly when b is
+/// invertible. By bisection on r with [`ma_invertible`] of b_k / r^k, whose roots are
+/// those of b divided by r (all inside the unit circle iff every root of b has modulus
+/// below r); 0 for q = 0, to about 1e-15 otherwise.
+pub fn ma_root_modulus(b: &[f64]) -> f64 {
+    if b.is_empty() {
+        return 0.0;
+    }
+    let inside = |r: f64| {
+        let scaled: Vec<f64> = b
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v / r.powi(k as i32 + 1))
+            .collect();
+        ma_invertible(&scaled)
+    };
+    // an upper bound: 1 + max |b_k| (Cauchy's bound)
+    let (mut lo, mut hi) = (0.0f64, 1.0 + b.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        if inside(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
 /// One streaming pass of the ARMA(p,q) recursion e_t = x_t - sum a_m x_{t-m} -
 /// sum b_m e_{t-m} (zeros before the first sample) with its derivatives
 /// d e_t / d a_j = -x_{t-j} - sum_k b_k d e_{t-k} / d a_j and
@@ -688,6 +721,20 @@ pub fn fit_arma(x: &[f64], p: usize, q: usize) -> Option<LinearArma> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn the_ma_root_modulus_is_that_of_the_roots() {
+        assert_eq!(ma_root_modulus(&[]), 0.0);
+        // q = 1: z + b, root -b
+        for b in [-0.5, 0.9, -0.9999999992, 1.5] {
+            assert!((ma_root_modulus(&[b]) - b.abs()).abs() < 1e-12, "{b}");
+        }
+        // q = 2 with roots 0.8 and -0.3: z^2 - 0.5 z - 0.24
+        assert!((ma_root_modulus(&[-0.5, -0.24]) - 0.8).abs() < 1e-12);
+        // complex pair 0.6 +- 0.7i, modulus sqrt(0.85): z^2 - 1.2 z + 0.85
+        assert!((ma_root_modulus(&[-1.2, 0.85]) - 0.85f64.sqrt()).abs() < 1e-12);
+    }
+
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};

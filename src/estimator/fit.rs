@@ -50,7 +50,7 @@ use std::ops::Range;
 
 use super::arma::{
     PassState, PassSums, arma_pass, arma_pass_into, fit_arma, lagged_normal, ma_invertible,
-    pass_rows,
+    ma_root_modulus, pass_rows,
 };
 use super::buffers;
 use super::direct::{self, DirectIndex};
@@ -1521,6 +1521,27 @@ pub fn check_magnitude(
     ))
 }
 
+/// Above this modulus of the MA part's largest root ([`ma_root_modulus`]), 0.99,
+/// [`ma_edge_note`] says that b is near the edge of invertibility. Measured
+/// (2026-11-26, FARMA(2,1,1)): differenced white noise (true b_1 = -1) gave b_1 =
+/// -0.9947 and -0.9869 on 4,000 samples (two series: a short one can stay below the
+/// edge), below -0.99 on 20,000 (tests/estimator_recovery.rs); a step in a constant
+/// channel -0.99999999939.
+pub const MA_EDGE: f64 = 0.99;
+
+/// A note when the MA part `b` is near the edge of invertibility (its largest root's
+/// modulus above [`MA_EDGE`]): what an over-differenced channel (differencing white
+/// noise gives b_1 = -1), or a step or trend left in it, gives. None otherwise.
+pub fn ma_edge_note(b: &[f64]) -> Option<String> {
+    let modulus = ma_root_modulus(b);
+    (modulus > MA_EDGE).then(|| {
+        format!(
+            "the MA part b = {b:?} is near the edge of invertibility (its largest root has modulus {modulus:.10}, 1 - {:.1e}): an over-differenced channel (differencing white noise gives b_1 = -1), or a step or trend that removing the mean leaves; `farma prep` tests stationarity and differences or detrends only where needed",
+            1.0 - modulus
+        )
+    })
+}
+
 /// Above this ratio of an index's span (max - min) to the spread of its central
 /// values (the grid's quantiles), [`stretched_ladder_note`] says that an outlier
 /// stretches the bandwidth ladder. Measured ratios without outliers: a Gaussian index
@@ -2379,6 +2400,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
     let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
     notes.extend(missing_se_note(&coef.status, &coef.cond, &se, p));
+    notes.extend(ma_edge_note(&b));
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
         notes.push(format!("{n_filled} grid point(s) without a local fit were filled from their neighbours (see status)"));

@@ -43,7 +43,8 @@ use rayon::prelude::*;
 
 use super::arma::fit_arma;
 use super::fit::{
-    FarmaParams, FitPath, ma_cls, missing_se_note, stretched_ladder_note, undefined_trace_note,
+    FarmaParams, FitPath, ma_cls, ma_edge_note, missing_se_note, stretched_ladder_note,
+    undefined_trace_note,
 };
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
@@ -958,6 +959,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
         .map(|f| f * sigma2.sqrt())
         .collect();
     notes.extend(missing_se_note(&final_fit.status, &final_fit.cond, &se, p));
+    notes.extend(ma_edge_note(&b));
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
         notes.push(format!(
