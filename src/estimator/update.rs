@@ -489,9 +489,9 @@ impl Sums {
 
 /// The state of a fitted channel: its normal equations at the fit's final residuals
 /// and b. On the fast path (`m.path` [`FitPath::Fast`]) the per-grid-point sums come
-/// from one-pass moment tables ([`sums_from_tables`]); otherwise, and in
+/// from one-pass moment tables (`sums_from_tables`); otherwise, and in
 /// [`state_from_fit_direct`], its slow twin, from a pass that adds each row to every
-/// grid point whose support holds it ([`sums_direct`]). Either way the result does not
+/// grid point whose support holds it (`sums_direct`). Either way the result does not
 /// depend on the number of threads.
 pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();

@@ -88,7 +88,7 @@ fn host_name() -> Option<String> {
 }
 
 /// Removes from `dir` (once per folder and process) the temporary files
-/// `.farma-HOST-PID-XXXXXX.tmp` left by killed runs: HOST this machine ([`host_name`]),
+/// `.farma-HOST-PID-XXXXXX.tmp` left by killed runs: HOST this machine (`host_name`),
 /// PID a process that no longer exists (`/proc/PID` absent). Says how many on stderr.
 /// Errors are ignored: a file that cannot be removed stays, as before.
 pub fn sweep_stale_temps(dir: &Path) {
