@@ -160,18 +160,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         .into_par_iter()
         .map(|c| {
             let name = c.name.clone();
-            analyze_channel(c, &prm).map_err(|e| match e {
-                Error::Usage(msg) => Error::Column {
-                    path: a.log.clone(),
-                    msg: format!("channel '{name}': {msg}"),
-                },
-                Error::TooShort { what, need, have } => Error::TooShort {
-                    what: format!("{}: channel {name}: {what}", a.log.display()),
-                    need,
-                    have,
-                },
-                o => o,
-            })
+            analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e))
         })
         .collect::<Result<_>>()?;
     let secs = t0.elapsed().as_secs_f64();

@@ -226,13 +226,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|n| {
                 let x = store.column(n)?;
-                let m = fit(x, &valid).map_err(|e| match e {
-                    Error::Usage(msg) => Error::Column {
-                        path: a.log.clone(),
-                        msg: format!("channel '{n}': {msg}"),
-                    },
-                    other => other,
-                })?;
+                let m = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
                 Ok((n.clone(), m))
             })
             .collect(),

@@ -197,18 +197,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|n| {
                 let x = store.column(n)?;
-                let m = fit2(x, z, &params).map_err(|e| match e {
-                    Error::Usage(msg) => Error::Column {
-                        path: a.log.clone(),
-                        msg: format!("channel '{n}': {msg}"),
-                    },
-                    Error::TooShort { what, need, have } => Error::TooShort {
-                        what: format!("{}: channel {n}: {what}", a.log.display()),
-                        need,
-                        have,
-                    },
-                    other => other,
-                })?;
+                let m = fit2(x, z, &params).map_err(|e| super::on_channel(&a.log, n, e))?;
                 Ok((n.clone(), m))
             })
             .collect(),

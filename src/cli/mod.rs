@@ -189,6 +189,24 @@ pub(crate) fn commit_outputs(set: crate::output::OutputSet, outputs: &[&str]) ->
     Ok(())
 }
 
+/// An error of one channel's work on `log`, named with the channel: a usage error
+/// becomes an error of the log's channel, a too-short series says which log and
+/// channel; other errors stay as they are.
+pub(crate) fn on_channel(log: &std::path::Path, channel: &str, e: Error) -> Error {
+    match e {
+        Error::Usage(msg) => Error::Column {
+            path: log.to_path_buf(),
+            msg: format!("channel '{channel}': {msg}"),
+        },
+        Error::TooShort { what, need, have } => Error::TooShort {
+            what: format!("{}: channel {channel}: {what}", log.display()),
+            need,
+            have,
+        },
+        other => other,
+    }
+}
+
 /// The results of a run's per-channel work, in channel order: every value; or the
 /// error of the one channel that failed; or, when several did, all their errors in
 /// channel order ([`Error::Channels`]). A run writes the outputs of every channel or

@@ -8,7 +8,7 @@ use clap::Args;
 use serde_json::json;
 
 use super::LogArgs;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::estimator::{FarmaParams, FitPath};
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -164,18 +164,10 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
     let mut done = Vec::new();
     for n in &names {
         let x = store.column(n)?;
-        let (sel, con) = a.select.run_on(x).map_err(|e| match e {
-            Error::Usage(msg) => Error::Column {
-                path: a.log.clone(),
-                msg: format!("channel '{n}': {msg}"),
-            },
-            Error::TooShort { what, need, have } => Error::TooShort {
-                what: format!("{}: channel {n}: {what}", a.log.display()),
-                need,
-                have,
-            },
-            o => o,
-        })?;
+        let (sel, con) = a
+            .select
+            .run_on(x)
+            .map_err(|e| super::on_channel(&a.log, n, e))?;
         if a.json {
             outln!("{}", select_json(n, &sel, con.as_ref()));
         } else {

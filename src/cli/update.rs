@@ -299,13 +299,8 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|s| {
                 let x = store.column(&s.channel)?;
-                let u = update(s, x, a.forgetting).map_err(|e| match e {
-                    Error::Usage(msg) => Error::Column {
-                        path: a.new_log.clone(),
-                        msg: format!("channel '{}': {msg}", s.channel),
-                    },
-                    other => other,
-                })?;
+                let u = update(s, x, a.forgetting)
+                    .map_err(|e| super::on_channel(&a.new_log, &s.channel, e))?;
                 Ok((s.channel.clone(), u))
             })
             .collect(),
