@@ -84,6 +84,52 @@ fn fit_with_a_temperature_index_writes_grid2_and_is_thread_independent() {
     assert_eq!(g2.len(), 70);
 }
 
+/// A 2-D index has the direct path only: an explicit `--method fast` says so on
+/// stderr (it had been silently the direct path) and fits what `--method direct` and
+/// no `--method` fit, byte for byte; the other two give no such warning.
+#[test]
+fn an_explicit_method_fast_with_a_2d_index_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let run = |method: Option<&str>, out: &str| {
+        let o_dir = dir.path().join(out);
+        let mut args = vec![
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,0,1",
+            "--index",
+            "lag,temp_c",
+            "--index-grid",
+            "5,5",
+            "-o",
+            o_dir.to_str().unwrap(),
+        ];
+        if let Some(m) = method {
+            args.extend(["--method", m]);
+        }
+        let o = farma(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        stderr(&o).to_string()
+    };
+    let fast = run(Some("fast"), "fast");
+    assert!(
+        fast.contains("warning: --method fast: a 2-D index") && fast.contains("direct path"),
+        "{fast}"
+    );
+    for (m, out) in [(Some("direct"), "direct"), (None, "default")] {
+        let err = run(m, out);
+        assert!(!err.contains("--method fast"), "{m:?}: {err}");
+        for f in ["coef.parquet", "params.parquet", "gcv.parquet"] {
+            let a = std::fs::read(dir.path().join("fast").join(f)).unwrap();
+            let b = std::fs::read(dir.path().join(out).join(f)).unwrap();
+            assert!(a == b, "{f}: --method fast differs from {m:?}");
+        }
+    }
+}
+
 #[test]
 fn fit_with_a_bad_index_exits_2() {
     let dir = tempfile::tempdir().unwrap();

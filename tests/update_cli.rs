@@ -641,6 +641,80 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
     }
 }
 
+/// A state whose normal equations cannot start the recursions (every `gram` block
+/// zeroed, or a zero `b_gram`, as an edit or a corrupt file may leave them) is refused
+/// naming the state file, the channel and the field, not NEW_LOG (a helper's fuzzing:
+/// it had been named with the new log, whose samples were never read).
+#[test]
+fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
+    use farma::estimator::update::{read_state, write_state};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let old = slice_log(d, "old.csv", 0, 2000, None);
+    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let model = fit_state(d, &old, "2,1,1", "31");
+    let (states, md) = read_state(&model.join("state.parquet")).unwrap();
+    let md: Vec<(&str, String)> = md
+        .iter()
+        .filter(|(k, _)| k != "farma_state_version")
+        .map(|(k, v)| (k.as_str(), v.clone()))
+        .collect();
+    let out = d.join("out");
+    // the untouched state updates (so the refusals below are the edits')
+    let r = farma(
+        &[
+            "update",
+            s(&model),
+            s(&new),
+            "-o",
+            s(&out),
+            "--channel",
+            "gyro_x",
+        ],
+        d,
+    );
+    assert_eq!(r.status.code(), Some(0), "{}", stderr(&r));
+    let i = states.iter().position(|st| st.channel == "gyro_x").unwrap();
+    type Edit = fn(&mut farma::estimator::update::ChannelState);
+    let edits: [(&str, Edit, &str); 2] = [
+        ("gram", |st| st.gram.fill(0.0), "field 'gram'"),
+        ("b_gram", |st| st.b_gram.fill(0.0), "field 'b_gram'"),
+    ];
+    for (name, edit, field) in edits {
+        let mut edited = states.clone();
+        edit(&mut edited[i]);
+        let bad = d.join(format!("bad_{name}"));
+        std::fs::create_dir(&bad).unwrap();
+        let refs: Vec<_> = edited.iter().collect();
+        write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+        let out = d.join(format!("out_{name}"));
+        let r = farma(
+            &[
+                "update",
+                s(&bad),
+                s(&new),
+                "-o",
+                s(&out),
+                "--channel",
+                "gyro_x",
+            ],
+            d,
+        );
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{name}: {err}");
+        assert!(
+            err.contains(&format!(
+                "{}: channel 'gyro_x': {field}",
+                bad.join("state.parquet").display()
+            )),
+            "{name}: {err}"
+        );
+        assert!(!err.contains("new.csv"), "{name}: {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(!out.exists(), "{name}");
+    }
+}
+
 /// `update --channel` updates some of the model's channels: a channel whose fit
 /// returned its linear start no longer blocks the others (its error names them and
 /// `--channel`), the output model holds the updated channels only, and a channel the

@@ -34,10 +34,11 @@ pub struct FitArgs {
     /// index takes --index-grid instead).
     #[arg(long, value_name = "N")]
     pub grid: Option<usize>,
-    /// Computation of the local fits (a 2-D index, --index lag,CHANNEL, always takes
-    /// the direct path: KD-tree gather per grid point).
-    #[arg(long, value_enum, default_value_t = FitPath::Fast)]
-    pub method: FitPath,
+    /// Computation of the local fits [default: fast] (a 2-D index, --index
+    /// lag,CHANNEL, always takes the direct path: KD-tree gather per grid point; an
+    /// explicit --method fast there is warned about).
+    #[arg(long, value_enum)]
+    pub method: Option<FitPath>,
     /// Start of the alternation (`literal`: the paper's scheme, for comparison).
     #[arg(long, value_enum, default_value_t = Init::Arma)]
     pub init: Init,
@@ -186,8 +187,9 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     warn_gaps(&store, &a.log);
     let names = store.select_channels(&a.channel)?;
     let grid = a.grid.unwrap_or(DEFAULT_GRID);
+    let method = a.method.unwrap_or(FitPath::Fast);
     if let Some(w) = direct_cost_warning(
-        a.method,
+        method,
         grid,
         store.n_samples(),
         names.len(),
@@ -202,7 +204,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         grid_size: grid,
         bandwidth: a.bandwidth,
         init: a.init,
-        path: a.method,
+        path: method,
         max_iter: a.max_iter,
         tol: a.tol,
         demean: !a.no_demean,

@@ -93,7 +93,13 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             "--init literal: a 2-D index starts from the linear ARMA only".into(),
         ));
     }
-    // --method does not apply: a 2-D index has the direct path only (KD-tree gather)
+    // a 2-D index has the direct path only (KD-tree gather): an explicit --method
+    // fast is not what runs, and says so (--method direct is what runs anyway)
+    if a.method == Some(FitPath::Fast) {
+        eprintln!(
+            "farma: warning: --method fast: a 2-D index has no moment tables (a window in two variables is no union of 1-D intervals); the direct path fits it (a KD-tree gather per grid point), as --method direct would"
+        );
+    }
     let bandwidth = match (a.bandwidth, a.bandwidth2) {
         (None, None) => None,
         (Some(h1), Some(h2)) => Some((h1, h2)),

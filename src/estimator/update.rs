@@ -180,6 +180,33 @@ impl ChannelState {
         }
     }
 
+    /// An error unless the state's normal equations can start the recursions: some
+    /// grid point with at least 2p samples whose local system (its `gram` block) is
+    /// solvable, and for q > 0 a solvable `b_gram`. A fitted state always has both (its
+    /// fit had a local fit somewhere and the MA part's normal equations); an edited or
+    /// corrupt file may not, and that is the state's fault, not the new samples': the
+    /// message names the field. Call after [`ChannelState::check`] (it relies on the
+    /// shapes).
+    pub fn check_solvable(&self) -> std::result::Result<(), String> {
+        let n = 2 * self.p;
+        let zero = vec![0.0; n];
+        let solvable = (0..self.n_grid()).any(|g| {
+            self.n_support[g] as usize >= n
+                && spd_solve_inverse(&self.gram[g * n * n..(g + 1) * n * n], &zero, n).is_some()
+        });
+        if !solvable {
+            return Err(format!(
+                "field 'gram': no grid point has a solvable local system (every block is singular, or its 'n_support' is below 2p = {n}): the state cannot start the recursion; refit the channel (farma fit --save-state)"
+            ));
+        }
+        if self.q > 0 && spd_solve_inverse(&self.b_gram, &self.b_rhs, self.q).is_none() {
+            return Err(
+                "field 'b_gram': the MA part's normal equations are singular: the state cannot start the recursion for b; refit the channel (farma fit --save-state)".into(),
+            );
+        }
+        Ok(())
+    }
+
     /// Checks the shapes, that every number is finite and that the values are possible
     /// for a fitted (or updated) channel (a state read from a file may be corrupt or
     /// edited). The message names the field and what is wrong.
@@ -715,6 +742,7 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
     state
         .check()
         .and_then(|()| state.check_invertible())
+        .and_then(|()| state.check_solvable())
         .map_err(Error::Usage)?;
     if state.linear_start {
         return Err(Error::Usage(
@@ -1448,6 +1476,7 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
             };
             s.check()
                 .and_then(|()| s.check_invertible())
+                .and_then(|()| s.check_solvable())
                 .map_err(|m| Error::format(path, format!("channel '{}': {m}", s.channel)))?;
             if out.iter().any(|o: &ChannelState| o.channel == s.channel) {
                 return Err(Error::format(
