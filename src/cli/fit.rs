@@ -222,18 +222,41 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             },
             other => other,
         })?;
+    let t_last = match a.save_state {
+        true => Some(super::update::last_time(&store)?),
+        false => None,
+    };
     let t0 = Instant::now();
-    let fits: Vec<(String, FittedFarma)> = super::every_channel(
+    // Each channel's state is taken from its fit as soon as the fit ends, and its
+    // residuals (N values) are then dropped unless --residuals writes them: a log of
+    // many long channels holds the residuals of the fits in flight, not one series per
+    // channel (measured: 6 channels of 1e7 samples, 1.29 GB maxrss before, see
+    // BENCHMARKS.md).
+    let fitted: Vec<(String, FittedFarma, Option<update::ChannelState>)> = super::every_channel(
         names
             .par_iter()
             .map(|n| {
                 let x = store.column(n)?;
-                let m = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
-                Ok((n.clone(), m))
+                let mut m = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
+                let state = t_last.map(|t| {
+                    let mut s = update::state_from_fit(n, x, &m);
+                    s.t_last = t;
+                    s
+                });
+                if !a.residuals {
+                    m.residuals = Vec::new();
+                }
+                Ok((n.clone(), m, state))
             })
             .collect(),
         FIT_CHANNELS_HINT,
     )?;
+    let mut fits = Vec::with_capacity(fitted.len());
+    let mut states = Vec::new();
+    for (n, m, s) in fitted {
+        fits.push((n, m));
+        states.extend(s);
+    }
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &FittedFarma)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();
@@ -253,15 +276,6 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         out.parquet("residuals.parquet", &residual_table(&refs)?, &md)?;
     }
     if a.save_state {
-        let t_last = super::update::last_time(&store)?;
-        let states: Vec<_> = fits
-            .par_iter()
-            .map(|(n, m)| {
-                let mut s = update::state_from_fit(n, store.column(n)?, m);
-                s.t_last = t_last;
-                Ok(s)
-            })
-            .collect::<Result<_>>()?;
         for s in states.iter().filter(|s| s.linear_start) {
             eprintln!(
                 "farma: warning: {}: the fit returned its linear ARMA start; its state is written, but `farma update` refuses it (no fitted local model to continue): fit the concatenated log instead",

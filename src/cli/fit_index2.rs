@@ -203,7 +203,11 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|n| {
                 let x = store.column(n)?;
-                let m = fit2(x, z, &params).map_err(|e| super::on_channel(&a.log, n, e))?;
+                let mut m = fit2(x, z, &params).map_err(|e| super::on_channel(&a.log, n, e))?;
+                // N values per channel: kept only for residuals.parquet (as `farma fit`)
+                if !a.residuals {
+                    m.residuals = Vec::new();
+                }
                 Ok((n.clone(), m))
             })
             .collect(),

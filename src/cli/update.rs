@@ -299,8 +299,13 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
             .par_iter()
             .map(|s| {
                 let x = store.column(&s.channel)?;
-                let u = update(s, x, a.forgetting)
+                let mut u = update(s, x, a.forgetting)
                     .map_err(|e| super::on_channel(&a.new_log, &s.channel, e))?;
+                // the new samples' residuals: kept only for residuals.parquet (as
+                // `farma fit`)
+                if !a.residuals {
+                    u.model.residuals = Vec::new();
+                }
                 Ok((s.channel.clone(), u))
             })
             .collect(),
