@@ -75,6 +75,41 @@ fn farma211_data_select_211_and_reject_constancy() {
     assert!(r.rss < r.arma_rss && r.p_vs_arma < 0.01);
 }
 
+/// The selection keeps the residuals of its selected fit alone (the others' are
+/// dropped as each fit ends: N values per order), and those are the residuals a fit at
+/// the selected order returns, bit for bit (they are recomputed from its f and b).
+#[test]
+fn a_selection_keeps_the_selected_fits_residuals_alone_and_they_are_the_fits_own() {
+    use farma::workflow::select::select;
+    let x = farma211(6000, 24);
+    let orders = [(1, 1, 1), (2, 1, 1), (3, 2, 2)];
+    let sel = select(&x, &orders, &base()).unwrap();
+    let (p, q, d) = sel.rows[sel.selected].order;
+    let direct = fit(
+        &x,
+        &FarmaParams { p, q, d, ..base() }.validate(x.len()).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(direct.residuals.len(), x.len());
+    let kept = &sel.fits[sel.selected].residuals;
+    assert_eq!(kept.len(), x.len());
+    let differ = kept
+        .iter()
+        .zip(&direct.residuals)
+        .position(|(a, b)| a.to_bits() != b.to_bits());
+    assert_eq!(
+        differ,
+        None,
+        "order {:?}: first residual that differs",
+        (p, q, d)
+    );
+    for (i, f) in sel.fits.iter().enumerate() {
+        if i != sel.selected {
+            assert!(f.residuals.is_empty(), "order {:?}", sel.rows[i].order);
+        }
+    }
+}
+
 #[test]
 fn arma21_data_do_not_reject_constancy_and_results_ignore_thread_count() {
     let x = arma21(3000, 22);

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use super::dist::f_sf;
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
-use crate::estimator::fit::linear_start;
+use crate::estimator::fit::{linear_start, residuals};
 use crate::estimator::{FarmaParams, FittedFarma, fit};
 
 /// The paper's eight orders.
@@ -88,7 +88,10 @@ pub struct Selection {
     pub selected: usize,
     /// Why it was selected, in words.
     pub reason: String,
-    /// The fitted model of each order, in the order of `rows`.
+    /// The fitted model of each order, in the order of `rows`. Only the selected
+    /// one keeps its `residuals` (N values each: the others' are dropped as each fit
+    /// ends, so a channel holds one residual series, not one per order); theirs are
+    /// empty.
     pub fits: Vec<FittedFarma>,
 }
 
@@ -163,7 +166,9 @@ pub fn select(
         .par_iter()
         .zip(orders.par_iter())
         .map(|(vp, &(p, q, d))| {
-            let m = fit(x, vp)?;
+            let mut m = fit(x, vp)?;
+            // (the selected fit's residuals are recomputed below, the same bits)
+            m.residuals = Vec::new();
             let start = p.max(q).max(d);
             let rows = n - start;
             let (arma_ar, arma_ma) = linear_start(&xc, p, q, start).ok_or_else(|| {
@@ -201,7 +206,7 @@ pub fn select(
             ))
         })
         .collect::<Result<_>>()?;
-    let (rows, fits): (Vec<OrderRow>, Vec<FittedFarma>) = results.into_iter().unzip();
+    let (rows, mut fits): (Vec<OrderRow>, Vec<FittedFarma>) = results.into_iter().unzip();
     let mut ftests = Vec::new();
     for a in &rows {
         for b in &rows {
@@ -239,6 +244,13 @@ pub fn select(
         .map(|(i, _)| i)
         .ok_or_else(|| Error::Usage("no order gave a finite AICc".into()))?;
     let reason = explain(&rows, &ftests, selected);
+    // the selected model's residuals, from its own f and b: the recursion the fit
+    // ran, bit for bit (`fit`'s test `a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b`)
+    let m = &mut fits[selected];
+    let xm: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+    let mut e = vec![0.0; n];
+    residuals(&xm, m.d, &m.grid, &m.coef, &m.b, &mut e);
+    m.residuals = e;
     Ok(Selection {
         rows,
         ftests,
