@@ -1529,6 +1529,35 @@ pub fn check_magnitude(
 /// channel -0.99999999939.
 pub const MA_EDGE: f64 = 0.99;
 
+/// The note of a fit whose RSS settled at a bandwidth GCV had re-selected twice, the
+/// most the alternation makes: GCV is not run again at the final residuals, so the
+/// bandwidth is not confirmed there, and a choice that swung back to one it had left
+/// says so. `chosen` holds the bandwidths GCV chose in order (its last is the model's),
+/// `fmt` writes one (a pair for the 2-D index).
+pub fn reselection_limit_note<H: PartialEq + Copy>(
+    iterations: usize,
+    chosen: &[H],
+    fmt: impl Fn(H) -> String,
+) -> String {
+    let (at, swung) = match chosen.split_last() {
+        Some((last, before)) => (format!(" {}", fmt(*last)), before.contains(last)),
+        None => (String::new(), false),
+    };
+    format!(
+        "alternation {iterations}: the RSS settled at bandwidth{at}, GCV's second re-selection ({}); GCV is not run a third time at these residuals, so it may prefer another bandwidth there{}; a fixed --bandwidth settles the choice",
+        chosen
+            .iter()
+            .map(|h| fmt(*h))
+            .collect::<Vec<_>>()
+            .join(" -> "),
+        if swung {
+            ", and it had swung back to a bandwidth it left before"
+        } else {
+            ""
+        }
+    )
+}
+
 /// A note when the MA part `b` is near the edge of invertibility (its largest root's
 /// modulus above [`MA_EDGE`]): what an over-differenced channel (differencing white
 /// noise gives b_1 = -1), or a step or trend left in it, gives. None otherwise.
@@ -2106,6 +2135,8 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     let mut iterations = 0;
     let mut converged = false;
     let mut reselections = 0;
+    // the bandwidths GCV chose, in order (the first selection, then each re-selection)
+    let mut chosen: Vec<f64> = Vec::new();
     // rss_history index of the last bandwidth re-selection
     let mut reselected_at = 0;
     let mut need_gcv = prm.bandwidth.is_none();
@@ -2135,6 +2166,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
             ladder_extended |= ext;
             notes.extend(nt);
             h = rows[best].bandwidth;
+            chosen.push(h);
             gcv_table = rows;
             fits.swap_remove(best)
         } else {
@@ -2297,6 +2329,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                     ladder_extended |= ext;
                     notes.extend(nt);
                     h = rows[best].bandwidth;
+                    chosen.push(h);
                     if let Some(lad) = &cache.ladder {
                         cache.systems = Some(lad.systems_at(&grid, h));
                     }
@@ -2306,6 +2339,11 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
                 }
                 gcv_table = rows;
             } else {
+                if prm.bandwidth.is_none() {
+                    notes.push(reselection_limit_note(iterations, &chosen, |h| {
+                        format!("{h:.6e}")
+                    }));
+                }
                 timings.alternations.push(at.clone());
             }
             converged = true;
@@ -2644,6 +2682,19 @@ mod tests {
         // only q = 1 and 2
         let mut buf = uniform(100, 1);
         assert!(gn_b_step(&mut buf, 3, &[0.1, 0.1, 0.1], None, |_| {}).is_none());
+    }
+
+    #[test]
+    fn the_reselection_limit_note_names_a_swing_back() {
+        let f = |h: f64| format!("{h}");
+        let on = reselection_limit_note(5, &[0.5, 0.25, 0.125], f);
+        assert!(on.contains("(0.5 -> 0.25 -> 0.125)") && on.contains("bandwidth 0.125,"));
+        assert!(!on.contains("swung back"), "{on}");
+        let back = reselection_limit_note(7, &[0.5, 0.25, 0.5], f);
+        assert!(
+            back.contains("alternation 7:") && back.contains("swung back"),
+            "{back}"
+        );
     }
 
     #[test]

@@ -43,8 +43,8 @@ use rayon::prelude::*;
 
 use super::arma::fit_arma;
 use super::fit::{
-    FarmaParams, FitPath, ma_cls, ma_edge_note, missing_se_note, stretched_ladder_note,
-    undefined_trace_note,
+    FarmaParams, FitPath, ma_cls, ma_edge_note, missing_se_note, reselection_limit_note,
+    stretched_ladder_note, undefined_trace_note,
 };
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
@@ -911,6 +911,10 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
                     continue;
                 }
                 gcv_table = rows;
+            } else if params.bandwidth.is_none() {
+                notes.push(reselection_limit_note(iterations, &visited, |h| {
+                    format!("({:.6e}, {:.6e})", h.0, h.1)
+                }));
             }
             converged = true;
             break;
