@@ -58,6 +58,31 @@ fn fit_state(d: &Path, old: &Path, order: &str, grid: &str) -> PathBuf {
     model
 }
 
+/// Writes `states` to `dir`/state.parquet (the folder made) with the metadata `md` of
+/// a state read back (less its format version, which `write_state` adds), each value
+/// passed through `edit_md(key, value)`: an edited model folder. Returns `dir`.
+fn write_edited_state(
+    dir: &Path,
+    states: &[farma::estimator::update::ChannelState],
+    md: &[(String, String)],
+    edit_md: impl Fn(&str, &str) -> String,
+) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let md: Vec<(&str, String)> = md
+        .iter()
+        .filter(|(k, _)| k != "farma_state_version")
+        .map(|(k, v)| (k.as_str(), edit_md(k, v)))
+        .collect();
+    let refs: Vec<_> = states.iter().collect();
+    farma::estimator::update::write_state(&dir.join("state.parquet"), &refs, &md).unwrap();
+    dir.to_path_buf()
+}
+
+/// The metadata as read (no edit): `write_edited_state`'s `edit_md`.
+fn same(_: &str, v: &str) -> String {
+    v.to_string()
+}
+
 #[test]
 fn fit_save_state_then_update_writes_tables_independent_of_threads() {
     let dir = tempfile::tempdir().unwrap();
@@ -223,7 +248,7 @@ fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
 /// (they wrote NaN coefficients with exit 0).
 #[test]
 fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
-    use farma::estimator::update::{read_state, write_state};
+    use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
@@ -232,15 +257,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     // the state with a NaN mean for gyro_x
     let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
     states[0].mean = f64::NAN;
-    let bad = d.join("bad");
-    std::fs::create_dir(&bad).unwrap();
-    let md: Vec<(&str, String)> = md
-        .iter()
-        .filter(|(k, _)| k != "farma_state_version")
-        .map(|(k, v)| (k.as_str(), v.clone()))
-        .collect();
-    let refs: Vec<_> = states.iter().collect();
-    write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+    let bad = write_edited_state(&d.join("bad"), &states, &md, same);
     let out = d.join("out");
     let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
     let err = stderr(&r);
@@ -551,7 +568,7 @@ fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
 /// fuzzing).
 #[test]
 fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
-    use farma::estimator::update::{read_state, write_state};
+    use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
@@ -576,15 +593,7 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
     let model = fit_state(&d2, &old, "2,1,1", "31");
     let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
     states[0].n = u64::MAX;
-    let bad = d.join("bad");
-    std::fs::create_dir(&bad).unwrap();
-    let md: Vec<(&str, String)> = md
-        .iter()
-        .filter(|(k, _)| k != "farma_state_version")
-        .map(|(k, v)| (k.as_str(), v.clone()))
-        .collect();
-    let refs: Vec<_> = states.iter().collect();
-    write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+    let bad = write_edited_state(&d.join("bad"), &states, &md, same);
     let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
@@ -602,7 +611,7 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
 /// at 0 Hz (found by a helper's fuzzing).
 #[test]
 fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
-    use farma::estimator::update::{read_state, write_state};
+    use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
@@ -611,22 +620,13 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
     let (states, md) = read_state(&model.join("state.parquet")).unwrap();
     let out = d.join("out");
     for rate in ["abc", "NaN", "0"] {
-        let bad = d.join(format!("bad_{rate}"));
-        std::fs::create_dir(&bad).unwrap();
-        let md: Vec<(&str, String)> = md
-            .iter()
-            .filter(|(k, _)| k != "farma_state_version")
-            .map(|(k, v)| {
-                let v = if k == "sample_rate_hz" {
-                    rate.to_string()
-                } else {
-                    v.clone()
-                };
-                (k.as_str(), v)
-            })
-            .collect();
-        let refs: Vec<_> = states.iter().collect();
-        write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+        let bad = write_edited_state(&d.join(format!("bad_{rate}")), &states, &md, |k, v| {
+            if k == "sample_rate_hz" {
+                rate.to_string()
+            } else {
+                v.to_string()
+            }
+        });
         let r = farma(&["update", s(&bad), s(&new), "-o", s(&out)], d);
         let err = stderr(&r);
         assert_eq!(r.status.code(), Some(2), "{rate}: {err}");
@@ -647,18 +647,13 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
 /// it had been named with the new log, whose samples were never read).
 #[test]
 fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
-    use farma::estimator::update::{read_state, write_state};
+    use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
     let new = slice_log(d, "new.csv", 2000, 2500, None);
     let model = fit_state(d, &old, "2,1,1", "31");
     let (states, md) = read_state(&model.join("state.parquet")).unwrap();
-    let md: Vec<(&str, String)> = md
-        .iter()
-        .filter(|(k, _)| k != "farma_state_version")
-        .map(|(k, v)| (k.as_str(), v.clone()))
-        .collect();
     let out = d.join("out");
     // the untouched state updates (so the refusals below are the edits')
     let r = farma(
@@ -683,10 +678,7 @@ fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
     for (name, edit, field) in edits {
         let mut edited = states.clone();
         edit(&mut edited[i]);
-        let bad = d.join(format!("bad_{name}"));
-        std::fs::create_dir(&bad).unwrap();
-        let refs: Vec<_> = edited.iter().collect();
-        write_state(&bad.join("state.parquet"), &refs, &md).unwrap();
+        let bad = write_edited_state(&d.join(format!("bad_{name}")), &edited, &md, same);
         let out = d.join(format!("out_{name}"));
         let r = farma(
             &[
