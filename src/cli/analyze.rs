@@ -155,14 +155,18 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         maxlag: a.maxlag,
         max_degree: a.max_degree,
     };
+    let bar = progress.count_bar("channels done", chans.len() as u64);
     let results: Vec<ChannelAnalysis> = chans
         .clone()
         .into_par_iter()
         .map(|c| {
             let name = c.name.clone();
-            analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e))
+            let r = analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e));
+            bar.inc(1);
+            r
         })
         .collect::<Result<_>>()?;
+    bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let dir = &a.output;
     let mut set = OutputSet::new(dir)?;

@@ -227,6 +227,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         false => None,
     };
     let t0 = Instant::now();
+    let bar = progress.count_bar("channels fitted", names.len() as u64);
     // Each channel's state is taken from its fit as soon as the fit ends, and its
     // residuals (N values) are then dropped unless --residuals writes them: a log of
     // many long channels holds the residuals of the fits in flight, not one series per
@@ -246,11 +247,13 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
                 if !a.residuals {
                     m.residuals = Vec::new();
                 }
+                bar.inc(1);
                 Ok((n.clone(), m, state))
             })
             .collect(),
         FIT_CHANNELS_HINT,
     )?;
+    bar.finish_and_clear();
     let mut fits = Vec::with_capacity(fitted.len());
     let mut states = Vec::new();
     for (n, m, s) in fitted {

@@ -198,6 +198,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         other => other,
     })?;
     let t0 = Instant::now();
+    let bar = progress.count_bar("channels fitted", names.len() as u64);
     let fits: Vec<(String, Fitted2)> = super::every_channel(
         names
             .par_iter()
@@ -208,11 +209,13 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 if !a.residuals {
                     m.residuals = Vec::new();
                 }
+                bar.inc(1);
                 Ok((n.clone(), m))
             })
             .collect(),
         super::fit::FIT_CHANNELS_HINT,
     )?;
+    bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
     let refs: Vec<(String, &Fitted2)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();

@@ -135,6 +135,23 @@ impl Progress {
         pb.set_message(msg);
         pb
     }
+
+    /// A bar that counts `len` items of `what` (channels fitted, say): "3/6", with the
+    /// time since it started; hidden unless bars are on.
+    pub(crate) fn count_bar(&self, msg: &'static str, len: u64) -> ProgressBar {
+        if !self.enabled {
+            return ProgressBar::hidden();
+        }
+        let pb = ProgressBar::new(len);
+        pb.set_style(
+            ProgressStyle::with_template("{msg:>14} [{bar:30}] {pos}/{len} {elapsed_precise}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        pb.set_message(msg);
+        pb.tick();
+        pb
+    }
 }
 
 /// Count and first positions (rows) of non-finite values in one column.
