@@ -136,8 +136,8 @@ impl Progress {
         pb
     }
 
-    /// A bar that counts `len` items of `what` (channels fitted, say): "3/6", with the
-    /// time since it started; hidden unless bars are on.
+    /// A bar that counts `len` items (channels fitted, say) under the label `msg`:
+    /// "3/6", with the time since it started; hidden unless bars are on.
     pub(crate) fn count_bar(&self, msg: &'static str, len: u64) -> ProgressBar {
         if !self.enabled {
             return ProgressBar::hidden();
