@@ -9,7 +9,9 @@ use rayon::prelude::*;
 use super::LogArgs;
 use super::update::STATE_FILE;
 use crate::error::{Error, Result};
-use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table, residual_table};
+use crate::estimator::tables::{
+    ResidualRows, coef_table, fit_json, gcv_table, params_table, residual_batches, residual_schema,
+};
 use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit, update};
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -276,7 +278,16 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     out.parquet("params.parquet", &params_table(&refs)?, &md)?;
     out.parquet("gcv.parquet", &gcv_table(&refs)?, &md)?;
     if a.residuals {
-        out.parquet("residuals.parquet", &residual_table(&refs)?, &md)?;
+        let rows: Vec<ResidualRows> = fits
+            .iter()
+            .map(|(n, m)| ResidualRows::of_fit(n, m))
+            .collect();
+        out.parquet_batches(
+            "residuals.parquet",
+            residual_schema(),
+            residual_batches(&rows),
+            &md,
+        )?;
     }
     if a.save_state {
         for s in states.iter().filter(|s| s.linear_start) {

@@ -1,10 +1,8 @@
 //! `farma fit ... --index lag,CHANNEL`: the FARMA fit with a 2-D index (the model's
 //! lagged value and another channel of the log); see `estimator::multivariate`.
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use arrow_array::{BooleanArray, Float64Array, Int64Array, StringArray};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -13,9 +11,10 @@ use crate::error::{Error, Result};
 use crate::estimator::multivariate::{
     Farma2Params, Fitted2, check_fit2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
 };
+use crate::estimator::tables::{ResidualRows, residual_batches, residual_schema};
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
-use crate::output::{OutputSet, batch};
+use crate::output::OutputSet;
 
 /// The second index channel of `--index`, or None for the 1-D index (`lag`).
 pub fn second_index(spec: Option<&str>) -> Result<Option<String>> {
@@ -236,23 +235,21 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     out.parquet("gcv.parquet", &gcv_table2(&refs)?, &md)?;
     if a.residuals {
         // in_fit: false for the first max(p,q,d,d2) samples (the warm-up, as in 1-D)
-        let (mut ch, mut t, mut r, mut in_fit) = (vec![], vec![], vec![], vec![]);
-        for (n, m) in &fits {
-            let warm_up = m.n - m.n_rows;
-            for (k, v) in m.residuals.iter().enumerate() {
-                ch.push(n.clone());
-                t.push(k as i64);
-                r.push(*v);
-                in_fit.push(k >= warm_up);
-            }
-        }
-        let table = batch(vec![
-            ("channel", Arc::new(StringArray::from(ch))),
-            ("t", Arc::new(Int64Array::from(t))),
-            ("residual", Arc::new(Float64Array::from(r))),
-            ("in_fit", Arc::new(BooleanArray::from(in_fit))),
-        ])?;
-        out.parquet("residuals.parquet", &table, &md)?;
+        let rows: Vec<ResidualRows> = fits
+            .iter()
+            .map(|(n, m)| ResidualRows {
+                channel: n,
+                values: &m.residuals,
+                first_t: 0,
+                in_fit_from: m.n - m.n_rows,
+            })
+            .collect();
+        out.parquet_batches(
+            "residuals.parquet",
+            residual_schema(),
+            residual_batches(&rows),
+            &md,
+        )?;
     }
     super::commit_outputs(out, &super::fit::FIT_OUTPUTS)?;
     for (n, m) in &fits {

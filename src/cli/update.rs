@@ -11,10 +11,11 @@ use super::LogArgs;
 use super::fit::FIT_OUTPUTS;
 use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
+use crate::estimator::tables::{ResidualRows, residual_batches, residual_schema};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
     ChannelState, LastTime, Updated, read_state, state_metadata, state_table, update,
-    update_params_table, update_residual_table,
+    update_params_table,
 };
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -339,9 +340,21 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     out.parquet("params.parquet", &update_params_table(&items)?, &out_md)?;
     out.parquet("gcv.parquet", &gcv_table(&models)?, &out_md)?;
     if a.residuals {
-        out.parquet(
+        // every new sample is a residual of the model (its lags in the state): in_fit
+        // true throughout; t counts from the first sample of the whole series
+        let rows: Vec<ResidualRows> = ups
+            .iter()
+            .map(|(n, u)| ResidualRows {
+                channel: n,
+                values: &u.model.residuals,
+                first_t: u.first_t as i64,
+                in_fit_from: 0,
+            })
+            .collect();
+        out.parquet_batches(
             "residuals.parquet",
-            &update_residual_table(&items)?,
+            residual_schema(),
+            residual_batches(&rows),
             &out_md,
         )?;
     }

@@ -8,6 +8,7 @@ use arrow_array::builder::{Float64Builder, ListBuilder};
 use arrow_array::{
     ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray, UInt64Array,
 };
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use serde_json::{Value, json};
 
 use super::fit::{FitPath, FittedFarma, Init};
@@ -175,26 +176,81 @@ pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
     ])
 }
 
-/// Residuals: channel, t (sample index), residual, in_fit (false for the first
-/// max(p,q,d) samples, whose lags reach before the series: the recursion's warm-up,
-/// not residuals of the model, and not in its RSS).
-pub fn residual_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
-    let (mut ch, mut t, mut r, mut in_fit) = (vec![], vec![], vec![], vec![]);
-    for (name, m) in models {
-        let warm_up = m.n - m.n_rows;
-        for (k, v) in m.residuals.iter().enumerate() {
-            ch.push(name.clone());
-            t.push(k as i64);
-            r.push(*v);
-            in_fit.push(k >= warm_up);
+/// One channel's rows of residuals.parquet: its residuals, the sample index t of the
+/// first, and the first row that is a residual of the model (`in_fit` true from it
+/// on: the rows before are the recursion's warm-up, their lags reaching before the
+/// series, not in the RSS).
+pub struct ResidualRows<'a> {
+    pub channel: &'a str,
+    pub values: &'a [f64],
+    pub first_t: i64,
+    pub in_fit_from: usize,
+}
+
+impl<'a> ResidualRows<'a> {
+    /// The rows of a fit: t from 0, in the fit from max(p, q, d) on.
+    pub fn of_fit(channel: &'a str, m: &'a FittedFarma) -> Self {
+        ResidualRows {
+            channel,
+            values: &m.residuals,
+            first_t: 0,
+            in_fit_from: m.n - m.n_rows,
         }
     }
-    batch(vec![
-        ("channel", s(ch)),
-        ("t", i(t)),
-        ("residual", f(r)),
-        ("in_fit", Arc::new(BooleanArray::from(in_fit))),
-    ])
+}
+
+/// Rows per batch of [`residual_batches`].
+pub const RESIDUAL_BATCH_ROWS: usize = 1 << 20;
+
+/// The schema of residuals.parquet: channel, t (sample index), residual, in_fit.
+pub fn residual_schema() -> SchemaRef {
+    Arc::new(Schema::new(vec![
+        Field::new("channel", DataType::Utf8, false),
+        Field::new("t", DataType::Int64, false),
+        Field::new("residual", DataType::Float64, false),
+        Field::new("in_fit", DataType::Boolean, false),
+    ]))
+}
+
+/// residuals.parquet's rows, channel after channel, in batches of at most
+/// [`RESIDUAL_BATCH_ROWS`] rows ([`residual_schema`]): written one by one
+/// ([`crate::output::OutputSet::parquet_batches`]), a table of 1e8 rows is never
+/// held whole (it had been: one String per row).
+pub fn residual_batches<'a>(
+    rows: &'a [ResidualRows<'a>],
+) -> impl Iterator<Item = Result<RecordBatch>> + 'a {
+    residual_batches_of(rows, RESIDUAL_BATCH_ROWS)
+}
+
+/// [`residual_batches`] in batches of at most `batch_rows` rows.
+fn residual_batches_of<'a>(
+    rows: &'a [ResidualRows<'a>],
+    batch_rows: usize,
+) -> impl Iterator<Item = Result<RecordBatch>> + 'a {
+    let schema = residual_schema();
+    rows.iter().flat_map(move |r| {
+        let schema = schema.clone();
+        (0..r.values.len()).step_by(batch_rows).map(move |from| {
+            let to = (from + batch_rows).min(r.values.len());
+            let cols: Vec<ArrayRef> = vec![
+                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                    r.channel,
+                    to - from,
+                ))),
+                Arc::new(Int64Array::from_iter_values(
+                    (from..to).map(|k| r.first_t + k as i64),
+                )),
+                Arc::new(Float64Array::from(r.values[from..to].to_vec())),
+                Arc::new(BooleanArray::from(
+                    (from..to)
+                        .map(|k| k >= r.in_fit_from)
+                        .collect::<Vec<bool>>(),
+                )),
+            ];
+            RecordBatch::try_new(schema.clone(), cols)
+                .map_err(|e| crate::error::Error::Internal(format!("output table: {e}")))
+        })
+    })
 }
 
 /// The `--json` object of one channel (contract keys plus more).
@@ -218,4 +274,74 @@ pub fn fit_json(name: &str, m: &FittedFarma, coef_path: &str) -> Value {
         "n": m.n,
         "notes": m.notes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arrow_array::Array;
+
+    /// Batches of 3 rows over channels of 7, 0 and 4 rows (a boundary inside a
+    /// channel, an empty channel, one at a channel's end) hold the rows written one
+    /// by one: channel, t from first_t, the value, in_fit from in_fit_from.
+    #[test]
+    fn residual_batches_hold_the_rows_one_by_one() {
+        let a: Vec<f64> = (0..7).map(|k| k as f64 * 0.5 - 1.0).collect();
+        let c = [4.0, -3.0, 2.5, 1e-300];
+        let rows = [
+            ResidualRows {
+                channel: "a",
+                values: &a,
+                first_t: 0,
+                in_fit_from: 2,
+            },
+            ResidualRows {
+                channel: "b",
+                values: &[],
+                first_t: 5,
+                in_fit_from: 0,
+            },
+            ResidualRows {
+                channel: "c",
+                values: &c,
+                first_t: 100,
+                in_fit_from: 0,
+            },
+        ];
+        let mut want = Vec::new();
+        for r in &rows {
+            for (k, v) in r.values.iter().enumerate() {
+                want.push((
+                    r.channel.to_string(),
+                    r.first_t + k as i64,
+                    v.to_bits(),
+                    k >= r.in_fit_from,
+                ));
+            }
+        }
+        let mut got = Vec::new();
+        let mut sizes = Vec::new();
+        for b in residual_batches_of(&rows, 3) {
+            let b = b.unwrap();
+            assert_eq!(b.schema(), residual_schema());
+            sizes.push(b.num_rows());
+            let col = |i: usize| b.column(i).clone();
+            let (ch, t, r, f) = (col(0), col(1), col(2), col(3));
+            let ch = ch.as_any().downcast_ref::<StringArray>().unwrap();
+            let t = t.as_any().downcast_ref::<Int64Array>().unwrap();
+            let r = r.as_any().downcast_ref::<Float64Array>().unwrap();
+            let f = f.as_any().downcast_ref::<BooleanArray>().unwrap();
+            assert_eq!(f.null_count(), 0);
+            for i in 0..b.num_rows() {
+                got.push((
+                    ch.value(i).to_string(),
+                    t.value(i),
+                    r.value(i).to_bits(),
+                    f.value(i),
+                ));
+            }
+        }
+        assert_eq!(sizes, [3, 3, 1, 3, 1]);
+        assert_eq!(got, want);
+    }
 }

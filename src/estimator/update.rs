@@ -1538,24 +1538,3 @@ pub fn update_params_table(items: &[(String, &Updated)]) -> Result<RecordBatch> 
     ));
     batch(cols)
 }
-
-/// Residuals of the new samples: channel, t (index in the whole series), residual,
-/// in_fit (true: every new sample is a residual of the model, its lags in the state;
-/// the column of `farma fit`'s table, whose warm-up rows are false).
-pub fn update_residual_table(items: &[(String, &Updated)]) -> Result<RecordBatch> {
-    let (mut ch, mut t, mut r) = (vec![], vec![], vec![]);
-    for (name, u) in items {
-        for (k, v) in u.model.residuals.iter().enumerate() {
-            ch.push(name.clone());
-            t.push(u.first_t as i64 + k as i64);
-            r.push(*v);
-        }
-    }
-    let in_fit = vec![true; r.len()];
-    batch(vec![
-        ("channel", Arc::new(StringArray::from(ch))),
-        ("t", Arc::new(Int64Array::from(t))),
-        ("residual", Arc::new(Float64Array::from(r))),
-        ("in_fit", Arc::new(BooleanArray::from(in_fit))),
-    ])
-}

@@ -178,6 +178,17 @@ fn stage_parquet(
     batch: &RecordBatch,
     metadata: &[(&str, String)],
 ) -> Result<tempfile::TempPath> {
+    stage_parquet_batches(path, batch.schema(), [Ok(batch.clone())], metadata)
+}
+
+/// [`stage_parquet`] for a table given batch by batch (each of `schema`): the writer
+/// holds one row group at a time, never the whole table.
+fn stage_parquet_batches(
+    path: &Path,
+    schema: arrow_schema::SchemaRef,
+    batches: impl IntoIterator<Item = Result<RecordBatch>>,
+    metadata: &[(&str, String)],
+) -> Result<tempfile::TempPath> {
     let tmp = temp_beside(path)?;
     let mut kv: Vec<KeyValue> = metadata
         .iter()
@@ -192,10 +203,12 @@ fn stage_parquet(
         .set_key_value_metadata(Some(kv))
         .build();
     let file = tmp.reopen().map_err(|e| Error::output_io(path, e))?;
-    let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props))
+    let mut w = ArrowWriter::try_new(file, schema, Some(props))
         .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
-    w.write(batch)
-        .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
+    for batch in batches {
+        w.write(&batch?)
+            .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
+    }
     w.close()
         .map_err(|e| Error::output_io(path, std::io::Error::other(e)))?;
     Ok(tmp.into_temp_path())
@@ -267,6 +280,21 @@ impl OutputSet {
     ) -> Result<()> {
         let path = self.path(name);
         let tmp = stage_parquet(&path, batch, metadata)?;
+        self.staged.push((path, tmp));
+        Ok(())
+    }
+
+    /// [`OutputSet::parquet`] for a table given batch by batch, all of `schema`: a
+    /// long table (residuals of 1e8 samples) is written without being held whole.
+    pub fn parquet_batches(
+        &mut self,
+        name: &str,
+        schema: arrow_schema::SchemaRef,
+        batches: impl IntoIterator<Item = Result<RecordBatch>>,
+        metadata: &[(&str, String)],
+    ) -> Result<()> {
+        let path = self.path(name);
+        let tmp = stage_parquet_batches(&path, schema, batches, metadata)?;
         self.staged.push((path, tmp));
         Ok(())
     }
