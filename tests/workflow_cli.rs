@@ -331,3 +331,55 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
     );
     assert_refused_file_output(&o, &file, "keep me");
 }
+
+/// `farma check` on edge input: a --holdout-s beyond any log's length in samples is
+/// refused (it had wrapped around and panicked, exit 101); `--channel` repeats are
+/// taken once (they had written every row twice) and a trailing comma is no channel;
+/// a constant channel's failing ARMA baseline names the log.
+#[test]
+fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "21",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (m, l) = (model.to_str().unwrap(), log.to_str().unwrap());
+    let o = farma(&["check", m, l, "--holdout-s", "1e300"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("too short"), "{}", stderr(&o));
+
+    let o = farma(
+        &["check", m, l, "--channel", "gyro_x,gyro_x,", "--json"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 1, "{}", stdout(&o));
+
+    let flat = dir.path().join("flat.csv");
+    let mut csv = String::from("time_s,gyro_x\n");
+    for i in 0..2000 {
+        csv += &format!("{},0.5\n", i as f64 / 10.0);
+    }
+    std::fs::write(&flat, csv).unwrap();
+    let o = farma(&["check", m, flat.to_str().unwrap()], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("flat.csv") && err.contains("gyro_x") && err.contains("ARMA"),
+        "{err}"
+    );
+}
