@@ -383,3 +383,67 @@ fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
         "{err}"
     );
 }
+
+/// `--orders` and `--grid` of `farma select` and `farma analyze` are checked before
+/// the log is read, naming the flag and not a channel (an order with p or d = 0, or a
+/// bad grid, had been reported as `LOG: channel 'x': --order: ...`, after the log was
+/// read and prepared); an order given twice is fitted once (its rows and F-tests had
+/// been repeated).
+#[test]
+fn select_and_analyze_check_orders_and_grid_before_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let l = log.to_str().unwrap();
+    let out = dir.path().join("a");
+    for (flag, value) in [
+        ("--orders", "1,1,0"),
+        ("--orders", "0,1,1"),
+        ("--orders", "7,1,1"),
+        ("--grid", "2"),
+    ] {
+        for cmd in ["select", "analyze"] {
+            let mut args = vec![
+                cmd,
+                l,
+                "--channel",
+                "gyro_x",
+                "--bootstrap",
+                "0",
+                "-o",
+                out.to_str().unwrap(),
+            ];
+            args.extend([flag, value]);
+            if flag == "--grid" {
+                args.extend(["--orders", "1,1,1"]);
+            }
+            let o = farma(&args, dir.path());
+            assert_eq!(o.status.code(), Some(2), "{cmd} {value}: {}", stderr(&o));
+            let err = stderr(&o);
+            assert!(
+                err.contains(&format!("{flag}:")) && !err.contains("channel"),
+                "{cmd} {flag} {value}: {err}"
+            );
+            assert!(!out.exists());
+        }
+    }
+    let o = farma(
+        &[
+            "select",
+            l,
+            "--channel",
+            "gyro_x",
+            "--bootstrap",
+            "0",
+            "--grid",
+            "21",
+            "--orders",
+            "1,1,1;1,1,1",
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    assert_eq!(v["table"].as_array().unwrap().len(), 1, "{v}");
+    assert_eq!(v["ftests"].as_array().unwrap().len(), 1, "{v}");
+}

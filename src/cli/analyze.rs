@@ -136,18 +136,19 @@ pub(super) const ANALYZE_OUTPUTS: &[&str] = &[
 pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
     let t0 = Instant::now();
     OutputSet::check(&a.output)?;
-    let store = a.log_args.open(&a.log, progress)?;
-    let names = store.select_channels(&a.channel)?;
-    let rate = store.sample_rate_hz();
     if !(a.holdout_s.is_finite() && a.holdout_s >= 0.0) {
         return Err(Error::Usage(format!(
             "--holdout-s: {} is not a non-negative number",
             a.holdout_s
         )));
     }
+    let orders = a.select.check()?;
+    let store = a.log_args.open(&a.log, progress)?;
+    let names = store.select_channels(&a.channel)?;
+    let rate = store.sample_rate_hz();
     let (chans, dropped) = prep_store(&store, &names, &a.prep.params())?;
     let prm = AnalyzeParams {
-        orders: a.select.orders()?,
+        orders,
         farma: a.select.farma(),
         bootstrap: a.select.bootstrap,
         seed: a.select.seed,
