@@ -447,3 +447,45 @@ fn select_and_analyze_check_orders_and_grid_before_the_log() {
     assert_eq!(v["table"].as_array().unwrap().len(), 1, "{v}");
     assert_eq!(v["ftests"].as_array().unwrap().len(), 1, "{v}");
 }
+
+/// `farma analyze` names every failing channel at once, in channel order, as `farma
+/// fit` does (it had named the one error rayon met first), and writes nothing.
+#[test]
+fn analyze_names_every_failing_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("two.csv");
+    let mut csv = String::from("time_s,flat_a,flat_b,noise\n");
+    let mut s: u64 = 12345;
+    for i in 0..600 {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        csv += &format!("{},1.5,2.5,{u}\n", i as f64 / 10.0);
+    }
+    std::fs::write(&log, csv).unwrap();
+    let out = dir.path().join("a");
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--grid",
+            "21",
+            "--bootstrap",
+            "0",
+            "--orders",
+            "1,1,1",
+            "--holdout-s",
+            "5",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    let (a, b) = (err.find("flat_a"), err.find("flat_b"));
+    assert!(a.is_some() && b.is_some() && a < b, "{err}");
+    assert!(!err.contains("'noise'"), "{err}");
+    assert!(!out.exists());
+}

@@ -156,14 +156,20 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         maxlag: a.maxlag,
         max_degree: a.max_degree,
     };
-    let results: Vec<ChannelAnalysis> = chans
-        .clone()
-        .into_par_iter()
-        .map(|c| {
-            let name = c.name.clone();
-            analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e))
-        })
-        .collect::<Result<_>>()?;
+    // every failing channel is named at once, in channel order, as `farma fit` does
+    // (the first error rayon met had been returned: one of them, so that each rerun
+    // found the next)
+    let results: Vec<ChannelAnalysis> = super::every_channel(
+        chans
+            .clone()
+            .into_par_iter()
+            .map(|c| {
+                let name = c.name.clone();
+                analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e))
+            })
+            .collect(),
+        super::fit::FIT_CHANNELS_HINT,
+    )?;
     let secs = t0.elapsed().as_secs_f64();
     let dir = &a.output;
     let mut set = OutputSet::new(dir)?;
