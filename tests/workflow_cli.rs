@@ -489,3 +489,38 @@ fn analyze_names_every_failing_channel() {
     assert!(!err.contains("'noise'"), "{err}");
     assert!(!out.exists());
 }
+
+/// `farma check` on the folder of a fit on a 2-D index refuses it naming the index
+/// (exit 2); it had said "f_1 has a repeated grid point" of coef.parquet.
+#[test]
+fn check_refuses_a_2d_index_fit_naming_the_index() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m2");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,1,1",
+            "--index",
+            "lag,temp_c",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = farma(
+        &["check", model.to_str().unwrap(), log.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("params.parquet") && err.contains("2-D index") && err.contains("lag,temp_c"),
+        "{err}"
+    );
+}

@@ -153,6 +153,17 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     if let Some(dir) = &a.output {
         OutputSet::check(dir)?;
     }
+    // a 2-D fit's folder is refused naming its index (its coef.parquet repeats every
+    // grid point of the lag index, once per point of the second, and had been
+    // reported as 'f_1 has a repeated grid point')
+    if let Some(index) = super::update::model_index2(&a.model) {
+        return Err(Error::format(
+            &a.model.join("params.parquet"),
+            format!(
+                "the model was fitted with a 2-D index (--index {index}); farma check takes a fit on the lag index x_(t-d) alone"
+            ),
+        ));
+    }
     let store = a.log_args.open(&a.log, progress)?;
     let rate = store.sample_rate_hz();
     let names = match &a.channel {
