@@ -331,3 +331,196 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
     );
     assert_refused_file_output(&o, &file, "keep me");
 }
+
+/// `farma check` on edge input: a --holdout-s beyond any log's length in samples is
+/// refused (it had wrapped around and panicked, exit 101); `--channel` repeats are
+/// taken once (they had written every row twice) and a trailing comma is no channel;
+/// a constant channel's failing ARMA baseline names the log.
+#[test]
+fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "21",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (m, l) = (model.to_str().unwrap(), log.to_str().unwrap());
+    let o = farma(&["check", m, l, "--holdout-s", "1e300"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("too short"), "{}", stderr(&o));
+
+    let o = farma(
+        &["check", m, l, "--channel", "gyro_x,gyro_x,", "--json"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 1, "{}", stdout(&o));
+
+    let flat = dir.path().join("flat.csv");
+    let mut csv = String::from("time_s,gyro_x\n");
+    for i in 0..2000 {
+        csv += &format!("{},0.5\n", i as f64 / 10.0);
+    }
+    std::fs::write(&flat, csv).unwrap();
+    let o = farma(&["check", m, flat.to_str().unwrap()], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("flat.csv") && err.contains("gyro_x") && err.contains("ARMA"),
+        "{err}"
+    );
+}
+
+/// `--orders` and `--grid` of `farma select` and `farma analyze` are checked before
+/// the log is read, naming the flag and not a channel (an order with p or d = 0, or a
+/// bad grid, had been reported as `LOG: channel 'x': --order: ...`, after the log was
+/// read and prepared); an order given twice is fitted once (its rows and F-tests had
+/// been repeated).
+#[test]
+fn select_and_analyze_check_orders_and_grid_before_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let l = log.to_str().unwrap();
+    let out = dir.path().join("a");
+    for (flag, value) in [
+        ("--orders", "1,1,0"),
+        ("--orders", "0,1,1"),
+        ("--orders", "7,1,1"),
+        ("--grid", "2"),
+    ] {
+        for cmd in ["select", "analyze"] {
+            let mut args = vec![
+                cmd,
+                l,
+                "--channel",
+                "gyro_x",
+                "--bootstrap",
+                "0",
+                "-o",
+                out.to_str().unwrap(),
+            ];
+            args.extend([flag, value]);
+            if flag == "--grid" {
+                args.extend(["--orders", "1,1,1"]);
+            }
+            let o = farma(&args, dir.path());
+            assert_eq!(o.status.code(), Some(2), "{cmd} {value}: {}", stderr(&o));
+            let err = stderr(&o);
+            assert!(
+                err.contains(&format!("{flag}:")) && !err.contains("channel"),
+                "{cmd} {flag} {value}: {err}"
+            );
+            assert!(!out.exists());
+        }
+    }
+    let o = farma(
+        &[
+            "select",
+            l,
+            "--channel",
+            "gyro_x",
+            "--bootstrap",
+            "0",
+            "--grid",
+            "21",
+            "--orders",
+            "1,1,1;1,1,1",
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    assert_eq!(v["table"].as_array().unwrap().len(), 1, "{v}");
+    assert_eq!(v["ftests"].as_array().unwrap().len(), 1, "{v}");
+}
+
+/// `farma analyze` names every failing channel at once, in channel order, as `farma
+/// fit` does (it had named the one error rayon met first), and writes nothing.
+#[test]
+fn analyze_names_every_failing_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("two.csv");
+    let mut csv = String::from("time_s,flat_a,flat_b,noise\n");
+    let mut s: u64 = 12345;
+    for i in 0..600 {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        csv += &format!("{},1.5,2.5,{u}\n", i as f64 / 10.0);
+    }
+    std::fs::write(&log, csv).unwrap();
+    let out = dir.path().join("a");
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--grid",
+            "21",
+            "--bootstrap",
+            "0",
+            "--orders",
+            "1,1,1",
+            "--holdout-s",
+            "5",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    let (a, b) = (err.find("flat_a"), err.find("flat_b"));
+    assert!(a.is_some() && b.is_some() && a < b, "{err}");
+    assert!(!err.contains("'noise'"), "{err}");
+    assert!(!out.exists());
+}
+
+/// `farma check` on the folder of a fit on a 2-D index refuses it naming the index
+/// (exit 2); it had said "f_1 has a repeated grid point" of coef.parquet.
+#[test]
+fn check_refuses_a_2d_index_fit_naming_the_index() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m2");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--order",
+            "1,1,1",
+            "--index",
+            "lag,temp_c",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = farma(
+        &["check", model.to_str().unwrap(), log.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("params.parquet") && err.contains("2-D index") && err.contains("lag,temp_c"),
+        "{err}"
+    );
+}

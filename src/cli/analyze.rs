@@ -136,18 +136,19 @@ pub(super) const ANALYZE_OUTPUTS: &[&str] = &[
 pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
     let t0 = Instant::now();
     OutputSet::check(&a.output)?;
-    let store = a.log_args.open(&a.log, progress)?;
-    let names = store.select_channels(&a.channel)?;
-    let rate = store.sample_rate_hz();
     if !(a.holdout_s.is_finite() && a.holdout_s >= 0.0) {
         return Err(Error::Usage(format!(
             "--holdout-s: {} is not a non-negative number",
             a.holdout_s
         )));
     }
+    let orders = a.select.check()?;
+    let store = a.log_args.open(&a.log, progress)?;
+    let names = store.select_channels(&a.channel)?;
+    let rate = store.sample_rate_hz();
     let (chans, dropped) = prep_store(&store, &names, &a.prep.params())?;
     let prm = AnalyzeParams {
-        orders: a.select.orders()?,
+        orders,
         farma: a.select.farma(),
         bootstrap: a.select.bootstrap,
         seed: a.select.seed,
@@ -155,17 +156,23 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         maxlag: a.maxlag,
         max_degree: a.max_degree,
     };
+    // every failing channel is named at once, in channel order, as `farma fit` does
+    // (the first error rayon met had been returned: one of them, so that each rerun
+    // found the next)
     let bar = progress.count_bar("channels done", chans.len() as u64);
-    let results: Vec<ChannelAnalysis> = chans
-        .clone()
-        .into_par_iter()
-        .map(|c| {
-            let name = c.name.clone();
-            let r = analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e));
-            bar.inc(1);
-            r
-        })
-        .collect::<Result<_>>()?;
+    let results: Vec<ChannelAnalysis> = super::every_channel(
+        chans
+            .clone()
+            .into_par_iter()
+            .map(|c| {
+                let name = c.name.clone();
+                let r = analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e));
+                bar.inc(1);
+                r
+            })
+            .collect(),
+        super::fit::FIT_CHANNELS_HINT,
+    )?;
     bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let dir = &a.output;

@@ -153,10 +153,33 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     if let Some(dir) = &a.output {
         OutputSet::check(dir)?;
     }
+    // a 2-D fit's folder is refused naming its index (its coef.parquet repeats every
+    // grid point of the lag index, once per point of the second, and had been
+    // reported as 'f_1 has a repeated grid point')
+    if let Some(index) = super::update::model_index2(&a.model) {
+        return Err(Error::format(
+            &a.model.join("params.parquet"),
+            format!(
+                "the model was fitted with a 2-D index (--index {index}); farma check takes a fit on the lag index x_(t-d) alone"
+            ),
+        ));
+    }
     let store = a.log_args.open(&a.log, progress)?;
     let rate = store.sample_rate_hz();
     let names = match &a.channel {
-        Some(c) => c.split(',').map(|s| s.trim().to_string()).collect(),
+        // (blank names dropped and repeats taken once, as `--channel` of the other commands)
+        Some(c) => {
+            let mut v: Vec<String> = Vec::new();
+            for s in c.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+                if !v.iter().any(|o| o == s) {
+                    v.push(s.to_string());
+                }
+            }
+            if v.is_empty() {
+                return Err(Error::Usage("--channel: no channel named".into()));
+            }
+            v
+        }
         None => model_channels(&a.model)?,
     };
     if !(a.holdout_s.is_finite() && a.holdout_s >= 0.0) {
@@ -186,13 +209,16 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let n = x.len();
         let holdout = (a.holdout_s * rate).round() as usize;
         let start = model.p.max(model.q).max(model.d);
-        if holdout + start + 100 > n {
+        // (saturating: a --holdout-s beyond the log's length in samples had wrapped
+        // around here and panicked on the slice below)
+        let need = holdout.saturating_add(start).saturating_add(100);
+        if need > n {
             return Err(Error::TooShort {
                 what: format!(
                     "{}: channel {name}: check with a {holdout}-sample hold-out",
                     a.log.display()
                 ),
-                need: (holdout + start + 100) as u64,
+                need: need as u64,
                 have: n as u64,
             });
         }
@@ -209,9 +235,13 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let tm = train.iter().sum::<f64>() / train.len() as f64;
         let tc: Vec<f64> = train.iter().map(|v| v - tm).collect();
         let arma = fit_arma(&tc, model.p, model.q).ok_or_else(|| {
-            Error::Usage(format!(
-                "channel '{name}': the linear ARMA baseline failed (singular design)"
-            ))
+            Error::column(
+                &a.log,
+                format!(
+                    "channel '{name}': the linear ARMA({},{}) baseline on the log before the hold-out failed (singular design: a constant or too regular channel)",
+                    model.p, model.q
+                ),
+            )
         })?;
         let lin = Linear {
             ar: &arma.ar,

@@ -8,7 +8,8 @@ use clap::Args;
 use serde_json::json;
 
 use super::LogArgs;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::estimator::fit::MAX_GRID;
 use crate::estimator::{FarmaParams, FitPath};
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -44,6 +45,20 @@ impl SelectFlags {
             Some(s) => parse_orders(s),
             None => Ok(PAPER_ORDERS.to_vec()),
         }
+    }
+
+    /// The orders and the grid checked before any log is read: a bad flag is a
+    /// usage error naming it (it had been reported against the log's first channel,
+    /// after the log was read and, in `farma analyze`, prepared).
+    pub fn check(&self) -> Result<Vec<(usize, usize, usize)>> {
+        let orders = self.orders()?;
+        if self.grid < 3 || self.grid > MAX_GRID {
+            return Err(Error::Usage(format!(
+                "--grid: 3 to {MAX_GRID} points (got {})",
+                self.grid
+            )));
+        }
+        Ok(orders)
     }
 
     pub fn farma(&self) -> FarmaParams {
@@ -159,6 +174,7 @@ pub fn run(a: SelectArgs, progress: &Progress) -> Result<()> {
     if let Some(dir) = &a.output {
         OutputSet::check(dir)?;
     }
+    a.select.check()?;
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let mut done = Vec::new();

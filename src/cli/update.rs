@@ -55,7 +55,7 @@ pub struct UpdateArgs {
 
 /// The `index` of a 2-D fit's params.parquet metadata (`lag,CHANNEL`), if the model
 /// folder holds one (None for a 1-D fit, or when there is no readable params.parquet).
-fn model_index2(dir: &std::path::Path) -> Option<String> {
+pub(super) fn model_index2(dir: &std::path::Path) -> Option<String> {
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
     let file = std::fs::File::open(dir.join("params.parquet")).ok()?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file).ok()?;

@@ -116,13 +116,31 @@ pub fn order_name(o: (usize, usize, usize)) -> String {
     format!("FARMA({},{},{})", o.0, o.1, o.2)
 }
 
-/// Parses a grid of orders: `p,q,d;p,q,d;...`.
+/// Parses a grid of orders: `p,q,d;p,q,d;...` (each in the fit's range; repeats
+/// dropped).
 pub fn parse_orders(s: &str) -> Result<Vec<(usize, usize, usize)>> {
     let mut out = Vec::new();
     for item in s.split(';').map(str::trim).filter(|x| !x.is_empty()) {
         let v: Vec<Option<usize>> = item.split(',').map(|x| x.trim().parse().ok()).collect();
         match v.as_slice() {
-            [Some(p), Some(q), Some(d)] => out.push((*p, *q, *d)),
+            // the fit's own rules (`FarmaParams::validate`), here to name --orders
+            [Some(p), Some(q), Some(d)] if *p == 0 || *d == 0 => {
+                return Err(Error::Usage(format!(
+                    "--orders: '{item}': p and d must be at least 1"
+                )));
+            }
+            [Some(p), Some(q), Some(d)] if *p > 6 || *q > 6 || *d > 1000 => {
+                return Err(Error::Usage(format!(
+                    "--orders: '{item}': p, q at most 6 and d at most 1000"
+                )));
+            }
+            // an order given twice is fitted once (its rows and F-tests had been
+            // repeated)
+            [Some(p), Some(q), Some(d)] => {
+                if !out.contains(&(*p, *q, *d)) {
+                    out.push((*p, *q, *d));
+                }
+            }
             _ => {
                 return Err(Error::Usage(format!(
                     "--orders: '{item}' is not p,q,d (orders separated by ';', e.g. '1,1,1;2,1,1')"
