@@ -30,6 +30,15 @@ fn slice_log(dir: &Path, name: &str, from: usize, to: usize, drop: Option<&str>)
     p
 }
 
+/// The fixture's first 2,000 rows as old.csv and the next 500 as new.csv (t = 200 ..
+/// 249.9 s) in `dir`: the fitted log and its continuation.
+fn old_and_new(dir: &Path) -> (PathBuf, PathBuf) {
+    (
+        slice_log(dir, "old.csv", 0, 2000, None),
+        slice_log(dir, "new.csv", 2000, 2500, None),
+    )
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -163,8 +172,7 @@ fn fit_save_state_then_update_writes_tables_independent_of_threads() {
 fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let no_y = slice_log(d, "no_y.csv", 2000, 2500, Some("gyro_y"));
     let model = fit_state(d, &old, "1,1,1", "21");
     let no_state = d.join("no_state");
@@ -251,8 +259,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let model = fit_state(d, &old, "1,1,1", "21");
     // the state with a NaN mean for gyro_x
     let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
@@ -337,8 +344,7 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
     use farma::estimator::update::{LastTime, read_state};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None); // t = 0 .. 199.9 s
-    let new = slice_log(d, "new.csv", 2000, 2500, None); // t = 200 .. 249.9 s
+    let (old, new) = old_and_new(d); // t = 0 .. 199.9 s and 200 .. 249.9 s
     let model = fit_state(d, &old, "2,1,1", "31");
     let (states, _) = read_state(&model.join("state.parquet")).unwrap();
     for st in &states {
@@ -525,8 +531,7 @@ fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
 fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let model = d.join("model2d");
     let o = farma(
         &[
@@ -571,8 +576,7 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
     use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let out = d.join("out");
     // this 1,1,1 fit of gyro_x returns its linear ARMA start (as in the test above)
     let model = fit_state(d, &old, "1,1,1", "21");
@@ -614,8 +618,7 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
     use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let model = fit_state(d, &old, "2,1,1", "31");
     let (states, md) = read_state(&model.join("state.parquet")).unwrap();
     let out = d.join("out");
@@ -650,8 +653,7 @@ fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
     use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let model = fit_state(d, &old, "2,1,1", "31");
     let (states, md) = read_state(&model.join("state.parquet")).unwrap();
     let out = d.join("out");
@@ -717,8 +719,7 @@ fn update_of_some_channels_leaves_out_a_linear_start() {
     use farma::estimator::update::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let old = slice_log(d, "old.csv", 0, 2000, None);
-    let new = slice_log(d, "new.csv", 2000, 2500, None);
+    let (old, new) = old_and_new(d);
     let out = d.join("out");
     // gyro_x's 1,1,1 fit returns its linear start, gyro_y's does not
     let model = fit_state(d, &old, "1,1,1", "21");

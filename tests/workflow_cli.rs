@@ -5,6 +5,23 @@ mod common;
 
 use common::{assert_refused_file_output, farma, fixture, stderr, stdout};
 
+/// Fits the fixture log's gyro_x with `flags` (order, grid, index) into `dir/name`,
+/// checking that it succeeds; returns the model folder.
+fn fit_gyro_x(
+    dir: &std::path::Path,
+    log: &std::path::Path,
+    name: &str,
+    flags: &[&str],
+) -> std::path::PathBuf {
+    let model = dir.join(name);
+    let mut args = vec!["fit", log.to_str().unwrap(), "--channel", "gyro_x"];
+    args.extend(flags);
+    args.extend(["-o", model.to_str().unwrap()]);
+    let o = farma(&args, dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    model
+}
+
 #[test]
 fn select_json_has_the_contract_keys() {
     let dir = tempfile::tempdir().unwrap();
@@ -164,23 +181,7 @@ fn analyze_writes_every_table_and_a_summary() {
 fn check_reads_a_fit_folder_and_scores_the_holdout() {
     let dir = tempfile::tempdir().unwrap();
     let log = fixture("multiaxis.csv");
-    let model = dir.path().join("m");
-    let o = farma(
-        &[
-            "fit",
-            log.to_str().unwrap(),
-            "--channel",
-            "gyro_x",
-            "--order",
-            "2,1,1",
-            "--grid",
-            "21",
-            "-o",
-            model.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let model = fit_gyro_x(dir.path(), &log, "m", &["--order", "2,1,1", "--grid", "21"]);
     let out = dir.path().join("c");
     let o = farma(
         &[
@@ -302,23 +303,7 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
     );
     assert_refused_file_output(&o, &file, "keep me");
 
-    let model = dir.path().join("m");
-    let o = farma(
-        &[
-            "fit",
-            log.to_str().unwrap(),
-            "--channel",
-            "gyro_x",
-            "--order",
-            "1,1,1",
-            "--grid",
-            "21",
-            "-o",
-            model.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let model = fit_gyro_x(dir.path(), &log, "m", &["--order", "1,1,1", "--grid", "21"]);
     let o = farma(
         &[
             "check",
@@ -340,23 +325,7 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
 fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
     let dir = tempfile::tempdir().unwrap();
     let log = fixture("multiaxis.csv");
-    let model = dir.path().join("m");
-    let o = farma(
-        &[
-            "fit",
-            log.to_str().unwrap(),
-            "--channel",
-            "gyro_x",
-            "--order",
-            "1,1,1",
-            "--grid",
-            "21",
-            "-o",
-            model.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let model = fit_gyro_x(dir.path(), &log, "m", &["--order", "1,1,1", "--grid", "21"]);
     let (m, l) = (model.to_str().unwrap(), log.to_str().unwrap());
     let o = farma(&["check", m, l, "--holdout-s", "1e300"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -496,23 +465,12 @@ fn analyze_names_every_failing_channel() {
 fn check_refuses_a_2d_index_fit_naming_the_index() {
     let dir = tempfile::tempdir().unwrap();
     let log = fixture("multiaxis.csv");
-    let model = dir.path().join("m2");
-    let o = farma(
-        &[
-            "fit",
-            log.to_str().unwrap(),
-            "--channel",
-            "gyro_x",
-            "--order",
-            "1,1,1",
-            "--index",
-            "lag,temp_c",
-            "-o",
-            model.to_str().unwrap(),
-        ],
+    let model = fit_gyro_x(
         dir.path(),
+        &log,
+        "m2",
+        &["--order", "1,1,1", "--index", "lag,temp_c"],
     );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let o = farma(
         &["check", model.to_str().unwrap(), log.to_str().unwrap()],
         dir.path(),

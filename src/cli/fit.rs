@@ -10,7 +10,7 @@ use super::LogArgs;
 use super::update::STATE_FILE;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{
-    ResidualRows, coef_table, fit_json, gcv_table, params_table, residual_batches, residual_schema,
+    ResidualRows, coef_table, fit_json, gcv_table, params_table, stage_residuals,
 };
 use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit, update};
 use crate::log::Progress;
@@ -282,12 +282,7 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             .iter()
             .map(|(n, m)| ResidualRows::of_fit(n, m))
             .collect();
-        out.parquet_batches(
-            "residuals.parquet",
-            residual_schema(),
-            residual_batches(&rows),
-            &md,
-        )?;
+        stage_residuals(&mut out, &rows, &md)?;
     }
     if a.save_state {
         for s in states.iter().filter(|s| s.linear_start) {

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use crate::estimator::multivariate::{
     Farma2Params, Fitted2, check_fit2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
 };
-use crate::estimator::tables::{ResidualRows, residual_batches, residual_schema};
+use crate::estimator::tables::{ResidualRows, stage_residuals};
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
 use crate::output::OutputSet;
@@ -237,19 +237,9 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         // in_fit: false for the first max(p,q,d,d2) samples (the warm-up, as in 1-D)
         let rows: Vec<ResidualRows> = fits
             .iter()
-            .map(|(n, m)| ResidualRows {
-                channel: n,
-                values: &m.residuals,
-                first_t: 0,
-                in_fit_from: m.n - m.n_rows,
-            })
+            .map(|(n, m)| ResidualRows::of_series(n, &m.residuals, m.n, m.n_rows))
             .collect();
-        out.parquet_batches(
-            "residuals.parquet",
-            residual_schema(),
-            residual_batches(&rows),
-            &md,
-        )?;
+        stage_residuals(&mut out, &rows, &md)?;
     }
     super::commit_outputs(out, &super::fit::FIT_OUTPUTS)?;
     for (n, m) in &fits {

@@ -11,7 +11,7 @@ use super::LogArgs;
 use super::fit::FIT_OUTPUTS;
 use crate::error::{Error, Result};
 use crate::estimator::FittedFarma;
-use crate::estimator::tables::{ResidualRows, residual_batches, residual_schema};
+use crate::estimator::tables::{ResidualRows, stage_residuals};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table};
 use crate::estimator::update::{
     ChannelState, LastTime, Updated, read_state, state_metadata, state_table, update,
@@ -351,12 +351,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
                 in_fit_from: 0,
             })
             .collect();
-        out.parquet_batches(
-            "residuals.parquet",
-            residual_schema(),
-            residual_batches(&rows),
-            &out_md,
-        )?;
+        stage_residuals(&mut out, &rows, &out_md)?;
     }
     let refs: Vec<_> = ups.iter().map(|(_, u)| &u.state).collect();
     out.parquet(STATE_FILE, &state_table(&refs)?, &state_metadata(&out_md))?;

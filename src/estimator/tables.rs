@@ -13,7 +13,7 @@ use serde_json::{Value, json};
 
 use super::fit::{FitPath, FittedFarma, Init};
 use crate::error::Result;
-use crate::output::batch;
+use crate::output::{OutputSet, batch};
 
 fn s(v: Vec<String>) -> ArrayRef {
     Arc::new(StringArray::from(v))
@@ -188,15 +188,37 @@ pub struct ResidualRows<'a> {
 }
 
 impl<'a> ResidualRows<'a> {
-    /// The rows of a fit: t from 0, in the fit from max(p, q, d) on.
-    pub fn of_fit(channel: &'a str, m: &'a FittedFarma) -> Self {
+    /// The rows of a fit over a whole series of `n` samples of which `n_rows` are
+    /// residuals of the model: t from 0, in the fit from n - n_rows (max(p, q, d), or
+    /// with a 2-D index max(p, q, d, d2)) on.
+    pub fn of_series(channel: &'a str, values: &'a [f64], n: usize, n_rows: usize) -> Self {
         ResidualRows {
             channel,
-            values: &m.residuals,
+            values,
             first_t: 0,
-            in_fit_from: m.n - m.n_rows,
+            in_fit_from: n - n_rows,
         }
     }
+
+    /// The rows of a 1-D fit ([`ResidualRows::of_series`]).
+    pub fn of_fit(channel: &'a str, m: &'a FittedFarma) -> Self {
+        Self::of_series(channel, &m.residuals, m.n, m.n_rows)
+    }
+}
+
+/// Stages residuals.parquet in `out`: the rows of `rows`, channel after channel, in
+/// batches ([`residual_batches`]), with file metadata `md`.
+pub fn stage_residuals(
+    out: &mut OutputSet,
+    rows: &[ResidualRows],
+    md: &[(&str, String)],
+) -> Result<()> {
+    out.parquet_batches(
+        "residuals.parquet",
+        residual_schema(),
+        residual_batches(rows),
+        md,
+    )
 }
 
 /// Rows per batch of [`residual_batches`].

@@ -792,15 +792,21 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
     }
     let ti: Vec<usize> = (0..gl).filter(|g| tracked[*g]).collect();
     if ti.is_empty() {
-        return Err(Error::Usage(
-            "the state has no grid point with a solvable local system".into(),
+        // (ChannelState::check_solvable, above, refuses such a state naming the field)
+        return Err(Error::Internal(
+            "the state has no grid point with a solvable local system, though check_solvable passed".into(),
         ));
     }
     let tg: Vec<f64> = ti.iter().map(|g| st.grid[*g]).collect();
     let mut pb = vec![0.0; q * q];
     if q > 0 {
         pb = spd_solve_inverse(&st.b_gram, &st.b_rhs, q)
-            .ok_or_else(|| Error::Usage("the state's MA normal equations are singular".into()))?
+            .ok_or_else(|| {
+                Error::Internal(
+                    "the state's MA normal equations are singular, though check_solvable passed"
+                        .into(),
+                )
+            })?
             .1;
     }
     let mut b = st.b.clone();

@@ -121,35 +121,37 @@ impl Progress {
     }
 
     pub(crate) fn bar(&self, msg: &'static str, len: u64) -> ProgressBar {
-        if !self.enabled {
-            return ProgressBar::hidden();
-        }
-        let pb = ProgressBar::new(len);
-        pb.set_style(
-            ProgressStyle::with_template(
-                "{msg:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        pb.set_message(msg);
-        pb
+        self.styled(
+            msg,
+            len,
+            "{msg:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}",
+        )
     }
 
     /// A bar that counts `len` items (channels fitted, say) under the label `msg`:
     /// "3/6", with the time since it started; hidden unless bars are on.
     pub(crate) fn count_bar(&self, msg: &'static str, len: u64) -> ProgressBar {
+        let pb = self.styled(
+            msg,
+            len,
+            "{msg:>14} [{bar:30}] {pos}/{len} {elapsed_precise}",
+        );
+        pb.tick();
+        pb
+    }
+
+    /// A bar of `len` steps drawn by `template`; hidden unless bars are on.
+    fn styled(&self, msg: &'static str, len: u64, template: &str) -> ProgressBar {
         if !self.enabled {
             return ProgressBar::hidden();
         }
         let pb = ProgressBar::new(len);
         pb.set_style(
-            ProgressStyle::with_template("{msg:>14} [{bar:30}] {pos}/{len} {elapsed_precise}")
+            ProgressStyle::with_template(template)
                 .expect("valid template")
                 .progress_chars("=> "),
         );
         pb.set_message(msg);
-        pb.tick();
         pb
     }
 }

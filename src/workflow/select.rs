@@ -264,10 +264,12 @@ pub fn select(
     let reason = explain(&rows, &ftests, selected);
     // the selected model's residuals, from its own f and b: the recursion the fit
     // ran, bit for bit (`fit`'s test `a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b`)
+    // (on `xc`, the series less the mean computed as `fit` computes it: the fit's
+    // own centred series)
     let m = &mut fits[selected];
-    let xm: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+    debug_assert_eq!(m.mean.to_bits(), mean.to_bits());
     let mut e = vec![0.0; n];
-    residuals(&xm, m.d, &m.grid, &m.coef, &m.b, &mut e);
+    residuals(&xc, m.d, &m.grid, &m.coef, &m.b, &mut e);
     m.residuals = e;
     Ok(Selection {
         rows,
