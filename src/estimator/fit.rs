@@ -1525,7 +1525,7 @@ pub fn check_magnitude(
 /// [`ma_edge_note`] says that b is near the edge of invertibility. Measured
 /// (2026-11-26, FARMA(2,1,1)): differenced white noise (true b_1 = -1) gave b_1 =
 /// -0.9947 and -0.9869 on 4,000 samples (two series: a short one can stay below the
-/// edge), below -0.99 on 20,000 (tests/estimator_recovery.rs); a step in a constant
+/// edge), below -0.99 on 20,000 (tests/suite/estimator_recovery.rs); a step in a constant
 /// channel -0.99999999939.
 pub const MA_EDGE: f64 = 0.99;
 
@@ -2354,7 +2354,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // The alternation is not a descent method (module doc): the f-step minimises local
     // weighted sums of squares with the residuals held fixed, not the global RSS, so it
     // can end above an earlier iterate, even above the linear start it nests (on the
-    // quantised ADIS16405 gyros with q = 2, see tests/estimator_recovery.rs). The
+    // quantised ADIS16405 gyros with q = 2, see tests/suite/estimator_recovery.rs). The
     // iterate of least global RSS is returned when the last one is above it by more
     // than the convergence tolerance. The linear start (constant f_m = a_m) is the
     // linear model: trace p, its GCV, and the least-squares standard errors of a_m
