@@ -2,7 +2,7 @@
 //!
 //! Run: `cargo bench --bench constancy`. R series of N samples each from a linear
 //! ARMA(2,1) (a = 0.5, -0.3; b = 0.4) and from the FARMA(2,1,1) of
-//! tests/workflow_select.rs (f_1 = 0.2 + 0.6 exp(-z^2), f_2 = -0.25 + 0.15 tanh z,
+//! tests/suite/workflow_select.rs (f_1 = 0.2 + 0.6 exp(-z^2), f_2 = -0.25 + 0.15 tanh z,
 //! b = 0.4), unit Gaussian innovations; on each, the test of FARMA(2,1,1) (grid 31)
 //! with B bootstrap replicates, the bandwidth by GCV on the series and on every
 //! replicate (`FARMA_BENCH_H=gcv`, default, what `farma select` does), or chosen by GCV

@@ -1,7 +1,7 @@
 //! The whole analysis of one 1e6-sample channel beside the estimator's single fit.
 //!
 //! Run: `cargo bench --bench workflow`. A FARMA(2,1,1) series (the model of
-//! tests/workflow_select.rs) of FARMA_BENCH_N samples (default 1e6): the estimator's
+//! tests/suite/workflow_select.rs) of FARMA_BENCH_N samples (default 1e6): the estimator's
 //! single FARMA(2,1,1) fit with GCV (default parameters, grid 201), then the workflow
 //! of `farma analyze` on the same series: preparation (Pauta, reverse arrangements,
 //! mean), the eight orders of the paper with GCV and the ARMA baselines, F-tests, the

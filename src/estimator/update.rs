@@ -43,14 +43,14 @@
 //! has forgotten its samples) keeps its P and Theta until they are solvable again. The
 //! f and slopes written are solved from the normal equations at the end (the RLS
 //! estimate in exact arithmetic); Theta drives the a priori residuals of step 2
-//! (tests/estimator_update.rs: without both, 12,000 new rows at lambda = 0.99 end with
+//! (tests/suite/estimator_update.rs: without both, 12,000 new rows at lambda = 0.99 end with
 //! sigma^2 at 1.7e5 instead of 1.08).
 //!
 //! With lambda = 1 the result is the batch local fit on the concatenated data with the
 //! residual sequence the update produced, at the same bandwidth; with lambda < 1 it
 //! is the exponentially weighted least-squares fit
 //! argmin lambda^n (theta-theta_0)' S_0 (theta-theta_0) + sum_t lambda^(n-1-t) K_t (y_t - z_t' theta)^2
-//! over the n new rows (tests/estimator_update.rs checks both, against a direct
+//! over the n new rows (tests/suite/estimator_update.rs checks both, against a direct
 //! KD-tree fit and a brute-force sum). sigma^2 = RSS / rows, both discounted the same
 //! way (with lambda = 1: RSS / (N - max(p,q,d)) over all samples).
 
@@ -604,7 +604,7 @@ fn sums_direct(x: &[f64], m: &FittedFarma) -> Sums {
 /// e_{t-q}), a table of X_a r_c to degree 5 gives column c of C_g
 /// ([`MomentTable::local_rhs_at`]). 1 + (q + 1) passes of p(p+1)/2 + 1 and p families
 /// instead of a pass of rows x grid points per support: the same sums to rounding
-/// (tests/estimator_update.rs checks them against [`sums_direct`]).
+/// (tests/suite/estimator_update.rs checks them against [`sums_direct`]).
 fn sums_from_tables(x: &[f64], m: &FittedFarma) -> Sums {
     let (p, q, d) = (m.p, m.q, m.d);
     let lag = p.max(q).max(d);

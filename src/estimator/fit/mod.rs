@@ -475,7 +475,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     // The alternation is not a descent method (module doc): the f-step minimises local
     // weighted sums of squares with the residuals held fixed, not the global RSS, so it
     // can end above an earlier iterate, even above the linear start it nests (on the
-    // quantised ADIS16405 gyros with q = 2, see tests/estimator_recovery.rs). The
+    // quantised ADIS16405 gyros with q = 2, see tests/suite/estimator_recovery.rs). The
     // iterate of least global RSS is returned when the last one is above it by more
     // than the convergence tolerance. The linear start (constant f_m = a_m) is the
     // linear model: trace p, its GCV, and the least-squares standard errors of a_m

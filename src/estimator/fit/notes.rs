@@ -9,7 +9,7 @@ use crate::estimator::problem::PointStatus;
 /// [`ma_edge_note`] says that b is near the edge of invertibility. Measured
 /// (2026-11-26, FARMA(2,1,1)): differenced white noise (true b_1 = -1) gave b_1 =
 /// -0.9947 and -0.9869 on 4,000 samples (two series: a short one can stay below the
-/// edge), below -0.99 on 20,000 (tests/estimator_recovery.rs); a step in a constant
+/// edge), below -0.99 on 20,000 (tests/suite/estimator_recovery.rs); a step in a constant
 /// channel -0.99999999939.
 pub const MA_EDGE: f64 = 0.99;
 

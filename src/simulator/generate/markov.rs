@@ -171,7 +171,7 @@ impl FlickerBank {
 /// deviation of this bank ([`FlickerBank::avar`]) is within 0.06 % of 0.664 b at every
 /// octave tau in [tau_min_s, tau_max_s / 4] and within 0.23 % up to tau_max_s
 /// (computed for tau_min_s = 1 s and 30 values of tau_max_s from 10 s to 1e7 s, and
-/// for the tests' bands; tests/simulate.rs checks it, then the simulation against
+/// for the tests' bands; tests/suite/simulate.rs checks it, then the simulation against
 /// it). With a margin of 10 above tau_max_s it was 0.22 % low at tau_max_s / 10 and
 /// 2.2 % at tau_max_s. Two per decade is enough: with 3 per decade the exact Allan
 /// deviation changes by less than 0.02 %. Below tau_min_s / 100 the spectrum is white

@@ -1,9 +1,7 @@
 //! Every file of the bad-input bank fails with exit code 2, a message naming the
 //! problem, and no output left behind.
 
-mod common;
-
-use common::{farma, fixture, stderr};
+use crate::common::{farma, fixture, stderr};
 
 /// (fixture, extra flags, substrings the message must contain).
 const CASES: &[(&str, &[&str], &[&str])] = &[

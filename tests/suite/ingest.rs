@@ -1,11 +1,9 @@
 //! Round trips (CSV, Parquet, real data) and the ingest policies.
 
-mod common;
-
 use std::path::Path;
 
+use crate::common::{self, farma, fixture, reference_parse_csv, stderr, stdout};
 use arrow_array::{Array, Float64Array};
-use common::{farma, fixture, reference_parse_csv, stderr, stdout};
 use farma::log::{CachePolicy, GapPolicy, LogOptions, NanPolicy, Progress, ingest, open_log};
 use farma::store::Store;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;

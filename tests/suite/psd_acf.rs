@@ -2,9 +2,7 @@
 //! statsmodels acf golden values (fixtures/golden/make_psd_acf_golden.py), and the
 //! `farma psd` / `farma acf` commands.
 
-mod common;
-
-use common::{farma, fixture, stderr, stdout};
+use crate::common::{self, farma, fixture, stderr, stdout};
 use farma::stats::acf::acf;
 use farma::stats::psd::{Detrend, welch};
 

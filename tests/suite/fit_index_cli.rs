@@ -2,12 +2,10 @@
 //! `grid2` and the second index named in the file metadata, identical bytes with 1 and
 //! 2 threads, bad requests exit 2.
 
-mod common;
-
 use std::fs::File;
 
+use crate::common::{farma, fixture, stderr, stdout};
 use arrow_array::{Array, Float64Array};
-use common::{farma, fixture, stderr, stdout};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
 #[test]

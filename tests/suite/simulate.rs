@@ -5,10 +5,9 @@
 //! estimate at the sample size used (the standard error's formula is given at each
 //! check), so they fail only when the generator is wrong.
 
-mod common;
-
 use std::path::Path;
 
+use crate::common;
 use farma::simulator::generate::markov::{FlickerBank, bias_instability_bank};
 use farma::simulator::generate::streams::CHUNK;
 use farma::simulator::generate::thermal;

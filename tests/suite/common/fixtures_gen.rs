@@ -1,6 +1,6 @@
 //! The generator of `fixtures/`: small deterministic multi-axis gyro logs and the bank
 //! of bad inputs. See `fixtures/README.md`; regenerate with
-//! `cargo test --test fixtures -- --ignored regenerate_fixtures`.
+//! `cargo test --test suite -- --ignored fixtures::regenerate_fixtures`.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -115,7 +115,7 @@ pub fn write_multiaxis_parquet(m: &MultiAxis, path: &Path) {
     w.close().unwrap();
 }
 
-/// The bad-input bank: (file name, contents). Each has a test in `tests/bad_input.rs`.
+/// The bad-input bank: (file name, contents). Each has a test in `tests/suite/bad_input.rs`.
 pub fn bad_csv_files() -> Vec<(&'static str, String)> {
     let good_rows = |n: usize| -> String {
         (0..n)

@@ -1,8 +1,6 @@
 //! The committed fixtures are what the generator makes.
 
-mod common;
-
-use common::fixtures_gen;
+use crate::common::{self, fixtures_gen};
 
 #[test]
 #[ignore = "writes fixtures/; run by hand to regenerate"]

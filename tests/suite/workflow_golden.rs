@@ -2,9 +2,7 @@
 //! and Ljung-Box against statsmodels 0.15.0, the linear ARMA(2,1) baseline against
 //! conditional least squares by scipy (and the exact MLE of statsmodels SARIMAX).
 
-mod common;
-
-use common::fixture;
+use crate::common::fixture;
 use farma::estimator::arma::{arma_residuals, fit_arma};
 use farma::workflow::ljung_box::{acf, ljung_box};
 use std::collections::HashMap;

@@ -1,11 +1,9 @@
 //! Allan deviation: allantools' golden values (fixtures/golden/), the R package avar's
 //! curve of a real ADIS16405 run (../shared/realdata), and the `farma adev` command.
 
-mod common;
-
 use std::path::Path;
 
-use common::{farma, fixture, realdata, stderr, stdout};
+use crate::common::{self, farma, fixture, realdata, stderr, stdout};
 use farma::log::{CachePolicy, LogOptions, Progress, open_log};
 use farma::stats::adev::{
     self, CiOptions, Kind, TauGrid, avar, confidence_interval, curves, phase,

@@ -1,9 +1,7 @@
 //! `farma select`, `farma analyze` and `farma check` on the bundled log: JSON keys of
 //! contracts.md section 4, the output folder, bad input.
 
-mod common;
-
-use common::{assert_refused_file_output, farma, fixture, stderr, stdout};
+use crate::common::{assert_refused_file_output, farma, fixture, stderr, stdout};
 
 /// Fits the fixture log's gyro_x with `flags` (order, grid, index) into `dir/name`,
 /// checking that it succeeds; returns the model folder.

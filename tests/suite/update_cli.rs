@@ -1,11 +1,9 @@
 //! `farma fit --save-state` then `farma update`: outputs, identical bytes with 1 and 2
 //! threads, and bad model folders / logs exit 2 naming the problem.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{farma, fixture, stderr, stdout};
+use crate::common::{farma, fixture, stderr, stdout};
 
 /// Writes rows [from, to) of multiaxis.csv (header kept), optionally without a column.
 fn slice_log(dir: &Path, name: &str, from: usize, to: usize, drop: Option<&str>) -> PathBuf {

@@ -1,8 +1,6 @@
 //! `farma fit`: outputs, JSON keys, bad input, and identical bytes with 1 and 2 threads.
 
-mod common;
-
-use common::{farma, fixture, stderr, stdout};
+use crate::common::{farma, fixture, stderr, stdout};
 
 #[test]
 fn fit_writes_tables_and_json_and_is_thread_count_independent() {

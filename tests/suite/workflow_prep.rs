@@ -1,9 +1,7 @@
 //! `farma prep`: Pauta against planted outliers and the clean-data rate, the
 //! reverse-arrangement statistic against its null mean and variance, and the command.
 
-mod common;
-
-use common::{assert_refused_file_output, farma, fixture, stderr, stdout};
+use crate::common::{assert_refused_file_output, farma, fixture, stderr, stdout};
 use farma::workflow::pauta::{Replace, pauta};
 use farma::workflow::stationarity::{
     SegmentStat, reverse_arrangement_series, reverse_arrangement_test, reverse_arrangements,

@@ -303,11 +303,9 @@ fn kasdin_flicker_alone() {
     }
 }
 
-mod common;
-
 #[test]
 fn adev_cli_terms_text_and_spec_out() {
-    use common::{farma, stderr, stdout};
+    use crate::common::{farma, stderr, stdout};
     let dir = tempfile::tempdir().unwrap();
     let cache = tempfile::tempdir().unwrap();
     // White noise n = 0.02 at 100 Hz as a CSV log.

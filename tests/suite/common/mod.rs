@@ -1,5 +1,4 @@
 //! Shared test helpers: the fixture generator and a runner for the binary.
-#![allow(dead_code)]
 
 pub mod fixtures_gen;
 

@@ -1,0 +1,28 @@
+//! The integration tests, one binary: each former `tests/NAME.rs` is the module
+//! `NAME` here (`tests/suite/NAME.rs`), so `cargo test` links farma, arrow, parquet
+//! and faer into one test executable rather than one per file. Run one file's tests
+//! with `cargo test --test suite NAME::`.
+
+mod common;
+
+mod adev;
+mod bad_input;
+mod estimator_multivariate;
+mod estimator_paths;
+mod estimator_recovery;
+mod estimator_reference;
+mod estimator_update;
+mod fit_cli;
+mod fit_index_cli;
+mod fixtures;
+mod gap;
+mod ingest;
+mod noise_terms;
+mod psd_acf;
+mod simulate;
+mod spec;
+mod update_cli;
+mod workflow_cli;
+mod workflow_golden;
+mod workflow_prep;
+mod workflow_select;
