@@ -52,7 +52,7 @@ use super::features::{Layout, Temperature};
 use crate::error::Result;
 use crate::estimator::linalg::normal_equations;
 use crate::simulator::{Component, Kind, Spec};
-use crate::stats::adev::chi2::gamma_p;
+use crate::stats::special::normal_cdf;
 
 /// How a candidate changes every replica's target channel.
 #[derive(Clone, Debug)]
@@ -888,9 +888,9 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (usize, f64, f64) {
     (count, sum_sq, thr)
 }
 
-/// Upper tail of the standard normal, Q(c) = (1 - P(1/2, c^2/2)) / 2 for c >= 0.
+/// Upper tail of the standard normal, Q(c) = 1 - Phi(c) = Phi(-c).
 fn normal_tail(c: f64) -> f64 {
-    0.5 * (1.0 - gamma_p(0.5, 0.5 * c * c))
+    normal_cdf(-c)
 }
 
 fn outliers(cx: &Context) -> Result<Option<Proposal>> {

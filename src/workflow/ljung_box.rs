@@ -8,7 +8,7 @@
 //! degrees of freedom (statsmodels `acorr_ljungbox(x, lags, model_df)`). A small ACF is
 //! written here (direct sums, O(n L)); `stats::acf` of the `char` branch is the general one.
 
-use super::dist::chi2_sf;
+use crate::stats::special::chi2_sf;
 
 /// Sample autocorrelations r_1 .. r_maxlag.
 pub fn acf(x: &[f64], maxlag: usize) -> Vec<f64> {

@@ -7,15 +7,14 @@
 //!
 //! One file per step: [`pauta`], [`stationarity`], [`prep`], [`select`],
 //! [`constancy`], [`ljung_box`], [`check`], [`analyze`] (all of it for one channel);
-//! [`dist`] holds the distribution functions the tests need; [`tables`] the Parquet
-//! outputs.
+//! [`tables`] holds the Parquet outputs. The distribution functions the tests need
+//! (normal, chi-squared and F tails) are in [`crate::stats::special`].
 
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
 pub mod analyze;
 pub mod check;
 pub mod constancy;
-pub mod dist;
 pub mod ljung_box;
 pub mod pauta;
 pub mod prep;

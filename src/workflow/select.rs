@@ -22,11 +22,11 @@
 
 use rayon::prelude::*;
 
-use super::dist::f_sf;
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
 use crate::estimator::fit::{linear_start, residuals};
 use crate::estimator::{FarmaParams, FittedFarma, fit};
+use crate::stats::special::f_sf;
 
 /// The paper's eight orders.
 pub const PAPER_ORDERS: [(usize, usize, usize); 8] = [

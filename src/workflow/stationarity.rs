@@ -9,7 +9,7 @@
 //! p-value 2 (1 - Phi(|z|)) (a trend in either direction rejects). A is counted by a
 //! merge sort in O(K log K), twin-tested against the O(K^2) definition.
 
-use super::dist::normal_two_sided_p;
+use crate::stats::special::normal_two_sided_p;
 
 /// The per-segment statistic.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

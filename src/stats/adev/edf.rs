@@ -17,7 +17,7 @@
 //! in [nu s^2 / chi2_{1-(1-c)/2}(nu), nu s^2 / chi2_{(1-c)/2}(nu)], so the deviation in
 //! the square roots of those; c = 0.683 (erf(1/sqrt 2)) gives the one-sigma interval.
 
-use super::chi2::chi2_quantile;
+use crate::stats::special::chi2_quantile;
 
 /// erf(1/sqrt(2)): the probability inside one standard deviation of a normal law.
 pub const ONE_SIGMA: f64 = 0.682_689_492_137_085_9;

@@ -31,7 +31,6 @@
 //! estimator, which differs slightly (see there).
 
 pub mod avar;
-pub mod chi2;
 pub mod edf;
 pub mod fast;
 pub mod phase;
@@ -387,28 +386,6 @@ mod tests {
         }
         assert_eq!(avar::avar_levels(1_000_000).len(), 18);
         assert_eq!(avar::avar_levels(1_000_000)[0], 2);
-    }
-
-    #[test]
-    fn ln_gamma_and_chi2() {
-        assert!(rel(chi2::ln_gamma(0.5), 0.572_364_942_924_700_1) < 1e-14);
-        assert!(rel(chi2::ln_gamma(10.0), 362_880f64.ln()) < 1e-14);
-        assert!(rel(chi2::ln_gamma(1e6), 12_815_504.569_147_61) < 1e-13);
-        // chi2 with 2 dof is exponential: CDF 1 - exp(-x/2), quantile -2 ln(1-p).
-        for p in [0.01, 0.158_655, 0.5, 0.841_345, 0.99] {
-            let q = chi2::chi2_quantile(p, 2.0);
-            assert!(rel(q, -2.0 * (1.0 - p).ln()) < 1e-12, "p={p}: {q}");
-        }
-        // Round trip for fractional and large dof.
-        for dof in [0.7, 3.3, 57.0, 4321.5, 2.5e6] {
-            for p in [0.158_655_253_931_457, 0.841_344_746_068_543] {
-                let q = chi2::chi2_quantile(p, dof);
-                assert!(
-                    (chi2::chi2_cdf(q, dof) - p).abs() < 1e-11,
-                    "dof={dof} p={p}"
-                );
-            }
-        }
     }
 
     #[test]
