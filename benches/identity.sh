@@ -12,7 +12,7 @@
 # `diff` compares every file with `cmp`, except the lines of wall-clock time that a
 # command writes on purpose (the elapsed time in summary.txt, "timings" in JSON), which
 # it removes from both sides first; it prints each file that differs and exits 1 if
-# any does. `run` takes 3-5 minutes on 2 cores (the ADIS part most of it); set
+# any does. `run` with FARMA_IDENTITY_SHORT=1 took under a minute per binary on 2 cores (2026-11-27, two runs back to back); the ADIS part adds more; set
 # FARMA_IDENTITY_SHORT=1 to skip the real runs. Outputs record the paths and the
 # modification times of the files they read: run both sides from one checkout, one
 # after the other (the runs share a scratch folder).
