@@ -19,6 +19,7 @@ pub mod diagnosis;
 pub mod error;
 pub mod estimator;
 pub mod log;
+pub mod model;
 pub mod output;
 pub mod simulator;
 pub mod stats;

@@ -8,23 +8,19 @@
 //! model was fitted on the same log including its end, the hold-out is not unseen by
 //! it: `farma analyze` fits on the log without the hold-out.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use arrow_array::{Array, Float64Array, Int64Array, RecordBatch, StringArray};
 use clap::Args;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::json;
 
 use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
-use crate::estimator::saved::{SavedFarma, load_saved};
 use crate::log::Progress;
+use crate::model::Farma;
+use crate::model::folder::{ModelDir, PARAMS_FILE};
 use crate::output::OutputSet;
-use crate::workflow::check::{
-    HORIZONS, Linear, PolyFit, Predictor, poly_fit_curve, predict_holdout, residuals_of,
-};
-use crate::workflow::ljung_box::{Whiteness, whiteness};
+use crate::workflow::check::{CheckReport, check_model};
 use crate::workflow::tables::{acf_table, ljung_box_table, poly_table, prediction_table};
 
 #[derive(Args, Debug)]
@@ -55,91 +51,6 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
-/// A saved model as a predictor on centred values (u + mean is the channel value).
-struct Saved<'a>(&'a SavedFarma);
-
-impl Predictor for Saved<'_> {
-    fn p(&self) -> usize {
-        self.0.p
-    }
-    fn d(&self) -> usize {
-        self.0.d
-    }
-    fn b(&self) -> &[f64] {
-        &self.0.b
-    }
-    fn f(&self, u: f64, out: &mut [f64]) {
-        self.0.eval(u + self.0.mean, out)
-    }
-}
-
-fn read(path: &Path) -> Result<Vec<RecordBatch>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::input_io(path, e))?;
-    let bad = |e: parquet::errors::ParquetError| {
-        Error::format(path, format!("not a farma fit table: {e}"))
-    };
-    ParquetRecordBatchReaderBuilder::try_new(file)
-        .map_err(bad)?
-        .build()
-        .map_err(bad)?
-        .map(|b| b.map_err(|e| Error::format(path, format!("not a farma fit table: {e}"))))
-        .collect()
-}
-
-fn col<'a, T: 'static>(b: &'a RecordBatch, name: &str, path: &Path) -> Result<&'a T> {
-    b.column_by_name(name)
-        .and_then(|c| c.as_any().downcast_ref::<T>())
-        .ok_or_else(|| {
-            Error::column(
-                path,
-                format!("no column '{name}' of the type farma fit writes"),
-            )
-        })
-}
-
-/// Channel names, bandwidths of params.parquet; (m, grid, se) of coef.parquet for `channel`.
-/// (m, grid, se) of one coefficient row.
-type CoefRow = (usize, f64, f64);
-
-fn model_extras(dir: &Path, channel: &str) -> Result<(f64, Vec<CoefRow>)> {
-    let pp = dir.join("params.parquet");
-    let mut h = f64::NAN;
-    for b in read(&pp)? {
-        let ch: &StringArray = col(&b, "channel", &pp)?;
-        let bw: &Float64Array = col(&b, "bandwidth", &pp)?;
-        for i in 0..ch.len() {
-            if ch.value(i) == channel {
-                h = bw.value(i);
-            }
-        }
-    }
-    let cp = dir.join("coef.parquet");
-    let mut out = Vec::new();
-    for b in read(&cp)? {
-        let ch: &StringArray = col(&b, "channel", &cp)?;
-        let m: &Int64Array = col(&b, "m", &cp)?;
-        let g: &Float64Array = col(&b, "grid", &cp)?;
-        let se: &Float64Array = col(&b, "se", &cp)?;
-        for i in 0..ch.len() {
-            if ch.value(i) == channel {
-                out.push((m.value(i) as usize, g.value(i), se.value(i)));
-            }
-        }
-    }
-    Ok((h, out))
-}
-
-/// Channels fitted in the model folder.
-fn model_channels(dir: &Path) -> Result<Vec<String>> {
-    let pp = dir.join("params.parquet");
-    let mut out = Vec::new();
-    for b in read(&pp)? {
-        let ch: &StringArray = col(&b, "channel", &pp)?;
-        out.extend((0..ch.len()).map(|i| ch.value(i).to_string()));
-    }
-    Ok(out)
-}
-
 /// The files `farma check -o` can write into its output folder: a run removes those
 /// of an earlier run that it does not write.
 pub(super) const CHECK_OUTPUTS: &[&str] = &[
@@ -156,9 +67,10 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     // a 2-D fit's folder is refused naming its index (its coef.parquet repeats every
     // grid point of the lag index, once per point of the second, and had been
     // reported as 'f_1 has a repeated grid point')
-    if let Some(index) = super::update::model_index2(&a.model) {
+    let dir = ModelDir::new(&a.model);
+    if let Some(index) = dir.index2() {
         return Err(Error::format(
-            &a.model.join("params.parquet"),
+            &dir.params_path(),
             format!(
                 "the model was fitted with a 2-D index (--index {index}); farma check takes a fit on the lag index x_(t-d) alone"
             ),
@@ -180,7 +92,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             }
             v
         }
-        None => model_channels(&a.model)?,
+        None => dir.channels()?,
     };
     if !(a.holdout_s.is_finite() && a.holdout_s >= 0.0) {
         return Err(Error::Usage(format!(
@@ -188,18 +100,13 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             a.holdout_s
         )));
     }
-    let mut out: Vec<(
-        String,
-        Whiteness,
-        Option<crate::workflow::check::Prediction>,
-        Vec<PolyFit>,
-    )> = Vec::new();
+    let mut out: Vec<(String, CheckReport)> = Vec::new();
     for name in &names {
-        let model = load_saved(&a.model, Some(name))?;
+        let (_, model) = dir.load(Some(name))?;
         if let Some(what) = crate::estimator::arma::not_invertible(&model.b) {
             // (an update can leave one, with a note, and a folder can be edited)
             return Err(Error::format(
-                &a.model.join("params.parquet"),
+                &a.model.join(PARAMS_FILE),
                 format!(
                     "channel '{name}': {what}: the model's residuals on the log would grow without bound; refit the channel"
                 ),
@@ -208,9 +115,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let x = store.column(name)?;
         let n = x.len();
         let holdout = (a.holdout_s * rate).round() as usize;
-        let start = model.p.max(model.q).max(model.d);
-        // (saturating: a --holdout-s beyond the log's length in samples had wrapped
-        // around here and panicked on the slice below)
+        let start = model.order.lag();
+        // (saturating: a --holdout-s beyond the log's length in samples must not wrap)
         let need = holdout.saturating_add(start).saturating_add(100);
         if need > n {
             return Err(Error::TooShort {
@@ -222,51 +128,39 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
                 have: n as u64,
             });
         }
-        let pred = Saved(&model);
         let y: Vec<f64> = x.iter().map(|v| v - model.mean).collect();
-        let e = residuals_of(&pred, &y);
-        let ln = ((n - holdout - start) as f64).ln().round() as usize;
-        let mut lags = vec![5, 10, 20, ln.max(1)];
-        lags.retain(|l| *l <= a.maxlag);
-        lags.sort_unstable();
-        lags.dedup();
-        let w = whiteness(&e[start..n - holdout], a.maxlag, &lags, model.p + model.q);
+        let e = model.residuals(&y);
         let train = &x[..n - holdout];
         let tm = train.iter().sum::<f64>() / train.len() as f64;
         let tc: Vec<f64> = train.iter().map(|v| v - tm).collect();
-        let arma = fit_arma(&tc, model.p, model.q).ok_or_else(|| {
+        let arma = fit_arma(&tc, model.p(), model.q()).ok_or_else(|| {
             Error::column(
                 &a.log,
                 format!(
                     "channel '{name}': the linear ARMA({},{}) baseline on the log before the hold-out failed (singular design: a constant or too regular channel)",
-                    model.p, model.q
+                    model.p(),
+                    model.q()
                 ),
             )
         })?;
-        let lin = Linear {
-            ar: &arma.ar,
-            ma: &arma.ma,
-        };
-        let prediction = (holdout > 0)
-            .then(|| predict_holdout(&pred, model.mean, &lin, tm, x, holdout, &HORIZONS));
-        let (h, rows) = model_extras(&a.model, name)?;
-        let mut poly = Vec::new();
-        for m in 1..=model.p {
-            let pts: Vec<&CoefRow> = rows.iter().filter(|r| r.0 == m).collect();
-            let grid: Vec<f64> = pts.iter().map(|r| r.1 - model.mean).collect();
-            let se: Vec<f64> = pts.iter().map(|r| r.2).collect();
-            let f: Vec<f64> = pts
-                .iter()
-                .map(|r| crate::estimator::saved::interp(&model.grid[m - 1], &model.f[m - 1], r.1))
-                .collect();
-            poly.push(poly_fit_curve(m, &grid, &f, &se, h, a.max_degree));
-        }
+        let baseline = Farma::linear(&arma.ar, &arma.ma, tm, f64::NAN);
+        let report = check_model(
+            &model,
+            &e[..n - holdout],
+            &baseline,
+            x,
+            holdout,
+            a.maxlag,
+            a.max_degree,
+        );
+        let (w, prediction, poly) = (&report.whiteness, &report.prediction, &report.poly);
+        let (p, q, d) = (model.p(), model.q(), model.d());
         if a.json {
             outln!(
                 "{}",
                 json!({
                     "channel": name,
-                    "order": [model.p, model.q, model.d],
+                    "order": [p, q, d],
                     "holdout": holdout,
                     "acf_outside": w.outside, "acf_band": w.band,
                     "ljung_box": w.ljung_box.iter().map(|b| json!({"lag": b.lag, "q": b.q, "df": b.df, "p_value": b.p_value})).collect::<Vec<_>>(),
@@ -276,7 +170,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
                 })
             );
         } else {
-            outln!("channel {name}: FARMA({},{},{})", model.p, model.q, model.d);
+            outln!("channel {name}: FARMA({p},{q},{d})");
             outln!(
                 "  residual ACF: {} of {} lags outside +-{:.4}",
                 w.outside,
@@ -296,8 +190,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
                 outln!(
                     "  hold-out: last {} samples; ARMA({},{}) baseline fitted before it",
                     pr.holdout,
-                    model.p,
-                    model.q
+                    p,
+                    q
                 );
                 outln!("      k     rmse FARMA      rmse ARMA");
                 for h in &pr.horizons {
@@ -309,16 +203,16 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
                     );
                 }
             }
-            for p in &poly {
+            for pf in poly {
                 outln!(
                     "  f_{} ~ degree {} in u = x - mean: {:?}",
-                    p.m,
-                    p.degree,
-                    p.coef
+                    pf.m,
+                    pf.degree,
+                    pf.coef
                 );
             }
         }
-        out.push((name.clone(), w, prediction, poly));
+        out.push((name.clone(), report));
     }
     if let Some(dir) = &a.output {
         let mut set = OutputSet::new(dir)?;
@@ -326,15 +220,18 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             ("source", a.log.display().to_string()),
             ("model", a.model.display().to_string()),
         ];
-        let ws: Vec<_> = out.iter().map(|o| (o.0.clone(), &o.1)).collect();
+        let ws: Vec<_> = out.iter().map(|o| (o.0.clone(), &o.1.whiteness)).collect();
         set.parquet("acf.parquet", &acf_table(&ws)?, &md)?;
         set.parquet("ljung_box.parquet", &ljung_box_table(&ws)?, &md)?;
         let ps: Vec<_> = out
             .iter()
-            .filter_map(|o| o.2.as_ref().map(|p| (o.0.clone(), p)))
+            .filter_map(|o| o.1.prediction.as_ref().map(|p| (o.0.clone(), p)))
             .collect();
         set.parquet("prediction.parquet", &prediction_table(&ps)?, &md)?;
-        let pf: Vec<_> = out.iter().map(|o| (o.0.clone(), o.3.as_slice())).collect();
+        let pf: Vec<_> = out
+            .iter()
+            .map(|o| (o.0.clone(), o.1.poly.as_slice()))
+            .collect();
         set.parquet("poly.parquet", &poly_table(&pf)?, &md)?;
         super::commit_outputs(set, CHECK_OUTPUTS)?;
     }

@@ -22,7 +22,6 @@ pub mod linalg;
 pub mod moments;
 pub mod multivariate;
 pub mod problem;
-pub mod saved;
 pub mod tables;
 pub mod update;
 

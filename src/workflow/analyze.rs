@@ -3,12 +3,13 @@
 //! selected model: residual whiteness, prediction of the hold-out (the last samples,
 //! never seen by the fits), polynomial fits of the f_m.
 
-use super::check::{CheckReport, HORIZONS, Linear, check_whiteness, poly_fits, predict_holdout};
+use super::check::{CheckReport, check_model};
 use super::constancy::{Constancy, ConstancyParams, constancy_test};
 use super::prep::ChannelPrep;
 use super::select::{Selection, select};
 use crate::error::{Error, Result};
 use crate::estimator::FarmaParams;
+use crate::model::Farma;
 
 /// Parameters of the analysis after preparation.
 #[derive(Clone, Debug)]
@@ -87,32 +88,23 @@ pub fn analyze_channel(prep: ChannelPrep, prm: &AnalyzeParams) -> Result<Channel
         select_with_constancy(train, &prm.orders, &prm.farma, prm.bootstrap, prm.seed)?;
     let model = &selection.fits[selection.selected];
     let row = &selection.rows[selection.selected];
-    let whiteness = check_whiteness(model, prm.maxlag);
-    let prediction = (prm.holdout > 0).then(|| {
-        predict_holdout(
-            model,
-            model.mean,
-            &Linear {
-                ar: &row.arma_ar,
-                ma: &row.arma_ma,
-            },
-            model.mean,
-            x,
-            prm.holdout,
-            &HORIZONS,
-        )
-    });
-    let poly = poly_fits(model, prm.max_degree);
+    let farma = model.model();
+    let baseline = Farma::linear(&row.arma_ar, &row.arma_ma, model.mean, f64::NAN);
+    let check = check_model(
+        &farma,
+        &model.residuals,
+        &baseline,
+        x,
+        prm.holdout,
+        prm.maxlag,
+        prm.max_degree,
+    );
     Ok(ChannelAnalysis {
         name: prep.name.clone(),
         prep,
         n_train,
         selection,
         constancy,
-        check: CheckReport {
-            whiteness,
-            prediction,
-            poly,
-        },
+        check,
     })
 }

@@ -2,16 +2,10 @@
 //! prediction against the linear ARMA baseline, and polynomial fits of the f_m.
 //!
 //! Prediction. The series y (channel minus the model's mean) is run through the
-//! model's residual recursion e_t = y_t - yhat_t,
-//! yhat_t = sum_m f_m(y_{t-d}) y_{t-m} + sum_m b_m e_{t-m}, so yhat_t is the one-step
-//! prediction from the observed past. The k-step prediction from origin s (data known
-//! up to s) iterates the model with the unknown future innovations set to 0 and the
-//! predicted values standing in for unobserved y, in the index too:
-//! ytilde_{s+j} = sum_m f_m(ytilde_{s+j-d}) ytilde_{s+j-m} + sum_m b_m etilde_{s+j-m},
-//! ytilde = y and etilde = e up to s, etilde = 0 after. Every target t in the hold-out
-//! (the last `holdout` samples) is predicted k steps ahead from origin s = t - k (which
-//! may lie before the hold-out: those data are observed, not fitted); RMSE per k.
-//! The baseline is the same with constant f = the ARMA's a and its b.
+//! model's residual recursion and k-step prediction ([`Farma::kstep`], documented in
+//! [`crate::model`]): every target t in the hold-out (the last `holdout` samples) is
+//! predicted k steps ahead from origin s = t - k; RMSE per k. The baseline is the same
+//! with constant f = the ARMA's a and its b ([`Farma::linear`]).
 //!
 //! Polynomial fits. f_m at the grid points with a local fit (not filled, finite
 //! pointwise standard error se_g) is fitted by weighted least squares in z = u / s
@@ -23,8 +17,8 @@
 //! Coefficients are reported for powers of u (the model's centred index).
 
 use super::ljung_box::{Whiteness, whiteness};
-use crate::estimator::FittedFarma;
 use crate::estimator::linalg::normal_equations;
+use crate::model::Farma;
 
 /// One horizon of the hold-out prediction.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,127 +52,12 @@ pub struct PolyFit {
     pub criterion: Vec<f64>,
 }
 
-/// A linear model for prediction: f constant = ar.
-pub struct Linear<'a> {
-    pub ar: &'a [f64],
-    pub ma: &'a [f64],
-}
-
-/// What k-step prediction needs of a model (FARMA or linear).
-pub trait Predictor {
-    fn p(&self) -> usize;
-    fn d(&self) -> usize;
-    fn b(&self) -> &[f64];
-    fn f(&self, u: f64, out: &mut [f64]);
-}
-
-impl Predictor for FittedFarma {
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn d(&self) -> usize {
-        self.d
-    }
-    fn b(&self) -> &[f64] {
-        &self.b
-    }
-    fn f(&self, u: f64, out: &mut [f64]) {
-        self.coef.eval(&self.grid, u, out)
-    }
-}
-
-impl Predictor for Linear<'_> {
-    fn p(&self) -> usize {
-        self.ar.len()
-    }
-    fn d(&self) -> usize {
-        1
-    }
-    fn b(&self) -> &[f64] {
-        self.ma
-    }
-    fn f(&self, _u: f64, out: &mut [f64]) {
-        out.copy_from_slice(self.ar)
-    }
-}
-
-/// Residuals of a model on centred values `y` by its recursion (zeros before the start).
-pub fn residuals_of(m: &dyn Predictor, y: &[f64]) -> Vec<f64> {
-    let (p, d, b) = (m.p(), m.d(), m.b());
-    let mut f = vec![0.0; p];
-    let mut e = vec![0.0; y.len()];
-    for t in 0..y.len() {
-        m.f(if t >= d { y[t - d] } else { 0.0 }, &mut f);
-        let mut s = y[t];
-        for k in 0..p.min(t) {
-            s -= f[k] * y[t - k - 1];
-        }
-        for (k, bk) in b.iter().enumerate() {
-            if t > k {
-                s -= bk * e[t - k - 1];
-            }
-        }
-        e[t] = s;
-    }
-    e
-}
-
-/// Squared errors of the k-step predictions of the last `holdout` samples of `y`
-/// (centred), summed per horizon k = 1..=kmax (index k-1), and their counts.
-pub fn kstep(m: &dyn Predictor, y: &[f64], holdout: usize, kmax: usize) -> (Vec<f64>, Vec<usize>) {
-    let n = y.len();
-    let (p, d, b) = (m.p(), m.d(), m.b());
-    let lag = p.max(d).max(b.len());
-    let e = residuals_of(m, y);
-    let h0 = n - holdout;
-    let mut sse = vec![0.0; kmax];
-    let mut cnt = vec![0usize; kmax];
-    let mut f = vec![0.0; p];
-    let mut yt = vec![0.0; lag + kmax];
-    let mut et = vec![0.0; lag + kmax];
-    // origin s: known up to s (also before the hold-out: those data are observed);
-    // forecasts s+1 .. s+kmax, scored where they fall inside [h0, n)
-    for s in h0.saturating_sub(kmax)..n - 1 {
-        if s + 1 < lag {
-            continue;
-        }
-        for i in 0..lag {
-            yt[i] = y[s + 1 - lag + i];
-            et[i] = e[s + 1 - lag + i];
-        }
-        for j in 1..=kmax {
-            let t = s + j;
-            if t >= n {
-                break;
-            }
-            let i = lag + j - 1;
-            m.f(yt[i - d], &mut f);
-            let mut v = 0.0;
-            for k in 0..p {
-                v += f[k] * yt[i - k - 1];
-            }
-            for (k, bk) in b.iter().enumerate() {
-                v += bk * et[i - k - 1];
-            }
-            yt[i] = v;
-            et[i] = 0.0;
-            if t >= h0 {
-                sse[j - 1] += (y[t] - v).powi(2);
-                cnt[j - 1] += 1;
-            }
-        }
-    }
-    (sse, cnt)
-}
-
 /// Hold-out prediction of the last `holdout` samples of `x` (channel units) by the
-/// FARMA model (fitted to x - `model_mean`) and the linear baseline (fitted with mean `arma_mean`), at horizons
-/// `ks` (those up to the hold-out length).
+/// FARMA model and the linear baseline (each centring x with its own mean), at
+/// horizons `ks` (those up to the hold-out length).
 pub fn predict_holdout(
-    model: &dyn Predictor,
-    model_mean: f64,
-    lin: &Linear,
-    arma_mean: f64,
+    model: &Farma,
+    lin: &Farma,
     x: &[f64],
     holdout: usize,
     ks: &[usize],
@@ -189,10 +68,10 @@ pub fn predict_holdout(
         .filter(|k| *k <= holdout)
         .max()
         .unwrap_or(1);
-    let y: Vec<f64> = x.iter().map(|v| v - model_mean).collect();
-    let ya: Vec<f64> = x.iter().map(|v| v - arma_mean).collect();
-    let (sf, cf) = kstep(model, &y, holdout, kmax);
-    let (sa, ca) = kstep(lin, &ya, holdout, kmax);
+    let y: Vec<f64> = x.iter().map(|v| v - model.mean).collect();
+    let ya: Vec<f64> = x.iter().map(|v| v - lin.mean).collect();
+    let (sf, cf) = model.kstep(&y, holdout, kmax);
+    let (sa, ca) = lin.kstep(&ya, holdout, kmax);
     let ho = &x[x.len() - holdout..];
     let mu = ho.iter().sum::<f64>() / holdout as f64;
     let sd = (ho.iter().map(|v| (v - mu).powi(2)).sum::<f64>() / holdout as f64).sqrt();
@@ -212,17 +91,17 @@ pub fn predict_holdout(
     }
 }
 
-/// Polynomial fits of every f_m of `model`, weighted by the pointwise standard errors.
-pub fn poly_fits(model: &FittedFarma, max_degree: usize) -> Vec<PolyFit> {
-    let p = model.p;
+/// Polynomial fits of every f_m of `model` in the centred index, weighted by the
+/// pointwise standard errors (filled grid points left out).
+pub fn poly_fits(model: &Farma, max_degree: usize) -> Vec<PolyFit> {
+    let c = &model.coef;
+    let p = model.p();
     (0..p)
         .map(|m| {
-            let keep: Vec<usize> = (0..model.grid.len())
-                .filter(|&g| !model.filled[g])
-                .collect();
-            let grid: Vec<f64> = keep.iter().map(|&g| model.grid[g]).collect();
-            let f: Vec<f64> = keep.iter().map(|&g| model.coef.f[g * p + m]).collect();
-            let se: Vec<f64> = keep.iter().map(|&g| model.se[g * p + m]).collect();
+            let keep: Vec<usize> = (0..c.n_grid()).filter(|&g| !c.filled[g]).collect();
+            let grid: Vec<f64> = keep.iter().map(|&g| c.centred_grid(g)).collect();
+            let f: Vec<f64> = keep.iter().map(|&g| c.f[g * p + m]).collect();
+            let se: Vec<f64> = keep.iter().map(|&g| c.se[g * p + m]).collect();
             poly_fit_curve(m + 1, &grid, &f, &se, model.bandwidth, max_degree)
         })
         .collect()
@@ -326,15 +205,36 @@ pub struct CheckReport {
 /// The default prediction horizons (samples).
 pub const HORIZONS: [usize; 12] = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000];
 
-/// Whiteness of the model's residuals (rows t >= max(p,q,d)), with Ljung-Box at
-/// lags 5, 10, 20 (and ln n), model_df = p + q.
-pub fn check_whiteness(model: &FittedFarma, maxlag: usize) -> Whiteness {
-    let start = model.p.max(model.q).max(model.d);
-    let e = &model.residuals[start..];
+/// Whiteness of a model's residuals `residuals` (from t = 0; rows t >= max(p,q,d)
+/// are tested), with Ljung-Box at lags 5, 10, 20 and ln n (those up to `maxlag`),
+/// model_df = p + q.
+pub fn residual_whiteness(model: &Farma, residuals: &[f64], maxlag: usize) -> Whiteness {
+    let e = &residuals[model.order.lag().min(residuals.len())..];
     let ln = (e.len() as f64).ln().round() as usize;
     let mut lags = vec![5, 10, 20, ln.max(1)];
     lags.retain(|l| *l <= maxlag);
     lags.sort_unstable();
     lags.dedup();
-    whiteness(e, maxlag, &lags, model.p + model.q)
+    whiteness(e, maxlag, &lags, model.p() + model.q())
+}
+
+/// The check of one channel's model on its series `x` (channel units), the one
+/// `farma check` and `farma analyze` run: the whiteness of `residuals` (the model's
+/// residuals on x before the hold-out, from t = 0), the prediction of the last
+/// `holdout` samples against the linear `baseline` (none when `holdout` is 0), and
+/// polynomial fits of the f_m up to `max_degree`.
+pub fn check_model(
+    model: &Farma,
+    residuals: &[f64],
+    baseline: &Farma,
+    x: &[f64],
+    holdout: usize,
+    maxlag: usize,
+    max_degree: usize,
+) -> CheckReport {
+    CheckReport {
+        whiteness: residual_whiteness(model, residuals, maxlag),
+        prediction: (holdout > 0).then(|| predict_holdout(model, baseline, x, holdout, &HORIZONS)),
+        poly: poly_fits(model, max_degree),
+    }
 }

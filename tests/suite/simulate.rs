@@ -741,12 +741,13 @@ fn fit_gyro_y(dir: &Path) -> serde_json::Value {
 
 #[test]
 fn fitted_model_loads_back_and_drives_the_recursion() {
-    use farma::estimator::saved::{interp, load_saved};
+    use farma::model::folder::ModelDir;
     let dir = tempfile::tempdir().unwrap();
     let fit = fit_gyro_y(dir.path());
-    let m = load_saved(&dir.path().join("fits/gyro_y"), None).unwrap();
-    assert_eq!((m.p, m.q, m.d), (2, 1, 1));
-    assert_eq!(m.channel, "gyro_y");
+    let folder = ModelDir::new(dir.path().join("fits/gyro_y"));
+    let (name, m) = folder.load(None).unwrap();
+    assert_eq!((m.p(), m.q(), m.d()), (2, 1, 1));
+    assert_eq!(name, "gyro_y");
     assert_eq!(m.sigma2, fit["sigma2"].as_f64().unwrap());
     assert_eq!(m.mean, fit["mean"].as_f64().unwrap());
     let b: Vec<f64> = fit["b"]
@@ -756,17 +757,24 @@ fn fitted_model_loads_back_and_drives_the_recursion() {
         .map(|v| v.as_f64().unwrap())
         .collect();
     assert_eq!(m.b, b);
-    assert!(m.grid.iter().all(|g| g.len() == 41));
-    // Linear between grid points, constant beyond.
-    let (g, f) = (&m.grid[0], &m.f[0]);
-    assert_eq!(interp(g, f, g[3]), f[3]);
+    assert_eq!(m.coef.n_grid(), 41);
+    // The grid is read in channel units; f is linear between grid points, constant
+    // beyond, at centred index values.
+    let g = &m.coef.grid;
+    let f1 = |u: f64| {
+        let mut out = [0.0; 2];
+        m.f(u - m.mean, &mut out);
+        out[0]
+    };
+    assert_eq!(f1(g[3]), m.coef.at(3, 1));
     let mid = 0.25 * g[3] + 0.75 * g[4];
-    assert!((interp(g, f, mid) - (0.25 * f[3] + 0.75 * f[4])).abs() < 1e-12);
-    assert_eq!(interp(g, f, g[0] - 10.0), f[0]);
-    assert_eq!(interp(g, f, g[40] + 10.0), f[40]);
+    assert!((f1(mid) - (0.25 * m.coef.at(3, 1) + 0.75 * m.coef.at(4, 1))).abs() < 1e-12);
+    assert_eq!(f1(g[0] - 10.0), m.coef.at(0, 1));
+    assert_eq!(f1(g[40] + 10.0), m.coef.at(40, 1));
     // A spec naming an unknown fitted channel is a clear error.
     assert!(
-        load_saved(&dir.path().join("fits/gyro_y"), Some("gyro_q"))
+        folder
+            .load(Some("gyro_q"))
             .unwrap_err()
             .to_string()
             .contains("no fitted channel 'gyro_q'")
@@ -782,7 +790,11 @@ fn fitted_model_loads_back_and_drives_the_recursion() {
     req.base_dir = Some(dir.path().to_path_buf());
     let y = simulate(&s, &req).unwrap().channels[0].1.clone();
     let z: Vec<f64> = y.iter().map(|v| v - m.mean).collect();
-    let f = |k: usize, u: f64| interp(&m.grid[k - 1], &m.f[k - 1], u + m.mean);
+    let f = |k: usize, u: f64| {
+        let mut out = [0.0; 2];
+        m.f(u, &mut out);
+        out[k - 1]
+    };
     let e = farma_residuals(&z, 1, &f, 2, &m.b, 500);
     let v = var(&e);
     assert!(

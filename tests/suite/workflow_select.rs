@@ -5,8 +5,9 @@
 //! benches/constancy.rs (figures in BENCHMARKS.md).
 
 use farma::estimator::{FarmaParams, fit};
+use farma::model::Farma;
 use farma::workflow::analyze::select_with_constancy;
-use farma::workflow::check::{Linear, check_whiteness, kstep, poly_fits, predict_holdout};
+use farma::workflow::check::{poly_fits, predict_holdout, residual_whiteness};
 use farma::workflow::select::PAPER_ORDERS;
 use farma::workflow::{ALPHA, rejects};
 use rand::SeedableRng;
@@ -146,12 +147,9 @@ fn kstep_prediction_of_an_ar1_is_the_closed_form() {
         let v: f64 = StandardNormal.sample(&mut rng);
         y[t] = 0.7 * y[t - 1] + v;
     }
-    let lin = Linear {
-        ar: &[0.7],
-        ma: &[],
-    };
+    let lin = Farma::linear(&[0.7], &[], 0.0, 1.0);
     let holdout = 100;
-    let (sse, cnt) = kstep(&lin, &y, holdout, 10);
+    let (sse, cnt) = lin.kstep(&y, holdout, 10);
     for k in 1..=10 {
         let mut s = 0.0;
         let mut c = 0;
@@ -182,8 +180,9 @@ fn check_of_a_fitted_farma_model() {
     }
     .validate(train.len())
     .unwrap();
-    let mut m = fit(train, &prm).unwrap();
-    let w = check_whiteness(&m, 20);
+    let fitted = fit(train, &prm).unwrap();
+    let mut m = fitted.model();
+    let w = residual_whiteness(&m, &fitted.residuals, 20);
     eprintln!("{:?}", w.ljung_box);
     assert!(
         w.ljung_box.iter().all(|b| b.p_value > 0.01),
@@ -196,11 +195,8 @@ fn check_of_a_fitted_farma_model() {
         1,
     )
     .unwrap();
-    let lin = Linear {
-        ar: &arma.ar,
-        ma: &arma.ma,
-    };
-    let pr = predict_holdout(&m, m.mean, &lin, m.mean, &x, 500, &[1, 2, 5, 10, 1000]);
+    let lin = Farma::linear(&arma.ar, &arma.ma, m.mean, f64::NAN);
+    let pr = predict_holdout(&m, &lin, &x, 500, &[1, 2, 5, 10, 1000]);
     assert_eq!(pr.horizons.len(), 4); // k = 1000 exceeds the hold-out
     let one = &pr.horizons[0];
     eprintln!("{:?}", pr.horizons);
@@ -210,9 +206,9 @@ fn check_of_a_fitted_farma_model() {
     // far horizons approach the series' spread
     assert!(pr.horizons[3].rmse_farma > one.rmse_farma);
     // polynomial fits: overwrite f with exact polynomials; they are recovered
-    let p = m.p;
-    for g in 0..m.grid.len() {
-        let u = m.grid[g];
+    let p = m.p();
+    for g in 0..m.coef.n_grid() {
+        let u = m.coef.grid[g];
         m.coef.f[g * p] = 0.5 - 0.2 * u + 0.1 * u * u;
         m.coef.f[g * p + 1] = -0.3;
     }

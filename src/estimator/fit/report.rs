@@ -109,3 +109,23 @@ pub struct FittedFarma {
     /// Where the time went.
     pub timings: FitTimings,
 }
+
+impl FittedFarma {
+    /// The fitted model alone (what `check`, prediction and the simulator read).
+    pub fn model(&self) -> crate::model::Farma {
+        crate::model::Farma {
+            order: crate::model::Order::new(self.p, self.q, self.d),
+            mean: self.mean,
+            b: self.b.clone(),
+            sigma2: self.sigma2,
+            bandwidth: self.bandwidth,
+            coef: crate::model::Coef {
+                grid: self.grid.clone(),
+                grid_shift: 0.0,
+                f: self.coef.f.clone(),
+                se: self.se.clone(),
+                filled: self.filled.clone(),
+            },
+        }
+    }
+}

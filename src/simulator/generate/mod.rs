@@ -32,7 +32,8 @@ use std::path::PathBuf;
 
 use super::spec::{Component, FarmaModel, Kind, Spec};
 use crate::error::{Error, Result};
-use crate::estimator::saved::{SavedFarma, load_saved};
+use crate::model::Farma;
+use crate::model::folder::ModelDir;
 use recursion::{Coefs, FARMA_BURN_IN, Recursion, add_recursion, arma_burn_in};
 use streams::{MAX_SAMPLES, StreamKey};
 
@@ -107,7 +108,7 @@ pub struct Simulator<'a> {
     req: SimRequest<'a>,
     seed: u64,
     /// Fitted farma models by (channel index, component index).
-    saved: HashMap<(usize, usize), SavedFarma>,
+    saved: HashMap<(usize, usize), Farma>,
     /// Mean temperature of the request, if it has one.
     temp_mean_c: Option<f64>,
 }
@@ -254,9 +255,12 @@ impl<'a> Simulator<'a> {
                         };
                         let name = channel.as_deref().unwrap_or(&ch.name);
                         // Default: the spec channel's name, or the only channel fitted.
-                        let m = match load_saved(&dir, Some(name)) {
-                            Ok(m) => Ok(m),
-                            Err(e) if channel.is_none() => load_saved(&dir, None).map_err(|_| e),
+                        let folder = ModelDir::new(&dir);
+                        let m = match folder.load(Some(name)) {
+                            Ok((_, m)) => Ok(m),
+                            Err(e) if channel.is_none() => {
+                                folder.load(None).map(|(_, m)| m).map_err(|_| e)
+                            }
                             Err(e) => Err(e),
                         }
                         .map_err(|e| {
@@ -432,9 +436,9 @@ impl<'a> Simulator<'a> {
                     .get(&(channel, component))
                     .ok_or_else(|| Error::Internal(format!("{what}: model not loaded")))?;
                 let r = Recursion {
-                    p: m.p,
-                    d: m.d,
-                    coefs: Coefs::Saved(m),
+                    p: m.p(),
+                    d: m.d(),
+                    coefs: Coefs::Fitted(m),
                     ma: &m.b,
                     sigma: m.sigma2.sqrt(),
                 };

@@ -11,7 +11,7 @@
 
 use super::streams::{StreamKey, for_chunks, normals};
 use crate::error::{Error, Result};
-use crate::estimator::saved::SavedFarma;
+use crate::model::Farma;
 
 /// The coefficient functions f_1..f_p of a recursion.
 pub enum Coefs<'a> {
@@ -19,8 +19,8 @@ pub enum Coefs<'a> {
     Constant(&'a [f64]),
     /// Polynomials in ascending powers (inline FARMA).
     Poly(&'a [Vec<f64>]),
-    /// A fitted model: f_m at x_{t-d} + mean (its grid is in channel units).
-    Saved(&'a SavedFarma),
+    /// A fitted model: f_m at the centred x_{t-d} ([`Farma::f`]).
+    Fitted(&'a Farma),
 }
 
 impl Coefs<'_> {
@@ -33,7 +33,7 @@ impl Coefs<'_> {
                     *o = poly.iter().rev().fold(0.0, |acc, c| acc * u + c);
                 }
             }
-            Coefs::Saved(m) => m.eval(u + m.mean, out),
+            Coefs::Fitted(m) => m.f(u, out),
         }
     }
 }
