@@ -84,6 +84,7 @@ fn main() {
             let h = fixed.then(|| {
                 fit(&x, &base.clone().validate(n).unwrap())
                     .unwrap()
+                    .0
                     .bandwidth
             });
             let c = constancy_test(

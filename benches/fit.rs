@@ -46,7 +46,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use farma::estimator::{FarmaParams, FitPath, FittedFarma, fit};
+use farma::estimator::{FarmaParams, FitPath, fit};
+use farma::model::{Farma, FitReport};
 use farma::store::{Segment, Store, StoreMeta, StoreWriter};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -152,24 +153,24 @@ impl AnonSampler {
     }
 }
 
-fn summary(m: &FittedFarma) -> Value {
-    let alt: Vec<Value> = m
-        .timings
-        .alternations
-        .iter()
-        .map(|a| {
-            json!({"f_step_s": a.f_step_s, "gcv_s": a.gcv_s, "b_step_s": a.b_step_s,
+fn summary(m: &(Farma, FitReport)) -> Value {
+    let alt: Vec<Value> =
+        m.1.timings
+            .alternations
+            .iter()
+            .map(|a| {
+                json!({"f_step_s": a.f_step_s, "gcv_s": a.gcv_s, "b_step_s": a.b_step_s,
                    "residuals_s": a.residuals_s})
-        })
-        .collect();
+            })
+            .collect();
     json!({
-        "b": m.b, "b_bits": m.b.iter().map(|v| format!("{:016x}", v.to_bits())).collect::<Vec<_>>(),
-        "rss_history": m.rss_history, "notes": m.notes, "rss": m.rss, "rss_bits": format!("{:016x}", m.rss.to_bits()),
-        "f_bits": format!("{:016x}", m.coef.f.iter().fold(0u64, |h, v| h.rotate_left(5) ^ v.to_bits())),
-        "bandwidth": m.bandwidth, "iterations": m.iterations, "converged": m.converged,
-        "ladder": m.gcv_table.len(), "f": m.coef.f,
-        "timings": {"prepare_s": m.timings.prepare_s, "start_s": m.timings.start_s,
-                    "final_s": m.timings.final_s, "total_s": m.timings.total_s,
+        "b": m.0.b, "b_bits": m.0.b.iter().map(|v| format!("{:016x}", v.to_bits())).collect::<Vec<_>>(),
+        "rss_history": m.1.rss_history, "notes": m.1.notes, "rss": m.1.rss, "rss_bits": format!("{:016x}", m.1.rss.to_bits()),
+        "f_bits": format!("{:016x}", m.1.local.f.iter().fold(0u64, |h, v| h.rotate_left(5) ^ v.to_bits())),
+        "bandwidth": m.0.bandwidth, "iterations": m.1.iterations, "converged": m.1.converged,
+        "ladder": m.1.gcv_table.len(), "f": m.1.local.f,
+        "timings": {"prepare_s": m.1.timings.prepare_s, "start_s": m.1.timings.start_s,
+                    "final_s": m.1.timings.final_s, "total_s": m.1.timings.total_s,
                     "alternations": alt},
     })
 }
@@ -205,7 +206,7 @@ fn child(path: &str, threads: usize, method: &str, reps: usize) {
     .unwrap();
     let anon0 = common::proc_status_kib("RssAnon").unwrap_or(0);
     let sampler = AnonSampler::start();
-    let mut best: Option<FittedFarma> = None;
+    let mut best: Option<(Farma, FitReport)> = None;
     let mut times: Vec<f64> = Vec::new();
     for _ in 0..reps {
         let t = Instant::now();

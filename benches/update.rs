@@ -66,12 +66,12 @@ fn main() {
     let m = fit(&x[..n_old], &params.clone().validate(n_old).unwrap()).unwrap();
     println!(
         "fit on {n_old} samples (G = {}, h = 0.25, {} iterations): {:.3} s",
-        m.grid.len(),
-        m.iterations,
+        m.0.coef.grid.len(),
+        m.1.iterations,
         t.elapsed().as_secs_f64()
     );
     let t = Instant::now();
-    let st = state_from_fit("x", &x[..n_old], &m);
+    let st = state_from_fit("x", &x[..n_old], &m.0, &m.1);
     println!("state (--save-state): {:.3} s", t.elapsed().as_secs_f64());
     let mut best_up = f64::INFINITY;
     let mut up = None;
@@ -87,18 +87,18 @@ fn main() {
         best_up / n_new as f64 * 1e6,
         n_new as f64 / best_up
     );
-    let xa: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
-    let mut ea = m.residuals.clone();
-    ea.extend(&up.model.residuals);
-    let prob = VcProblem::new(&xa, &ea, &up.model.b, 2, 1);
+    let xa: Vec<f64> = x.iter().map(|v| v - m.0.mean).collect();
+    let mut ea = m.1.residuals.clone();
+    ea.extend(&up.2.residuals);
+    let prob = VcProblem::new(&xa, &ea, &up.0.b, 2, 1);
     let mut best_direct = f64::INFINITY;
     let mut worst = 0.0f64;
     for _ in 0..3 {
         let t = Instant::now();
         let index = DirectIndex::build(&prob);
-        let batch = fit_grid(&prob, &index, &m.grid, m.bandwidth);
+        let batch = fit_grid(&prob, &index, &m.0.coef.grid, m.0.bandwidth);
         best_direct = best_direct.min(t.elapsed().as_secs_f64());
-        for (a, b) in batch.f.iter().zip(&up.model.coef.f) {
+        for (a, b) in batch.f.iter().zip(&up.2.local.f) {
             if a.is_finite() {
                 worst = worst.max((a - b).abs());
             }
@@ -113,7 +113,7 @@ fn main() {
     let refit = t.elapsed().as_secs_f64();
     println!(
         "peer: full fit on the concatenated samples (fast path, {} iterations): {refit:.3} s",
-        all.iterations
+        all.1.iterations
     );
     println!(
         "ratios: direct refit / update = {:.1}, full refit / update = {:.1}",

@@ -57,7 +57,7 @@ fn main() {
     let single = t0.elapsed().as_secs_f64();
     println!(
         "single FARMA(2,1,1) fit (GCV, grid 201), N = {n}: {single:.2} s (h = {:.4}, {} iterations)",
-        m.bandwidth, m.iterations
+        m.0.bandwidth, m.1.iterations
     );
     let t0 = Instant::now();
     let prep = prep_channel("x", &x, &PrepParams::default());

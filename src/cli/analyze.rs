@@ -12,9 +12,9 @@ use super::LogArgs;
 use super::prep::{PrepFlags, prep_store};
 use super::select::{SelectFlags, select_json, select_text};
 use crate::error::{Error, Result};
-use crate::estimator::FittedFarma;
-use crate::estimator::tables::{coef_table, gcv_table, params_table};
+use crate::estimator::tables::{ModelRow, coef_table, gcv_table, params_table};
 use crate::log::Progress;
+use crate::model::Report;
 use crate::output::OutputSet;
 use crate::workflow::analyze::{AnalyzeParams, ChannelAnalysis, analyze_channel};
 use crate::workflow::select::{Selection, order_name};
@@ -204,9 +204,12 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         })
         .collect();
     set.parquet("constancy.parquet", &constancy_table(&cons)?, &md)?;
-    let models: Vec<(String, &FittedFarma)> = results
+    let models: Vec<ModelRow> = results
         .iter()
-        .map(|r| (r.name.clone(), &r.selection.fits[r.selection.selected]))
+        .map(|r| {
+            let (m, rep) = &r.selection.fits[r.selection.selected];
+            (r.name.clone(), m, Report::Fit(rep))
+        })
         .collect();
     set.parquet("coef.parquet", &coef_table(&models)?, &md)?;
     set.parquet("params.parquet", &params_table(&models)?, &md)?;

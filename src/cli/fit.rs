@@ -7,13 +7,15 @@ use clap::Args;
 use rayon::prelude::*;
 
 use super::LogArgs;
-use super::update::STATE_FILE;
 use crate::error::{Error, Result};
+use crate::estimator::tables::ModelRow;
 use crate::estimator::tables::{
     ResidualRows, coef_table, fit_json, gcv_table, params_table, stage_residuals,
 };
-use crate::estimator::{FarmaParams, FitPath, FittedFarma, Init, fit, update};
+use crate::estimator::{FarmaParams, FitPath, Init, fit, update};
 use crate::log::Progress;
+use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, PARAMS_FILE, STATE_FILE};
+use crate::model::{Farma, FitReport, Report};
 use crate::output::OutputSet;
 
 #[derive(Args, Debug)]
@@ -83,16 +85,6 @@ pub(super) const FIT_CHANNELS_HINT: &str = "leave the failing ones out of --chan
 
 /// The grid size of a 1-D fit when `--grid` is not given.
 pub const DEFAULT_GRID: usize = 201;
-
-/// The files `farma fit` (and `farma update`) can write into its output folder: a
-/// run removes those of an earlier run that it does not write.
-pub(super) const FIT_OUTPUTS: [&str; 5] = [
-    "coef.parquet",
-    "params.parquet",
-    "gcv.parquet",
-    "residuals.parquet",
-    STATE_FILE,
-];
 
 /// A log of several uniform segments (`--gaps split`) is fitted as one series: the
 /// lags and residuals of the first samples after a gap reach across it. Said on
@@ -235,26 +227,27 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     // many long channels holds the residuals of the fits in flight, not one series per
     // channel (measured: 6 channels of 1e7 samples, 1.29 GB maxrss before, see
     // BENCHMARKS.md).
-    let fitted: Vec<(String, FittedFarma, Option<update::ChannelState>)> = super::every_channel(
-        names
-            .par_iter()
-            .map(|n| {
-                let x = store.column(n)?;
-                let mut m = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
-                let state = t_last.map(|t| {
-                    let mut s = update::state_from_fit(n, x, &m);
-                    s.t_last = t;
-                    s
-                });
-                if !a.residuals {
-                    m.residuals = Vec::new();
-                }
-                bar.inc(1);
-                Ok((n.clone(), m, state))
-            })
-            .collect(),
-        FIT_CHANNELS_HINT,
-    )?;
+    let fitted: Vec<(String, (Farma, FitReport), Option<update::ChannelState>)> =
+        super::every_channel(
+            names
+                .par_iter()
+                .map(|n| {
+                    let x = store.column(n)?;
+                    let (m, mut r) = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
+                    let state = t_last.map(|t| {
+                        let mut s = update::state_from_fit(n, x, &m, &r);
+                        s.t_last = t;
+                        s
+                    });
+                    if !a.residuals {
+                        r.residuals = Vec::new();
+                    }
+                    bar.inc(1);
+                    Ok((n.clone(), (m, r), state))
+                })
+                .collect(),
+            FIT_CHANNELS_HINT,
+        )?;
     bar.finish_and_clear();
     let mut fits = Vec::with_capacity(fitted.len());
     let mut states = Vec::new();
@@ -264,7 +257,10 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     }
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
-    let refs: Vec<(String, &FittedFarma)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();
+    let refs: Vec<ModelRow> = fits
+        .iter()
+        .map(|(n, (m, r))| (n.clone(), m, Report::Fit(r)))
+        .collect();
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
         ("order", format!("{p},{q},{d}")),
@@ -273,14 +269,14 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         ("source_mtime_ns", mtime.to_string()),
         ("sample_rate_hz", store.sample_rate_hz().to_string()),
     ];
-    let coef_path = out.path("coef.parquet");
-    out.parquet("coef.parquet", &coef_table(&refs)?, &md)?;
-    out.parquet("params.parquet", &params_table(&refs)?, &md)?;
-    out.parquet("gcv.parquet", &gcv_table(&refs)?, &md)?;
+    let coef_path = out.path(COEF_FILE);
+    out.parquet(COEF_FILE, &coef_table(&refs)?, &md)?;
+    out.parquet(PARAMS_FILE, &params_table(&refs)?, &md)?;
+    out.parquet(GCV_FILE, &gcv_table(&refs)?, &md)?;
     if a.residuals {
         let rows: Vec<ResidualRows> = fits
             .iter()
-            .map(|(n, m)| ResidualRows::of_fit(n, m))
+            .map(|(n, (_, r))| ResidualRows::of_fit(n, r))
             .collect();
         stage_residuals(&mut out, &rows, &md)?;
     }
@@ -296,25 +292,28 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         out.parquet(STATE_FILE, &table, &update::state_metadata(&md))?;
     }
     super::commit_outputs(out, &FIT_OUTPUTS)?;
-    for (n, m) in &fits {
+    for (n, (m, r)) in &fits {
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) b = {:?} sigma2 = {:.6e} h = {:.6e} trace = {:.2} iterations {} {}",
             m.b,
             m.sigma2,
             m.bandwidth,
-            m.trace,
-            m.iterations,
-            if m.converged {
+            r.trace,
+            r.iterations,
+            if r.converged {
                 "converged"
             } else {
                 "NOT converged (raise --max-iter or --tol)"
             }
         );
-        for note in &m.notes {
+        for note in &r.notes {
             eprintln!("farma: note: {n}: {note}");
         }
         if a.json {
-            outln!("{}", fit_json(n, m, &coef_path.display().to_string()));
+            outln!(
+                "{}",
+                fit_json(n, m, Report::Fit(r), &coef_path.display().to_string())
+            );
         }
     }
     eprintln!(

@@ -241,7 +241,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             .collect();
         stage_residuals(&mut out, &rows, &md)?;
     }
-    super::commit_outputs(out, &super::fit::FIT_OUTPUTS)?;
+    super::commit_outputs(out, &crate::model::folder::FIT_OUTPUTS)?;
     for (n, m) in &fits {
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",

@@ -8,20 +8,16 @@ use clap::Args;
 use rayon::prelude::*;
 
 use super::LogArgs;
-use super::fit::FIT_OUTPUTS;
 use crate::error::{Error, Result};
-use crate::estimator::FittedFarma;
-use crate::estimator::tables::{ResidualRows, stage_residuals};
-use crate::estimator::tables::{coef_table, fit_json, gcv_table};
+use crate::estimator::tables::{ModelRow, ResidualRows, stage_residuals};
+use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table};
 use crate::estimator::update::{
-    ChannelState, LastTime, Updated, read_state, state_metadata, state_table, update,
-    update_params_table,
+    ChannelState, LastTime, read_state, state_metadata, state_table, update,
 };
 use crate::log::Progress;
+use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, ModelDir, PARAMS_FILE, STATE_FILE};
+use crate::model::{Farma, Report, UpdateReport};
 use crate::output::OutputSet;
-
-/// The state file in a model folder.
-pub const STATE_FILE: &str = "state.parquet";
 
 #[derive(Args, Debug)]
 pub struct UpdateArgs {
@@ -51,19 +47,6 @@ pub struct UpdateArgs {
     /// One JSON object per channel on stdout (JSON Lines).
     #[arg(long)]
     pub json: bool,
-}
-
-/// The `index` of a 2-D fit's params.parquet metadata (`lag,CHANNEL`), if the model
-/// folder holds one (None for a 1-D fit, or when there is no readable params.parquet).
-pub(super) fn model_index2(dir: &std::path::Path) -> Option<String> {
-    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-    let file = std::fs::File::open(dir.join("params.parquet")).ok()?;
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file).ok()?;
-    let kv = builder.metadata().file_metadata().key_value_metadata()?;
-    kv.iter()
-        .find(|e| e.key == "index2")
-        .and(kv.iter().find(|e| e.key == "index"))
-        .and_then(|e| e.value.clone())
 }
 
 /// Seconds for a message: six decimals, trailing zeros dropped (1.0999999999999943 is
@@ -218,7 +201,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     let state_path = a.model_dir.join(STATE_FILE);
     if !state_path.is_file() {
         // a 2-D fit writes no state, and refuses --save-state
-        if let Some(index) = model_index2(&a.model_dir) {
+        if let Some(index) = ModelDir::new(&a.model_dir).index2() {
             return Err(Error::Usage(format!(
                 "{}: no {STATE_FILE}: the model was fitted with a 2-D index (--index {index}), and online updates support the 1-D index only; fit the concatenated log instead",
                 a.model_dir.display()
@@ -295,31 +278,32 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
             .collect(),
         "an update continues every channel of the model together",
     )?;
-    let mut ups: Vec<(String, Updated)> = super::every_channel(
+    let mut ups: Vec<(String, Farma, ChannelState, UpdateReport)> = super::every_channel(
         states
             .par_iter()
             .map(|s| {
                 let x = store.column(&s.channel)?;
-                let mut u = update(s, x, a.forgetting)
+                let (m, st, mut r) = update(s, x, a.forgetting)
                     .map_err(|e| super::on_channel(&a.new_log, &s.channel, e))?;
                 // the new samples' residuals: kept only for residuals.parquet (as
                 // `farma fit`)
                 if !a.residuals {
-                    u.model.residuals = Vec::new();
+                    r.residuals = Vec::new();
                 }
-                Ok((s.channel.clone(), u))
+                Ok((s.channel.clone(), m, st, r))
             })
             .collect(),
         "an update continues every channel of the model together",
     )?;
     let secs = t0.elapsed().as_secs_f64();
-    for (_, u) in &mut ups {
-        u.state.t_last = t_last;
+    for (_, _, st, _) in &mut ups {
+        st.t_last = t_last;
     }
     let mut out = OutputSet::new(&a.output)?;
-    let items: Vec<(String, &Updated)> = ups.iter().map(|(n, u)| (n.clone(), u)).collect();
-    let models: Vec<(String, &FittedFarma)> =
-        ups.iter().map(|(n, u)| (n.clone(), &u.model)).collect();
+    let models: Vec<ModelRow> = ups
+        .iter()
+        .map(|(n, m, _, r)| (n.clone(), m, Report::Update(r)))
+        .collect();
     let order = md
         .iter()
         .find(|(k, _)| k == "order")
@@ -335,46 +319,41 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
         ("model", a.model_dir.display().to_string()),
         ("forgetting", a.forgetting.to_string()),
     ];
-    let coef_path = out.path("coef.parquet");
-    out.parquet("coef.parquet", &coef_table(&models)?, &out_md)?;
-    out.parquet("params.parquet", &update_params_table(&items)?, &out_md)?;
-    out.parquet("gcv.parquet", &gcv_table(&models)?, &out_md)?;
+    let coef_path = out.path(COEF_FILE);
+    out.parquet(COEF_FILE, &coef_table(&models)?, &out_md)?;
+    out.parquet(PARAMS_FILE, &params_table(&models)?, &out_md)?;
+    out.parquet(GCV_FILE, &gcv_table(&models)?, &out_md)?;
     if a.residuals {
         // every new sample is a residual of the model (its lags in the state): in_fit
         // true throughout; t counts from the first sample of the whole series
         let rows: Vec<ResidualRows> = ups
             .iter()
-            .map(|(n, u)| ResidualRows {
+            .map(|(n, _, _, r)| ResidualRows {
                 channel: n,
-                values: &u.model.residuals,
-                first_t: u.first_t as i64,
+                values: &r.residuals,
+                first_t: r.first_t as i64,
                 in_fit_from: 0,
             })
             .collect();
         stage_residuals(&mut out, &rows, &out_md)?;
     }
-    let refs: Vec<_> = ups.iter().map(|(_, u)| &u.state).collect();
+    let refs: Vec<_> = ups.iter().map(|(_, _, st, _)| st).collect();
     out.parquet(STATE_FILE, &state_table(&refs)?, &state_metadata(&out_md))?;
     super::commit_outputs(out, &FIT_OUTPUTS)?;
-    for (n, u) in &ups {
-        let m = &u.model;
+    for (n, m, _, r) in &ups {
         eprintln!(
             "farma: update {n}: {} new sample(s), n = {}, b = {:?} sigma2 = {:.6e} h = {:.6e} (held)",
-            u.w.len(),
-            m.n,
+            r.w.len(),
+            r.n,
             m.b,
             m.sigma2,
             m.bandwidth
         );
-        for note in &m.notes {
+        for note in &r.notes {
             eprintln!("farma: note: {n}: {note}");
         }
         if a.json {
-            let mut v = fit_json(n, m, &coef_path.display().to_string());
-            v["init"] = "state".into();
-            v["method"] = "rls".into();
-            v["forgetting"] = a.forgetting.into();
-            v["n_new"] = u.w.len().into();
+            let v = fit_json(n, m, Report::Update(r), &coef_path.display().to_string());
             outln!("{v}");
         }
     }

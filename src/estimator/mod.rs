@@ -26,6 +26,6 @@ pub mod tables;
 pub mod update;
 
 pub use fit::{
-    AlternationTiming, FarmaParams, FitPath, FitTimings, FittedFarma, Init, ValidParams, fit,
+    AlternationTiming, FarmaParams, FitPath, FitReport, FitTimings, Init, ValidParams, fit,
 };
 pub use problem::{GridFit, PointStatus, VcProblem};

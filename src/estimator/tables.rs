@@ -11,8 +11,8 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use serde_json::{Value, json};
 
-use super::fit::{FitPath, FittedFarma, Init};
 use crate::error::Result;
+use crate::model::{Farma, Report};
 use crate::output::{OutputSet, batch};
 
 fn s(v: Vec<String>) -> ArrayRef {
@@ -25,42 +25,32 @@ fn i(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }
 
-pub fn init_name(i: Init) -> &'static str {
-    match i {
-        Init::Arma => "arma",
-        Init::Literal => "literal",
-    }
-}
-
-pub fn path_name(p: FitPath) -> &'static str {
-    match p {
-        FitPath::Fast => "fast",
-        FitPath::Direct => "direct",
-    }
-}
+/// One channel's model with the report of how it was made, as the tables take it.
+pub type ModelRow<'a> = (String, &'a Farma, Report<'a>);
 
 /// Coefficient functions: channel, m, grid, f, slope, se, n_support, kernel_mass,
 /// cond, status, filled. The grid is in the units of the channel (mean added back).
-pub fn coef_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
+pub fn coef_table(models: &[ModelRow]) -> Result<RecordBatch> {
     let (mut ch, mut m_, mut grid, mut fv, mut slope, mut se) =
         (vec![], vec![], vec![], vec![], vec![], vec![]);
     let (mut nsup, mut mass, mut cond, mut status, mut filled) =
         (vec![], vec![], vec![], vec![], vec![]);
-    for (name, m) in models {
-        let p = m.p;
-        for g in 0..m.grid.len() {
+    for (name, m, r) in models {
+        let p = m.p();
+        let (c, local) = (&m.coef, r.local());
+        for g in 0..c.n_grid() {
             for k in 0..p {
                 ch.push(name.clone());
                 m_.push(k as i64 + 1);
-                grid.push(m.grid[g] + m.mean);
-                fv.push(m.coef.f[g * p + k]);
-                slope.push(m.coef.slope[g * p + k]);
-                se.push(m.se[g * p + k]);
-                nsup.push(m.coef.n_support[g]);
-                mass.push(m.coef.kernel_mass[g]);
-                cond.push(m.coef.cond[g]);
-                status.push(m.coef.status[g].as_str().to_string());
-                filled.push(m.filled[g]);
+                grid.push(c.grid[g] + m.mean);
+                fv.push(c.f[g * p + k]);
+                slope.push(local.slope[g * p + k]);
+                se.push(c.se[g * p + k]);
+                nsup.push(local.n_support[g]);
+                mass.push(local.kernel_mass[g]);
+                cond.push(local.cond[g]);
+                status.push(local.status[g].as_str().to_string());
+                filled.push(c.filled[g]);
             }
         }
     }
@@ -79,69 +69,76 @@ pub fn coef_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
     ])
 }
 
-/// One row per channel: order, b, sigma2, bandwidth, RSS, trace, GCV, iterations...
-pub fn params_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
+/// One row per channel: order, b, sigma2, bandwidth, RSS, trace, GCV, iterations...;
+/// an update's rows add the forgetting factor and the count of new samples.
+pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
     let mut b = ListBuilder::new(Float64Builder::new());
-    for (_, m) in models {
+    for (_, m, _) in models {
         for v in &m.b {
             b.values().append_value(*v);
         }
         b.append(true);
     }
-    let col = |g: &dyn Fn(&FittedFarma) -> f64| f(models.iter().map(|(_, m)| g(m)).collect());
-    let coli = |g: &dyn Fn(&FittedFarma) -> i64| i(models.iter().map(|(_, m)| g(m)).collect());
-    batch(vec![
+    let col =
+        |g: &dyn Fn(&Farma, &Report) -> f64| f(models.iter().map(|(_, m, r)| g(m, r)).collect());
+    let coli =
+        |g: &dyn Fn(&Farma, &Report) -> i64| i(models.iter().map(|(_, m, r)| g(m, r)).collect());
+    let flag = |g: &dyn Fn(&Report) -> bool| -> ArrayRef {
+        Arc::new(BooleanArray::from(
+            models.iter().map(|(_, _, r)| g(r)).collect::<Vec<_>>(),
+        ))
+    };
+    let name = |g: &dyn Fn(&Report) -> &'static str| {
+        s(models.iter().map(|(_, _, r)| g(r).to_string()).collect())
+    };
+    let mut cols = vec![
         (
             "channel",
-            s(models.iter().map(|(n, _)| n.clone()).collect()),
+            s(models.iter().map(|(n, _, _)| n.clone()).collect()),
         ),
-        ("p", coli(&|m| m.p as i64)),
-        ("q", coli(&|m| m.q as i64)),
-        ("d", coli(&|m| m.d as i64)),
-        ("b", Arc::new(b.finish())),
-        ("mean", col(&|m| m.mean)),
-        ("sigma2", col(&|m| m.sigma2)),
-        ("bandwidth", col(&|m| m.bandwidth)),
-        ("rss", col(&|m| m.rss)),
-        ("trace", col(&|m| m.trace)),
-        ("gcv", col(&|m| m.gcv)),
-        ("iterations", coli(&|m| m.iterations as i64)),
-        (
-            "converged",
-            Arc::new(BooleanArray::from(
-                models.iter().map(|(_, m)| m.converged).collect::<Vec<_>>(),
-            )),
-        ),
-        (
-            "ladder_extended",
-            Arc::new(BooleanArray::from(
-                models
-                    .iter()
-                    .map(|(_, m)| m.ladder_extended)
-                    .collect::<Vec<_>>(),
-            )),
-        ),
-        (
-            "init",
-            s(models
+        ("p", coli(&|m, _| m.p() as i64)),
+        ("q", coli(&|m, _| m.q() as i64)),
+        ("d", coli(&|m, _| m.d() as i64)),
+        ("b", Arc::new(b.finish()) as ArrayRef),
+        ("mean", col(&|m, _| m.mean)),
+        ("sigma2", col(&|m, _| m.sigma2)),
+        ("bandwidth", col(&|m, _| m.bandwidth)),
+        ("rss", col(&|_, r| r.rss())),
+        ("trace", col(&|_, r| r.trace())),
+        ("gcv", col(&|_, r| r.gcv())),
+        ("iterations", coli(&|_, r| r.iterations() as i64)),
+        ("converged", flag(&|r| r.converged())),
+        ("ladder_extended", flag(&|r| r.ladder_extended())),
+        ("init", name(&|r| r.init_name())),
+        ("method", name(&|r| r.method_name())),
+        ("n", coli(&|_, r| r.n() as i64)),
+        ("n_rows", coli(&|_, r| r.n_rows() as i64)),
+    ];
+    if models
+        .iter()
+        .any(|(_, _, r)| matches!(r, Report::Update(_)))
+    {
+        let upd = |g: &dyn Fn(&crate::model::UpdateReport) -> f64| -> Vec<f64> {
+            models
                 .iter()
-                .map(|(_, m)| init_name(m.init).to_string())
-                .collect()),
-        ),
-        (
-            "method",
-            s(models
-                .iter()
-                .map(|(_, m)| path_name(m.path).to_string())
-                .collect()),
-        ),
-        ("n", coli(&|m| m.n as i64)),
-        ("n_rows", coli(&|m| m.n_rows as i64)),
-    ])
+                .map(|(_, _, r)| match r {
+                    Report::Update(u) => g(u),
+                    Report::Fit(_) => f64::NAN,
+                })
+                .collect()
+        };
+        cols.push(("forgetting", f(upd(&|u| u.forgetting))));
+        let n_new: Vec<i64> = upd(&|u| u.w.len() as f64)
+            .iter()
+            .map(|v| *v as i64)
+            .collect();
+        cols.push(("n_new", i(n_new)));
+    }
+    batch(cols)
 }
 
 /// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2), bandwidth, rss, trace, gcv, n_failed, chosen.
-pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
+pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
     let (mut ch, mut j, mut h, mut rss, mut tr, mut gcv, mut nf, mut chosen) = (
         vec![],
         vec![],
@@ -152,8 +149,8 @@ pub fn gcv_table(models: &[(String, &FittedFarma)]) -> Result<RecordBatch> {
         vec![],
         vec![],
     );
-    for (name, m) in models {
-        for r in &m.gcv_table {
+    for (name, m, rep) in models {
+        for r in rep.gcv_table() {
             ch.push(name.clone());
             j.push(r.j as i64);
             h.push(r.bandwidth);
@@ -201,8 +198,8 @@ impl<'a> ResidualRows<'a> {
     }
 
     /// The rows of a 1-D fit ([`ResidualRows::of_series`]).
-    pub fn of_fit(channel: &'a str, m: &'a FittedFarma) -> Self {
-        Self::of_series(channel, &m.residuals, m.n, m.n_rows)
+    pub fn of_fit(channel: &'a str, r: &'a crate::model::FitReport) -> Self {
+        Self::of_series(channel, &r.residuals, r.n, r.n_rows)
     }
 }
 
@@ -275,27 +272,33 @@ fn residual_batches_of<'a>(
     })
 }
 
-/// The `--json` object of one channel (contract keys plus more).
-pub fn fit_json(name: &str, m: &FittedFarma, coef_path: &str) -> Value {
-    json!({
+/// The `--json` object of one channel (contract keys plus more; an update's adds
+/// `forgetting` and `n_new`).
+pub fn fit_json(name: &str, m: &Farma, r: Report, coef_path: &str) -> Value {
+    let mut v = json!({
         "channel": name,
-        "order": [m.p, m.q, m.d],
+        "order": [m.p(), m.q(), m.d()],
         "b": m.b,
         "sigma2": m.sigma2,
         "bandwidth": m.bandwidth,
-        "rss": m.rss,
-        "trace": m.trace,
-        "gcv": m.gcv,
-        "iterations": m.iterations,
-        "converged": m.converged,
+        "rss": r.rss(),
+        "trace": r.trace(),
+        "gcv": r.gcv(),
+        "iterations": r.iterations(),
+        "converged": r.converged(),
         "coef": coef_path,
         "mean": m.mean,
-        "init": init_name(m.init),
-        "method": path_name(m.path),
-        "ladder_extended": m.ladder_extended,
-        "n": m.n,
-        "notes": m.notes,
-    })
+        "init": r.init_name(),
+        "method": r.method_name(),
+        "ladder_extended": r.ladder_extended(),
+        "n": r.n(),
+        "notes": r.notes(),
+    });
+    if let Report::Update(u) = r {
+        v["forgetting"] = u.forgetting.into();
+        v["n_new"] = u.w.len().into();
+    }
+    v
 }
 
 #[cfg(test)]

@@ -64,12 +64,13 @@ use arrow_array::{
 };
 use rayon::prelude::*;
 
-use super::fit::{FitPath, FittedFarma, Init, missing_se_note};
+use super::fit::{FitPath, missing_se_note};
 use super::kernel::biweight;
 use super::linalg::spd_solve_inverse;
 use super::moments::{Families, MomentTable, breakpoints, sandwich_diag};
 use super::problem::{GridFit, PointStatus, VcProblem};
 use crate::error::{Error, Result};
+use crate::model::{Coef, Farma, FitReport, Order, UpdateReport};
 use crate::output::batch;
 
 /// Version of the state file layout (file metadata `farma_state_version`).
@@ -126,7 +127,7 @@ pub struct ChannelState {
     pub rows: f64,
     /// The forgetting factor of the last update (1 after a fit).
     pub forgetting: f64,
-    /// The fit returned its linear ARMA start ([`FittedFarma::linear_start`]): the
+    /// The fit returned its linear ARMA start ([`FitReport::linear_start`]): the
     /// sums above are of the local fits it rejected, so [`update`] refuses the channel.
     /// Column `linear_start` of the state file (absent in files written before it:
     /// false).
@@ -519,26 +520,31 @@ impl Sums {
 }
 
 /// The state of a fitted channel: its normal equations at the fit's final residuals
-/// and b. On the fast path (`m.path` [`FitPath::Fast`]) the per-grid-point sums come
+/// and b. On the fast path (`r.path` [`FitPath::Fast`]) the per-grid-point sums come
 /// from one-pass moment tables (`sums_from_tables`); otherwise, and in
 /// [`state_from_fit_direct`], its slow twin, from a pass that adds each row to every
 /// grid point whose support holds it (`sums_direct`). Either way the result does not
 /// depend on the number of threads.
-pub fn state_from_fit(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+pub fn state_from_fit(channel: &str, series: &[f64], m: &Farma, r: &FitReport) -> ChannelState {
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
-    let sums = match m.path {
-        FitPath::Fast => sums_from_tables(&x, m),
-        FitPath::Direct => sums_direct(&x, m),
+    let sums = match r.path {
+        FitPath::Fast => sums_from_tables(&x, m, r),
+        FitPath::Direct => sums_direct(&x, m, r),
     };
-    state_with(channel, x, m, sums)
+    state_with(channel, x, m, r, sums)
 }
 
 /// [`state_from_fit`] by the direct pass whatever the fit's path: the slow twin the
 /// tables' sums are tested against.
-pub fn state_from_fit_direct(channel: &str, series: &[f64], m: &FittedFarma) -> ChannelState {
+pub fn state_from_fit_direct(
+    channel: &str,
+    series: &[f64],
+    m: &Farma,
+    r: &FitReport,
+) -> ChannelState {
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
-    let sums = sums_direct(&x, m);
-    state_with(channel, x, m, sums)
+    let sums = sums_direct(&x, m, r);
+    state_with(channel, x, m, r, sums)
 }
 
 /// The normal equations of every grid point by a direct pass over the centred series
@@ -546,14 +552,14 @@ pub fn state_from_fit_direct(channel: &str, series: &[f64], m: &FittedFarma) -> 
 /// [`super::direct::fit_grid`]); rows are cut into fixed blocks (their size does not
 /// depend on the threads), blocks run in parallel and are added in order. Its cost is
 /// rows x grid points per support (about 1 s at 1e6 samples and 201 grid points).
-fn sums_direct(x: &[f64], m: &FittedFarma) -> Sums {
+fn sums_direct(x: &[f64], m: &Farma, r: &FitReport) -> Sums {
     const BLOCK: usize = 1 << 15;
     const GROUP: usize = 32;
-    let (p, q, d) = (m.p, m.q, m.d);
+    let (p, q, d) = (m.p(), m.q(), m.d());
     let lag = p.max(q).max(d);
-    let e = &m.residuals;
+    let e = &r.residuals;
     let h = m.bandwidth;
-    let grid = &m.grid;
+    let grid = &m.coef.grid;
     let n = 2 * p;
     let nc = 1 + q;
     let g = grid.len();
@@ -605,12 +611,12 @@ fn sums_direct(x: &[f64], m: &FittedFarma) -> Sums {
 /// ([`MomentTable::local_rhs_at`]). 1 + (q + 1) passes of p(p+1)/2 + 1 and p families
 /// instead of a pass of rows x grid points per support: the same sums to rounding
 /// (tests/suite/estimator_update.rs checks them against [`sums_direct`]).
-fn sums_from_tables(x: &[f64], m: &FittedFarma) -> Sums {
-    let (p, q, d) = (m.p, m.q, m.d);
+fn sums_from_tables(x: &[f64], m: &Farma, r: &FitReport) -> Sums {
+    let (p, q, d) = (m.p(), m.q(), m.d());
     let lag = p.max(q).max(d);
-    let (h, grid) = (m.bandwidth, &m.grid);
+    let (h, grid) = (m.bandwidth, &m.coef.grid);
     let (n, nc, g) = (2 * p, 1 + q, grid.len());
-    let e = &m.residuals;
+    let e = &r.residuals;
     let (umin, umax) = x
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
@@ -666,12 +672,12 @@ fn sums_from_tables(x: &[f64], m: &FittedFarma) -> Sums {
 
 /// The state of a fitted channel from its centred series `x` and the grid points'
 /// normal equations `sums`.
-fn state_with(channel: &str, x: Vec<f64>, m: &FittedFarma, total: Sums) -> ChannelState {
-    let (p, q, d) = (m.p, m.q, m.d);
+fn state_with(channel: &str, x: Vec<f64>, m: &Farma, r: &FitReport, total: Sums) -> ChannelState {
+    let (p, q, d) = (m.p(), m.q(), m.d());
     let lag = p.max(q).max(d);
-    let e = &m.residuals;
+    let e = &r.residuals;
     let h = m.bandwidth;
-    let grid = &m.grid;
+    let grid = &m.coef.grid;
     let mut st = ChannelState {
         channel: channel.to_string(),
         p,
@@ -694,7 +700,7 @@ fn state_with(channel: &str, x: Vec<f64>, m: &FittedFarma, total: Sums) -> Chann
         rss: (lag..x.len()).map(|t| e[t] * e[t]).sum(),
         rows: (x.len() - lag) as f64,
         forgetting: 1.0,
-        linear_start: m.linear_start,
+        linear_start: r.linear_start,
         t_last: LastTime::NoTimeColumn,
     };
     for t in lag..x.len() {
@@ -710,20 +716,6 @@ fn state_with(channel: &str, x: Vec<f64>, m: &FittedFarma, total: Sums) -> Chann
     st
 }
 
-/// The result of an update.
-#[derive(Clone, Debug)]
-pub struct Updated {
-    /// The state after the new samples (write it to continue later).
-    pub state: ChannelState,
-    /// The updated model in the shape `farma fit` writes (trace and GCV are not
-    /// available without the old data: NaN; `residuals` holds the new samples' only).
-    pub model: FittedFarma,
-    /// w_t = x_t - sum f_m(U_t) x_{t-m} of the new samples (a priori, current f).
-    pub w: Vec<f64>,
-    /// Index of the first new sample in the whole series.
-    pub first_t: u64,
-}
-
 /// Entry `row` of Theta (1, -b)' for one grid point's Theta (2p x (1+q), row-major):
 /// rows 0..p are f_m(u_g), rows p..2p are h f_m'(u_g).
 #[inline]
@@ -737,7 +729,11 @@ fn theta_coef(theta: &[f64], nc: usize, b: &[f64], row: usize) -> f64 {
 
 /// Continues the recursion of `state` over `new` (raw samples, channel units) with
 /// forgetting factor `forgetting` (1: none). See the module documentation.
-pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Updated> {
+pub fn update(
+    state: &ChannelState,
+    new: &[f64],
+    forgetting: f64,
+) -> Result<(Farma, ChannelState, UpdateReport)> {
     if !(forgetting > 0.0 && forgetting <= 1.0) {
         return Err(Error::Usage(format!(
             "--forgetting: {forgetting} is not in (0, 1]"
@@ -1036,41 +1032,32 @@ pub fn update(state: &ChannelState, new: &[f64], forgetting: f64) -> Result<Upda
     }
     notes.extend(missing_se_note(&coef.status, &coef.cond, &se, p));
     notes.extend(update_notes(state, &st, &coef, sigma2, &xs[lag..]));
-    let model = FittedFarma {
-        p,
-        q,
-        d,
+    let model = Farma {
+        order: Order::new(p, q, d),
         mean: st.mean,
-        grid: st.grid.clone(),
-        coef,
-        se,
-        filled,
         b,
-        bandwidth: h,
-        rss: st.rss,
         sigma2,
-        trace: f64::NAN,
-        gcv: f64::NAN,
-        gcv_table: Vec::new(),
-        ladder_extended: false,
-        iterations: 0,
-        converged: true,
-        rss_history: Vec::new(),
-        init: Init::Arma,
-        path: FitPath::Direct,
+        bandwidth: h,
+        coef: Coef {
+            grid: st.grid.clone(),
+            grid_shift: 0.0,
+            f: coef.f.clone(),
+            se,
+            filled,
+        },
+    };
+    let report = UpdateReport {
+        local: coef,
+        rss: st.rss,
         n: st.n as usize,
         n_rows: st.n as usize - lag,
         residuals: es[lag..].to_vec(),
-        linear_start: false,
-        notes,
-        timings: Default::default(),
-    };
-    Ok(Updated {
-        state: st,
-        model,
         w: ws,
         first_t,
-    })
+        forgetting,
+        notes,
+    };
+    Ok((model, st, report))
 }
 
 /// An error unless the update's results are finite numbers: b, sigma^2, f and slopes
@@ -1504,43 +1491,4 @@ pub fn read_state(path: &Path) -> Result<(Vec<ChannelState>, Metadata)> {
         return Err(Error::format(path, "the state file holds no channel"));
     }
     Ok((out, md))
-}
-
-/// Parameters of updated channels, with the columns of `farma fit`'s params.parquet
-/// (`trace` and `gcv` NaN, `iterations` 0, `init` "state", `method` "rls") plus
-/// `forgetting` and `n_new`.
-pub fn update_params_table(items: &[(String, &Updated)]) -> Result<RecordBatch> {
-    let models: Vec<(String, &FittedFarma)> =
-        items.iter().map(|(n, u)| (n.clone(), &u.model)).collect();
-    let base = super::tables::params_table(&models)?;
-    let schema = base.schema();
-    let mut cols: Vec<(&str, ArrayRef)> = Vec::new();
-    for (k, field) in schema.fields().iter().enumerate() {
-        let name = field.name().as_str();
-        let col: ArrayRef = match name {
-            "init" => Arc::new(StringArray::from(vec!["state"; items.len()])),
-            "method" => Arc::new(StringArray::from(vec!["rls"; items.len()])),
-            _ => base.column(k).clone(),
-        };
-        cols.push((name, col));
-    }
-    cols.push((
-        "forgetting",
-        Arc::new(Float64Array::from(
-            items
-                .iter()
-                .map(|(_, u)| u.state.forgetting)
-                .collect::<Vec<_>>(),
-        )),
-    ));
-    cols.push((
-        "n_new",
-        Arc::new(Int64Array::from(
-            items
-                .iter()
-                .map(|(_, u)| u.w.len() as i64)
-                .collect::<Vec<_>>(),
-        )),
-    ));
-    batch(cols)
 }

@@ -86,13 +86,12 @@ pub fn analyze_channel(prep: ChannelPrep, prm: &AnalyzeParams) -> Result<Channel
     let train = &x[..n_train];
     let (selection, constancy) =
         select_with_constancy(train, &prm.orders, &prm.farma, prm.bootstrap, prm.seed)?;
-    let model = &selection.fits[selection.selected];
+    let (model, report) = &selection.fits[selection.selected];
     let row = &selection.rows[selection.selected];
-    let farma = model.model();
     let baseline = Farma::linear(&row.arma_ar, &row.arma_ma, model.mean, f64::NAN);
     let check = check_model(
-        &farma,
-        &model.residuals,
+        model,
+        &report.residuals,
         &baseline,
         x,
         prm.holdout,

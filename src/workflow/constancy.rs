@@ -87,12 +87,12 @@ fn glr(x: &[f64], prm: &FarmaParams) -> Result<Glr> {
         ..prm.clone()
     }
     .validate(n)?;
-    let m1 = fit(x, &valid)?;
-    let t = 0.5 * (n - start) as f64 * (rss0 / m1.rss).ln();
+    let (m1, r1) = fit(x, &valid)?;
+    let t = 0.5 * (n - start) as f64 * (rss0 / r1.rss).ln();
     Ok(Glr {
         t,
         rss0,
-        rss1: m1.rss,
+        rss1: r1.rss,
         h: m1.bandwidth,
         ar,
         ma,

@@ -25,7 +25,8 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
 use crate::estimator::fit::{linear_start, residuals};
-use crate::estimator::{FarmaParams, FittedFarma, fit};
+use crate::estimator::{FarmaParams, fit};
+use crate::model::{Farma, FitReport};
 use crate::stats::special::f_sf;
 
 /// The paper's eight orders.
@@ -92,7 +93,7 @@ pub struct Selection {
     /// one keeps its `residuals` (N values each: the others' are dropped as each fit
     /// ends, so a channel holds one residual series, not one per order); theirs are
     /// empty.
-    pub fits: Vec<FittedFarma>,
+    pub fits: Vec<(Farma, FitReport)>,
 }
 
 /// AICc of Hurvich, Simonoff and Tsai (1998).
@@ -180,13 +181,13 @@ pub fn select(
         0.0
     };
     let xc: Vec<f64> = x.iter().map(|v| v - mean).collect();
-    let results: Vec<(OrderRow, FittedFarma)> = valid
+    let results: Vec<(OrderRow, (Farma, FitReport))> = valid
         .par_iter()
         .zip(orders.par_iter())
         .map(|(vp, &(p, q, d))| {
-            let mut m = fit(x, vp)?;
+            let (m, mut r) = fit(x, vp)?;
             // (the selected fit's residuals are recomputed below, the same bits)
-            m.residuals = Vec::new();
+            r.residuals = Vec::new();
             let start = p.max(q).max(d);
             let rows = n - start;
             let (arma_ar, arma_ma) = linear_start(&xc, p, q, start).ok_or_else(|| {
@@ -197,21 +198,21 @@ pub fn select(
             let mut e = vec![0.0; n];
             arma_residuals(&xc, &arma_ar, &arma_ma, &mut e);
             let arma_rss: f64 = e[start..].iter().map(|v| v * v).sum();
-            let df = m.trace + q as f64;
+            let df = r.trace + q as f64;
             let adf = (p + q) as f64;
-            let (f, _, _, pv) = f_test(arma_rss, adf, m.rss, df, rows);
+            let (f, _, _, pv) = f_test(arma_rss, adf, r.rss, df, rows);
             Ok((
                 OrderRow {
                     order: (p, q, d),
                     m: rows,
-                    rss: m.rss,
+                    rss: r.rss,
                     sigma2: m.sigma2,
-                    trace: m.trace,
+                    trace: r.trace,
                     df,
-                    gcv: m.gcv,
-                    aicc: aicc(m.rss, rows, df),
+                    gcv: r.gcv,
+                    aicc: aicc(r.rss, rows, df),
                     bandwidth: m.bandwidth,
-                    converged: m.converged,
+                    converged: r.converged,
                     arma_rss,
                     arma_sigma2: arma_rss / rows as f64,
                     arma_aicc: aicc(arma_rss, rows, adf),
@@ -220,11 +221,11 @@ pub fn select(
                     f_vs_arma: f,
                     p_vs_arma: pv,
                 },
-                m,
+                (m, r),
             ))
         })
         .collect::<Result<_>>()?;
-    let (rows, mut fits): (Vec<OrderRow>, Vec<FittedFarma>) = results.into_iter().unzip();
+    let (rows, mut fits): (Vec<OrderRow>, Vec<(Farma, FitReport)>) = results.into_iter().unzip();
     let mut ftests = Vec::new();
     for a in &rows {
         for b in &rows {
@@ -266,11 +267,11 @@ pub fn select(
     // ran, bit for bit (`fit`'s test `a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b`)
     // (on `xc`, the series less the mean computed as `fit` computes it: the fit's
     // own centred series)
-    let m = &mut fits[selected];
+    let (m, r) = &mut fits[selected];
     debug_assert_eq!(m.mean.to_bits(), mean.to_bits());
     let mut e = vec![0.0; n];
-    residuals(&xc, m.d, &m.grid, &m.coef, &m.b, &mut e);
-    m.residuals = e;
+    residuals(&xc, m.d(), &m.coef.grid, &r.local, &m.b, &mut e);
+    r.residuals = e;
     Ok(Selection {
         rows,
         ftests,

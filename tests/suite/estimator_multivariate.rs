@@ -230,17 +230,17 @@ fn two_d_fit_recovers_a_temperature_dependent_coefficient_and_1d_cannot() {
             let (u, tt) = m2.grid.point(g);
             let truth = 0.5 + 0.3 * (tt - 25.0).tanh();
             err2 = err2.max((m2.coef.f[g] - truth).abs());
-            m1.coef.eval(&m1.grid, u, &mut f1);
+            m1.1.local.eval(&m1.0.coef.grid, u, &mut f1);
             err1 = err1.max((f1[0] - truth).abs());
         }
     }
     eprintln!(
         "2-D: h = {:?}, max error {err2:.3}, sigma2 {:.4}; 1-D: h = {:.3}, max error {err1:.3}, sigma2 {:.4}; notes {:?}",
-        m2.bandwidth, m2.sigma2, m1.bandwidth, m1.sigma2, m2.notes
+        m2.bandwidth, m2.sigma2, m1.0.bandwidth, m1.0.sigma2, m2.notes
     );
     assert!(err2 < 0.1, "2-D fit misses f_1(u, T) by {err2}");
     assert!(err1 > 0.2, "the 1-D fit cannot see temperature ({err1})");
-    assert!(m2.sigma2 < m1.sigma2 * 0.97);
+    assert!(m2.sigma2 < m1.0.sigma2 * 0.97);
     // the slope in temperature is positive at T = 25 (0.3 tanh' = 0.3)
     let centre = 4 * 9 + 4;
     assert!(

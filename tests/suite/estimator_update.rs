@@ -9,7 +9,8 @@ use farma::estimator::linalg::spd_solve_inverse;
 use farma::estimator::update::{
     ChannelState, read_state, state_from_fit, state_from_fit_direct, update, write_state,
 };
-use farma::estimator::{FarmaParams, FitPath, FittedFarma, PointStatus, VcProblem, fit};
+use farma::estimator::{FarmaParams, FitPath, PointStatus, VcProblem, fit};
+use farma::model::{Farma, FitReport};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -35,7 +36,7 @@ fn simulate(n: usize, seed: u64) -> Vec<f64> {
     x.split_off(burn)
 }
 
-fn fitted(x: &[f64], q: usize) -> FittedFarma {
+fn fitted(x: &[f64], q: usize) -> (Farma, FitReport) {
     let params = FarmaParams {
         p: 2,
         q,
@@ -62,35 +63,45 @@ fn update_without_forgetting_equals_batch_on_concatenated_data() {
     let (old, new) = x.split_at(2500);
     for q in [1usize, 0] {
         let m = fitted(old, q);
-        let st = state_from_fit("x", old, &m);
+        let st = state_from_fit("x", old, &m.0, &m.1);
         // the state's normal equations reproduce the batch fit at the fit's residuals
-        let xc: Vec<f64> = old.iter().map(|v| v - m.mean).collect();
-        let prob = VcProblem::new(&xc, &m.residuals, &m.b, 2, 1);
-        let start_fit = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
+        let xc: Vec<f64> = old.iter().map(|v| v - m.0.mean).collect();
+        let prob = VcProblem::new(&xc, &m.1.residuals, &m.0.b, 2, 1);
+        let start_fit = fit_grid(
+            &prob,
+            &DirectIndex::build(&prob),
+            &m.0.coef.grid,
+            m.0.bandwidth,
+        );
         let up = update(&st, new, 1.0).unwrap();
-        assert_eq!(up.model.residuals.len(), new.len());
-        assert_eq!(up.state.n, 4000);
+        assert_eq!(up.2.residuals.len(), new.len());
+        assert_eq!(up.1.n, 4000);
 
         // batch reference: direct path on the concatenated series, residuals as the
         // update produced them, the updated b, the same bandwidth
-        let xa: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
-        let mut ea = m.residuals.clone();
-        ea.extend(&up.model.residuals);
-        let prob = VcProblem::new(&xa, &ea, &up.model.b, 2, 1);
-        let batch = fit_grid(&prob, &DirectIndex::build(&prob), &m.grid, m.bandwidth);
+        let xa: Vec<f64> = x.iter().map(|v| v - m.0.mean).collect();
+        let mut ea = m.1.residuals.clone();
+        ea.extend(&up.2.residuals);
+        let prob = VcProblem::new(&xa, &ea, &up.0.b, 2, 1);
+        let batch = fit_grid(
+            &prob,
+            &DirectIndex::build(&prob),
+            &m.0.coef.grid,
+            m.0.bandwidth,
+        );
         let scale = scale_of(&batch.f);
         let (mut worst, mut moved, mut compared) = (0.0f64, 0.0f64, 0);
-        for g in 0..m.grid.len() {
-            assert_eq!(batch.status[g], up.model.coef.status[g], "status at {g}");
-            assert_eq!(batch.n_support[g], up.model.coef.n_support[g]);
+        for g in 0..m.0.coef.grid.len() {
+            assert_eq!(batch.status[g], up.2.local.status[g], "status at {g}");
+            assert_eq!(batch.n_support[g], up.2.local.n_support[g]);
             if batch.status[g] != PointStatus::Ok {
                 continue;
             }
             for k in 0..2 {
-                let (a, b) = (up.model.coef.f[g * 2 + k], batch.f[g * 2 + k]);
+                let (a, b) = (up.2.local.f[g * 2 + k], batch.f[g * 2 + k]);
                 worst = worst.max((a - b).abs() / scale);
-                let (sa, sb) = (up.model.coef.slope[g * 2 + k], batch.slope[g * 2 + k]);
-                worst = worst.max((sa - sb).abs() * m.bandwidth / scale);
+                let (sa, sb) = (up.2.local.slope[g * 2 + k], batch.slope[g * 2 + k]);
+                worst = worst.max((sa - sb).abs() * m.0.bandwidth / scale);
                 if start_fit.status[g] == PointStatus::Ok {
                     moved = moved.max((start_fit.f[g * 2 + k] - b).abs() / scale);
                     compared += 1;
@@ -108,27 +119,27 @@ fn update_without_forgetting_equals_batch_on_concatenated_data() {
         // b: RLS from the fitted b with the fitted rows' information, against the
         // closed form (S_0 + sum phi phi')^-1 (S_0 b_0 + sum phi w)
         if q == 1 {
-            let (mut s, mut r) = (st.b_gram[0], st.b_gram[0] * m.b[0]);
-            for (k, w) in up.w.iter().enumerate() {
+            let (mut s, mut r) = (st.b_gram[0], st.b_gram[0] * m.0.b[0]);
+            for (k, w) in up.2.w.iter().enumerate() {
                 let phi = ea[2500 + k - 1];
                 s += phi * phi;
                 r += phi * w;
             }
             let want = r / s;
             assert!(
-                (up.model.b[0] - want).abs() < 1e-10 * want.abs(),
+                (up.0.b[0] - want).abs() < 1e-10 * want.abs(),
                 "b {:?} vs {want}",
-                up.model.b
+                up.0.b
             );
-            assert!((up.model.b[0] - m.b[0]).abs() > 1e-6);
+            assert!((up.0.b[0] - m.0.b[0]).abs() > 1e-6);
         } else {
             // without an MA part the a priori residual is w_t itself
-            assert_eq!(up.model.residuals, up.w);
+            assert_eq!(up.2.residuals, up.2.w);
         }
         // sigma^2 = RSS / (N - max(p,q,d)) over all samples
         let rss: f64 = ea[2..].iter().map(|v| v * v).sum();
-        assert!((up.model.rss - rss).abs() < 1e-10 * rss);
-        assert!((up.model.sigma2 - rss / 3998.0).abs() < 1e-10 * up.model.sigma2);
+        assert!((up.2.rss - rss).abs() < 1e-10 * rss);
+        assert!((up.0.sigma2 - rss / 3998.0).abs() < 1e-10 * up.0.sigma2);
     }
 }
 
@@ -199,24 +210,24 @@ fn update_with_forgetting_equals_exponentially_weighted_least_squares() {
     let x = simulate(3200, 5);
     let (old, new) = x.split_at(2000);
     let m = fitted(old, 1);
-    let st = state_from_fit("x", old, &m);
+    let st = state_from_fit("x", old, &m.0, &m.1);
     let lam = 0.998;
     let up = update(&st, new, lam).unwrap();
-    let scale = scale_of(&up.model.coef.f);
+    let scale = scale_of(&up.2.local.f);
     let mut worst = 0.0f64;
     let mut checked = 0;
     let mut unforgotten = 0.0f64;
     let plain = update(&st, new, 1.0).unwrap();
     for g in 0..st.n_grid() {
-        if up.model.coef.status[g] != PointStatus::Ok {
+        if up.2.local.status[g] != PointStatus::Ok {
             continue;
         }
-        let want = brute_ewls(&st, new, &up.model.residuals, &up.model.b, lam, g).unwrap();
+        let want = brute_ewls(&st, new, &up.2.residuals, &up.0.b, lam, g).unwrap();
         for k in 0..2 {
-            worst = worst.max((up.model.coef.f[g * 2 + k] - want[k]).abs() / scale);
-            worst = worst
-                .max((up.model.coef.slope[g * 2 + k] * st.bandwidth - want[2 + k]).abs() / scale);
-            unforgotten = unforgotten.max((plain.model.coef.f[g * 2 + k] - want[k]).abs() / scale);
+            worst = worst.max((up.2.local.f[g * 2 + k] - want[k]).abs() / scale);
+            worst =
+                worst.max((up.2.local.slope[g * 2 + k] * st.bandwidth - want[2 + k]).abs() / scale);
+            unforgotten = unforgotten.max((plain.2.local.f[g * 2 + k] - want[k]).abs() / scale);
         }
         checked += 1;
     }
@@ -233,31 +244,28 @@ fn update_with_forgetting_equals_exponentially_weighted_least_squares() {
     let nn = new.len();
     let (mut s, mut r) = (
         st.b_gram[0] * lam.powi(nn as i32),
-        st.b_gram[0] * m.b[0] * lam.powi(nn as i32),
+        st.b_gram[0] * m.0.b[0] * lam.powi(nn as i32),
     );
     let mut e = st.e_tail.clone();
-    e.extend(&up.model.residuals);
+    e.extend(&up.2.residuals);
     for k in 0..nn {
         let phi = e[2 + k - 1];
         let wt = lam.powi((nn - 1 - k) as i32);
         s += wt * phi * phi;
-        r += wt * phi * up.w[k];
+        r += wt * phi * up.2.w[k];
     }
     assert!(
-        (up.model.b[0] - r / s).abs() < 1e-10,
+        (up.0.b[0] - r / s).abs() < 1e-10,
         "{:?} vs {}",
-        up.model.b,
+        up.0.b,
         r / s
     );
     // the state after the update holds the discounted normal equations
-    let want = brute_ewls(&st, new, &up.model.residuals, &up.model.b, lam, 12).unwrap();
+    let want = brute_ewls(&st, new, &up.2.residuals, &up.0.b, lam, 12).unwrap();
     let n = 4;
-    let s12 = &up.state.gram[12 * n * n..13 * n * n];
+    let s12 = &up.1.gram[12 * n * n..13 * n * n];
     let rhs: Vec<f64> = (0..n)
-        .map(|i| {
-            up.state.cross[12 * n * 2 + i * 2]
-                - up.model.b[0] * up.state.cross[12 * n * 2 + i * 2 + 1]
-        })
+        .map(|i| up.1.cross[12 * n * 2 + i * 2] - up.0.b[0] * up.1.cross[12 * n * 2 + i * 2 + 1])
         .collect();
     let (sol, _, _) = spd_solve_inverse(s12, &rhs, n).unwrap();
     for i in 0..n {
@@ -280,50 +288,46 @@ fn a_long_update_with_forgetting_stays_with_the_weighted_least_squares() {
     let x = simulate(14_000, 8);
     let (old, new) = x.split_at(2000);
     let m = fitted(old, 1);
-    let st = state_from_fit("x", old, &m);
+    let st = state_from_fit("x", old, &m.0, &m.1);
     for lam in [0.99, 0.95] {
         let up = update(&st, new, lam).unwrap();
-        let scale = scale_of(&up.model.coef.f);
+        let scale = scale_of(&up.2.local.f);
         let mut worst = 0.0f64;
         let mut checked = 0;
         for g in 0..st.n_grid() {
-            if up.model.coef.status[g] != PointStatus::Ok {
+            if up.2.local.status[g] != PointStatus::Ok {
                 continue;
             }
-            let Some(want) = brute_ewls(&st, new, &up.model.residuals, &up.model.b, lam, g) else {
+            let Some(want) = brute_ewls(&st, new, &up.2.residuals, &up.0.b, lam, g) else {
                 continue;
             };
-            for (f, w) in up.model.coef.f[g * 2..g * 2 + 2].iter().zip(&want) {
+            for (f, w) in up.2.local.f[g * 2..g * 2 + 2].iter().zip(&want) {
                 worst = worst.max((f - w).abs() / scale);
             }
             checked += 1;
         }
         eprintln!(
             "lambda = {lam}: worst {worst:.3e} over {checked} points, sigma2 {}",
-            up.model.sigma2
+            up.0.sigma2
         );
         assert!(checked > 10, "lambda {lam}: {checked} points");
         assert!(worst < 1e-8, "lambda {lam}: worst {worst:e}");
-        assert!(
-            up.model.sigma2 < 2.0,
-            "lambda {lam}: sigma2 {}",
-            up.model.sigma2
-        );
+        assert!(up.0.sigma2 < 2.0, "lambda {lam}: sigma2 {}", up.0.sigma2);
         // b: the closed form of the exponentially weighted regression of w on e_{t-1}
         let nn = new.len();
         let ln = lam.powi(nn as i32);
-        let (mut s, mut r) = (st.b_gram[0] * ln, st.b_gram[0] * m.b[0] * ln);
+        let (mut s, mut r) = (st.b_gram[0] * ln, st.b_gram[0] * m.0.b[0] * ln);
         let mut e = st.e_tail.clone();
-        e.extend(&up.model.residuals);
+        e.extend(&up.2.residuals);
         for k in 0..nn {
             let wt = lam.powi((nn - 1 - k) as i32);
             s += wt * e[2 + k - 1] * e[2 + k - 1];
-            r += wt * e[2 + k - 1] * up.w[k];
+            r += wt * e[2 + k - 1] * up.2.w[k];
         }
         assert!(
-            (up.model.b[0] - r / s).abs() < 1e-10,
+            (up.0.b[0] - r / s).abs() < 1e-10,
             "lambda {lam}: b {:?} vs {}",
-            up.model.b,
+            up.0.b,
             r / s
         );
     }
@@ -333,31 +337,28 @@ fn a_long_update_with_forgetting_stays_with_the_weighted_least_squares() {
 fn two_updates_equal_one_and_the_state_file_round_trips() {
     let x = simulate(3000, 8);
     let m = fitted(&x[..2000], 1);
-    let st = state_from_fit("gyro", &x[..2000], &m);
+    let st = state_from_fit("gyro", &x[..2000], &m.0, &m.1);
     for lam in [1.0, 0.999] {
         let once = update(&st, &x[2000..], lam).unwrap();
         let first = update(&st, &x[2000..2400], lam).unwrap();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("state.parquet");
-        write_state(&path, &[&first.state], &[("order", "2,1,1".into())]).unwrap();
+        write_state(&path, &[&first.1], &[("order", "2,1,1".into())]).unwrap();
         let (back, md) = read_state(&path).unwrap();
         assert_eq!(back.len(), 1);
-        assert_eq!(back[0], first.state, "bit-exact round trip");
+        assert_eq!(back[0], first.1, "bit-exact round trip");
         assert!(md.iter().any(|(k, v)| k == "order" && v == "2,1,1"));
         let twice = update(&back[0], &x[2400..], lam).unwrap();
-        let scale = scale_of(&once.model.coef.f);
-        for (a, b) in once.model.coef.f.iter().zip(&twice.model.coef.f) {
+        let scale = scale_of(&once.2.local.f);
+        for (a, b) in once.2.local.f.iter().zip(&twice.2.local.f) {
             assert!((a - b).abs() < 1e-9 * scale, "{a} vs {b}");
         }
-        for (a, b) in once.model.residuals[400..]
-            .iter()
-            .zip(&twice.model.residuals)
-        {
+        for (a, b) in once.2.residuals[400..].iter().zip(&twice.2.residuals) {
             assert!((a - b).abs() < 1e-9, "{a} vs {b}");
         }
-        assert!((once.model.b[0] - twice.model.b[0]).abs() < 1e-10);
-        assert_eq!(twice.state.n, 3000);
-        assert_eq!(twice.first_t, 2400);
+        assert!((once.0.b[0] - twice.0.b[0]).abs() < 1e-10);
+        assert_eq!(twice.1.n, 3000);
+        assert_eq!(twice.2.first_t, 2400);
     }
     // bad input
     assert!(update(&st, &x[2000..], 1.5).is_err());
@@ -373,7 +374,7 @@ fn two_updates_equal_one_and_the_state_file_round_trips() {
 fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
     let x = simulate(2000, 21);
     let m = fitted(&x, 1);
-    let st = state_from_fit("gyro", &x, &m);
+    let st = state_from_fit("gyro", &x, &m.0, &m.1);
     let new = simulate(300, 22);
     type Edit = Box<dyn Fn(&mut ChannelState)>;
     let cases: Vec<(&str, Edit, &str)> = vec![
@@ -483,7 +484,7 @@ fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
 fn update_on_samples_far_off_the_models_scale_fails_instead_of_returning_nan() {
     let x = simulate(3000, 31);
     let m = fitted(&x[..2000], 1);
-    let st = state_from_fit("gyro", &x[..2000], &m);
+    let st = state_from_fit("gyro", &x[..2000], &m.0, &m.1);
     for scale in [1e12, 1e20, 1e100] {
         let new: Vec<f64> = x[2000..].iter().map(|v| v * scale).collect();
         match update(&st, &new, 1.0) {
@@ -494,17 +495,17 @@ fn update_on_samples_far_off_the_models_scale_fails_instead_of_returning_nan() {
             }
             Ok(u) => {
                 // a finite result is allowed only if it is finite everywhere
-                let m = &u.model;
+                let m = &u.0;
                 assert!(
                     m.b.iter().all(|v| v.is_finite())
                         && m.sigma2.is_finite()
-                        && m.coef.f.iter().all(|v| v.is_finite())
-                        && u.state.check().is_ok(),
+                        && u.2.local.f.iter().all(|v| v.is_finite())
+                        && u.1.check().is_ok(),
                     "scale {scale}: non-finite model returned: b = {:?}, sigma2 = {}",
                     m.b,
                     m.sigma2
                 );
-                assert!(!m.notes.is_empty(), "scale {scale}: no note");
+                assert!(!u.2.notes.is_empty(), "scale {scale}: no note");
             }
         }
     }
@@ -522,46 +523,43 @@ fn update_on_samples_far_off_the_models_scale_fails_instead_of_returning_nan() {
 fn strong_forgetting_and_a_level_shift_are_noted() {
     let x = simulate(3000, 41);
     let m = fitted(&x[..2000], 1);
-    let st = state_from_fit("gyro", &x[..2000], &m);
+    let st = state_from_fit("gyro", &x[..2000], &m.0, &m.1);
     let new = &x[2000..];
     let strong = update(&st, new, 0.9).unwrap();
-    let notes = strong.model.notes.join("\n");
+    let notes = strong.2.notes.join("\n");
     assert!(notes.contains("forgetting factor 0.9"), "{notes}");
     assert!(notes.contains("effective memory"), "{notes}");
     for lam in [1.0, 0.999] {
         let u = update(&st, new, lam).unwrap();
         assert!(
-            u.model
-                .notes
-                .iter()
-                .all(|n| !n.contains("forgetting factor")
-                    && !n.contains("sigma2 rose")
-                    && !n.contains("not invertible")
-                    && !n.contains("outside the reach")),
+            u.2.notes.iter().all(|n| !n.contains("forgetting factor")
+                && !n.contains("sigma2 rose")
+                && !n.contains("not invertible")
+                && !n.contains("outside the reach")),
             "lambda {lam}: {:?}",
-            u.model.notes
+            u.2.notes
         );
     }
     // sigma^2 rise: a new log with ten times the noise
     let loud: Vec<f64> = new.iter().map(|v| 30.0 * v).collect();
     let u = update(&st, &loud, 1.0).unwrap();
     assert!(
-        u.model.notes.iter().any(|n| n.contains("sigma2 rose")),
+        u.2.notes.iter().any(|n| n.contains("sigma2 rose")),
         "{:?}",
-        u.model.notes
+        u.2.notes
     );
     // a level shift far beyond the grid: noted, and a non-invertible b noted if any
     let shift = x[..2000].iter().fold(0.0f64, |a, v| a.max(v.abs())) * 10.0;
     let shifted: Vec<f64> = new.iter().map(|v| v + shift).collect();
     let u = update(&st, &shifted, 1.0).unwrap();
-    let notes = u.model.notes.join("\n");
+    let notes = u.2.notes.join("\n");
     assert!(notes.contains("outside the reach"), "{notes}");
-    let invertible = farma::estimator::arma::ma_invertible(&u.model.b);
+    let invertible = farma::estimator::arma::ma_invertible(&u.0.b);
     assert_eq!(
         notes.contains("not invertible"),
         !invertible,
         "b = {:?}: {notes}",
-        u.model.b
+        u.0.b
     );
 }
 
@@ -591,10 +589,10 @@ fn the_tables_state_equals_the_direct_pass_state() {
         .validate(old.len())
         .unwrap();
         let m = fit(old, &params).unwrap();
-        assert_eq!(m.path, FitPath::Fast);
-        let fast = state_from_fit("x", old, &m);
-        let slow = state_from_fit_direct("x", old, &m);
-        let what = format!("p {p} q {q} d {d} h {}", m.bandwidth);
+        assert_eq!(m.1.path, FitPath::Fast);
+        let fast = state_from_fit("x", old, &m.0, &m.1);
+        let slow = state_from_fit_direct("x", old, &m.0, &m.1);
+        let what = format!("p {p} q {q} d {d} h {}", m.0.bandwidth);
         assert_eq!(fast.n_support, slow.n_support, "{what}");
         let close = |a: &[f64], b: &[f64], per: usize, name: &str| {
             for (k, (ca, cb)) in a.chunks(per).zip(b.chunks(per)).enumerate() {
@@ -621,12 +619,12 @@ fn the_tables_state_equals_the_direct_pass_state() {
             update(&fast, new, 1.0).unwrap(),
             update(&slow, new, 1.0).unwrap(),
         );
-        for (u, v) in uf.model.coef.f.iter().zip(&us.model.coef.f) {
+        for (u, v) in uf.2.local.f.iter().zip(&us.2.local.f) {
             assert!(
                 (u - v).abs() <= 1e-9 * (1.0 + v.abs()),
                 "{what}: updated f {u} {v}"
             );
         }
-        assert!((uf.model.sigma2 - us.model.sigma2).abs() <= 1e-10 * us.model.sigma2);
+        assert!((uf.0.sigma2 - us.0.sigma2).abs() <= 1e-10 * us.0.sigma2);
     }
 }

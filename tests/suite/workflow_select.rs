@@ -91,12 +91,12 @@ fn a_selection_keeps_the_selected_fits_residuals_alone_and_they_are_the_fits_own
         &FarmaParams { p, q, d, ..base() }.validate(x.len()).unwrap(),
     )
     .unwrap();
-    assert_eq!(direct.residuals.len(), x.len());
-    let kept = &sel.fits[sel.selected].residuals;
+    assert_eq!(direct.1.residuals.len(), x.len());
+    let kept = &sel.fits[sel.selected].1.residuals;
     assert_eq!(kept.len(), x.len());
     let differ = kept
         .iter()
-        .zip(&direct.residuals)
+        .zip(&direct.1.residuals)
         .position(|(a, b)| a.to_bits() != b.to_bits());
     assert_eq!(
         differ,
@@ -106,7 +106,7 @@ fn a_selection_keeps_the_selected_fits_residuals_alone_and_they_are_the_fits_own
     );
     for (i, f) in sel.fits.iter().enumerate() {
         if i != sel.selected {
-            assert!(f.residuals.is_empty(), "order {:?}", sel.rows[i].order);
+            assert!(f.1.residuals.is_empty(), "order {:?}", sel.rows[i].order);
         }
     }
 }
@@ -181,7 +181,7 @@ fn check_of_a_fitted_farma_model() {
     .validate(train.len())
     .unwrap();
     let fitted = fit(train, &prm).unwrap();
-    let mut m = fitted.model();
+    let (mut m, fitted) = fitted;
     let w = residual_whiteness(&m, &fitted.residuals, 20);
     eprintln!("{:?}", w.ljung_box);
     assert!(

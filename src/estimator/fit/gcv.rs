@@ -2,7 +2,6 @@
 //! minimum sits at an end.
 
 use super::params::FitPath;
-use super::report::GcvRow;
 use super::smoother::{Smoother, StepCache};
 use crate::estimator::moments::Families;
 use crate::estimator::moments::IntervalIndex;
@@ -11,6 +10,7 @@ use crate::estimator::moments::MomentTable;
 use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
+use crate::model::report::GcvRow;
 
 /// The ladder's bandwidth h_j = 1.1^-j range/2.
 pub(super) fn ladder_h(j: i32, range: f64) -> f64 {

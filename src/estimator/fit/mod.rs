@@ -52,7 +52,7 @@ mod grid;
 mod notes;
 mod params;
 mod passes;
-mod report;
+
 mod smoother;
 mod start;
 #[cfg(test)]
@@ -73,6 +73,8 @@ use crate::estimator::moments::MomentTable;
 use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
+pub use crate::model::report::{AlternationTiming, FitReport, FitTimings, GcvRow};
+use crate::model::{Coef, Farma, Order};
 pub use bstep::{SMALL_STEP, ma_cls, ma_step};
 use bstep::{gn_b_step, ma_step_from};
 use gcv::gcv_select;
@@ -87,7 +89,6 @@ pub use params::{
 };
 pub use passes::{FILTER_CHUNK, FILTER_LEAD, residuals, residuals_indexed};
 use passes::{SpanFill, eval_with, rss_from, w_indexed_filler};
-pub use report::{AlternationTiming, FitTimings, FittedFarma, GcvRow};
 pub use smoother::fill_failed;
 use smoother::{Smoother, StepCache, residuals_at};
 pub use start::{REFINE_RATIO, START_ENOUGH, START_MAX, arma_cls, arma_cls_within, linear_start};
@@ -120,7 +121,7 @@ struct Iterate {
 pub const PATIENCE: usize = 2;
 
 /// Fits a FARMA model to `series`.
-pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
+pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     let prm = params.params();
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = series.len();
@@ -567,20 +568,24 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
     }
     timings.final_s = lap();
     timings.total_s = t_total.elapsed().as_secs_f64();
-    Ok(FittedFarma {
-        p,
-        q,
-        d,
+    let model = Farma {
+        order: Order::new(p, q, d),
         mean,
-        grid,
-        coef,
-        filled,
         b,
-        bandwidth: h,
-        rss,
         sigma2,
+        bandwidth: h,
+        coef: Coef {
+            grid,
+            grid_shift: 0.0,
+            f: coef.f.clone(),
+            se,
+            filled,
+        },
+    };
+    let report = FitReport {
+        local: coef,
+        rss,
         trace,
-        se,
         gcv,
         gcv_table,
         ladder_extended,
@@ -595,5 +600,6 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<FittedFarma> {
         linear_start: returned_start,
         notes,
         timings,
-    })
+    };
+    Ok((model, report))
 }

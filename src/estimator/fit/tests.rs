@@ -256,13 +256,13 @@ fn a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b() {
     .validate(n)
     .unwrap();
     let m = fit(&x, &params).unwrap();
-    assert!(m.iterations >= 2, "{}", m.iterations);
-    assert!((m.b[0] + 0.5).abs() < 0.05, "{:?}", m.b);
-    let xc: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+    assert!(m.1.iterations >= 2, "{}", m.1.iterations);
+    assert!((m.0.b[0] + 0.5).abs() < 0.05, "{:?}", m.0.b);
+    let xc: Vec<f64> = x.iter().map(|v| v - m.0.mean).collect();
     let mut e = vec![0.0; n];
-    residuals(&xc, 1, &m.grid, &m.coef, &m.b, &mut e);
-    assert!(same_bits(&e, &m.residuals));
-    assert_eq!(m.rss.to_bits(), rss_from(&e, 2).to_bits());
+    residuals(&xc, 1, &m.0.coef.grid, &m.1.local, &m.0.b, &mut e);
+    assert!(same_bits(&e, &m.1.residuals));
+    assert_eq!(m.1.rss.to_bits(), rss_from(&e, 2).to_bits());
 }
 
 #[test]
