@@ -154,8 +154,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         OutputSet::check(dir)?;
     }
     // a 2-D fit's folder is refused naming its index (its coef.parquet repeats every
-    // grid point of the lag index, once per point of the second, and had been
-    // reported as 'f_1 has a repeated grid point')
+    // grid point of the lag index, once per point of the second, which the 1-D
+    // reader would report as 'f_1 has a repeated grid point')
     if let Some(index) = super::update::model_index2(&a.model) {
         return Err(Error::format(
             &a.model.join("params.parquet"),
@@ -209,8 +209,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let n = x.len();
         let holdout = (a.holdout_s * rate).round() as usize;
         let start = model.p.max(model.q).max(model.d);
-        // (saturating: a --holdout-s beyond the log's length in samples had wrapped
-        // around here and panicked on the slice below)
+        // (saturating: a --holdout-s beyond the log's length in samples must reach the
+        // refusal below, not wrap around and cut the slice after it out of range)
         let need = holdout.saturating_add(start).saturating_add(100);
         if need > n {
             return Err(Error::TooShort {

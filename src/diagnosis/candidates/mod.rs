@@ -44,12 +44,11 @@
 //! the time family's window means.
 //!
 //! One file per kind of effect, in the order [`propose`] tries them:
-//! [`deterministic`] (constant_bias, rate_ramp, warmup, sinusoid), [`temperature`]
-//! (temperature_bias, thermal_rate, heteroskedastic), [`noise`] (the power-law terms
-//! and gauss_markov), [`outliers`](mod@outliers), [`cross_axis`](mod@cross_axis), then
-//! [`recalibrate`](mod@recalibrate); [`lsq`] holds the least squares and searches they
-//! share, [`params`] a component's size and JSON parameters, [`resolution`] the output
-//! resolution of a log.
+//! `deterministic.rs` (constant_bias, rate_ramp, warmup, sinusoid), `temperature.rs`
+//! (temperature_bias, thermal_rate, heteroskedastic), `noise.rs` (the power-law terms
+//! and gauss_markov), `outliers.rs`, `cross_axis.rs`, then `recalibrate.rs`; `lsq.rs`
+//! holds the least squares and searches they share, `params.rs` a component's size and
+//! JSON parameters, `resolution.rs` the output resolution of a log.
 
 mod cross_axis;
 mod deterministic;
