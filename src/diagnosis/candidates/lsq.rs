@@ -67,6 +67,7 @@ pub(super) fn ls(
     Some((coefs, rss))
 }
 
+/// `n` points from `lo` to `hi`, evenly spaced in ln.
 pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1).max(1) as f64))
@@ -98,6 +99,7 @@ pub(super) fn golden_min(mut lo: f64, mut hi: f64, iters: usize, f: impl Fn(f64)
     0.5 * (lo + hi)
 }
 
+/// First differences x_t - x_{t-1}, 0 at t = 0.
 pub(super) fn diff(x: &[f64]) -> Vec<f64> {
     let mut d = vec![0.0; x.len()];
     for (t, v) in d.iter_mut().enumerate().skip(1) {

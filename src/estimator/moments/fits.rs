@@ -156,9 +156,9 @@ impl MomentTable {
     }
 
     /// Local fits at `sys.h` from the right-hand sides of this table (a
-    /// [`Families::Response`] or full table of the same breakpoints, degree 5 or more:
-    /// the right-hand sides need powers up to 5) and the reused
-    /// left-hand sides: the windows are summed as in [`MomentTable::fit_ladder`] (the
+    /// [`Families::Response`](super::Families::Response) or full table of the same
+    /// breakpoints, degree 5 or more: the right-hand sides need powers up to 5) and the
+    /// reused left-hand sides: the windows are summed as in [`MomentTable::fit_ladder`] (the
     /// same right-hand sides, bit for bit, as a ladder's fit at `sys.h`).
     pub fn fit_response(&self, sys: &LocalSystems) -> GridFit {
         assert_eq!(self.p, sys.p);

@@ -27,9 +27,10 @@ impl MomentTable {
         self.rss_trace_parts(grid, fit, true, false).0
     }
 
-    /// The smoother's trace alone ([`MomentTable::rss_trace`]'s, the same bits): it
-    /// needs only the design's families (an [`Families::All`] or [`Families::Design`]
-    /// table) and `fit`'s inverses S_g^-1, not its values.
+    /// The smoother's trace alone ([`MomentTable::rss_trace`]'s, the same bits): it needs only the
+    /// design's families (an [`Families::All`](super::Families::All) or
+    /// [`Families::Design`](super::Families::Design) table) and `fit`'s inverses S_g^-1, not its
+    /// values.
     pub fn trace(&self, grid: &[f64], fit: &GridFit) -> f64 {
         self.rss_trace_parts(grid, fit, false, true).1
     }
@@ -197,12 +198,12 @@ impl MomentTable {
         per_g.concat()
     }
 
-    /// The normal equations of the online state at bandwidth `h` from a table of the
-    /// design's families ([`Families::Design`], degree 10), for every grid point: S_g =
-    /// sum K(w) Z Z' (Z = (X, w X), w = (U - u_g)/h, row-major 2p x 2p), S2_g = sum
-    /// K(w)^2 Z Z', the support's sample count and kernel mass sum K(w): the sums of
-    /// `update::state_from_fit_direct` over the rows in [u_g - h, u_g + h), from the
-    /// window moments of [`MomentTable::se_factors`].
+    /// The normal equations of the online state at bandwidth `h` from a table of the design's
+    /// families ([`Families::Design`](super::Families::Design), degree 10), for every grid point:
+    /// S_g = sum K(w) Z Z' (Z = (X, w X), w = (U - u_g)/h, row-major 2p x 2p), S2_g =
+    /// sum K(w)^2 Z Z', the support's sample count and kernel mass sum K(w): the sums of
+    /// `update::state_from_fit_direct` over the rows in [u_g - h, u_g + h), from the window moments
+    /// of [`MomentTable::se_factors`].
     pub fn state_design(&self, grid: &[f64], h: f64) -> Vec<(Vec<f64>, Vec<f64>, u64, f64)> {
         assert!(
             self.deg >= 10 && self.pairs.last() == Some(&(self.p + 1, self.p + 1)),
@@ -225,8 +226,8 @@ impl MomentTable {
     }
 
     /// T_g = sum K(w) Z y (2p) at every grid point at bandwidth `h`, from a table of
-    /// the X_a y families ([`Families::Response`], degree 5 or more), the windows
-    /// summed as in [`MomentTable::fit_response`].
+    /// the X_a y families ([`Families::Response`](super::Families::Response), degree 5 or
+    /// more), the windows summed as in [`MomentTable::fit_response`].
     pub fn local_rhs_at(&self, grid: &[f64], h: f64) -> Vec<Vec<f64>> {
         assert!(
             self.deg >= 5,
