@@ -157,8 +157,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         max_degree: a.max_degree,
     };
     // every failing channel is named at once, in channel order, as `farma fit` does
-    // (the first error rayon met had been returned: one of them, so that each rerun
-    // found the next)
+    // (the first error rayon meets is any one of them: each rerun would find the next)
     let bar = progress.count_bar("channels done", chans.len() as u64);
     let results: Vec<ChannelAnalysis> = super::every_channel(
         chans

@@ -65,8 +65,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         OutputSet::check(dir)?;
     }
     // a 2-D fit's folder is refused naming its index (its coef.parquet repeats every
-    // grid point of the lag index, once per point of the second, and had been
-    // reported as 'f_1 has a repeated grid point')
+    // grid point of the lag index, once per point of the second, which the 1-D
+    // reader would report as 'f_1 has a repeated grid point')
     let dir = ModelDir::new(&a.model);
     if let Some(index) = dir.index2() {
         return Err(Error::format(
@@ -116,7 +116,8 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
         let n = x.len();
         let holdout = (a.holdout_s * rate).round() as usize;
         let start = model.order.lag();
-        // (saturating: a --holdout-s beyond the log's length in samples must not wrap)
+        // (saturating: a --holdout-s beyond the log's length in samples must reach the
+        // refusal below, not wrap around and cut the slice after it out of range)
         let need = holdout.saturating_add(start).saturating_add(100);
         if need > n {
             return Err(Error::TooShort {

@@ -225,8 +225,8 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     // Each channel's state is taken from its fit as soon as the fit ends, and its
     // residuals (N values) are then dropped unless --residuals writes them: a log of
     // many long channels holds the residuals of the fits in flight, not one series per
-    // channel (measured: 6 channels of 1e7 samples, 1.29 GB maxrss before, see
-    // BENCHMARKS.md).
+    // channel (measured on 6 channels of 1e7 samples: 0.98 GB maxrss, against 1.29 GB
+    // with every channel's residuals held to the end; BENCHMARKS.md).
     let fitted: Vec<(String, (Farma, FitReport), Option<update::ChannelState>)> =
         super::every_channel(
             names

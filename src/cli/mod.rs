@@ -210,8 +210,9 @@ pub(crate) fn on_channel(log: &std::path::Path, channel: &str, e: Error) -> Erro
 /// The results of a run's per-channel work, in channel order: every value; or the
 /// error of the one channel that failed; or, when several did, all their errors in
 /// channel order ([`Error::Channels`]). A run writes the outputs of every channel or
-/// of none, and names every failing channel at once (it had named one of them, not
-/// necessarily the first, so that each rerun found the next).
+/// of none, and names every failing channel at once, so that one rerun after the
+/// fixes is enough (naming one of them, not necessarily the first, would have each
+/// rerun find the next).
 /// `hint` says what to do (in the last line of the message).
 pub(crate) fn every_channel<T>(results: Vec<Result<T>>, hint: &'static str) -> Result<Vec<T>> {
     let of = results.len();

@@ -48,8 +48,8 @@ impl SelectFlags {
     }
 
     /// The orders and the grid checked before any log is read: a bad flag is a
-    /// usage error naming it (it had been reported against the log's first channel,
-    /// after the log was read and, in `farma analyze`, prepared).
+    /// usage error naming it, not an error of the log's first channel, and comes
+    /// before the log is read and, in `farma analyze`, prepared.
     pub fn check(&self) -> Result<Vec<(usize, usize, usize)>> {
         let orders = self.orders()?;
         if self.grid < 3 || self.grid > MAX_GRID {

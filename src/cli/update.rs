@@ -215,7 +215,8 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     let (states, md) = read_state(&state_path)?;
     let states = select_states(states, &a.channel, &state_path)?;
     // the rate the model was fitted at: a value that is not a positive number is an
-    // edited or corrupt state (it had been skipped, and the rate left unchecked)
+    // edited or corrupt state, refused rather than skipped so that the new log's rate
+    // is always checked against it
     let model_rate: Option<f64> = match md.iter().find(|(k, _)| k == "sample_rate_hz") {
         None => None,
         Some((_, v)) => match v.trim().parse::<f64>() {
@@ -249,7 +250,7 @@ pub fn run(a: UpdateArgs, progress: &Progress) -> Result<()> {
     let t_last = last_time(&store)?;
     let t0 = Instant::now();
     // a channel whose fit returned its linear start is the model's problem, not the
-    // new log's: named with the state file (it had been named with NEW_LOG)
+    // new log's: named with the state file, not NEW_LOG
     let others: Vec<&str> = states
         .iter()
         .filter(|s| !s.linear_start)

@@ -463,7 +463,7 @@ pub fn residuals2(
 /// The most grid points (G1 x G2) of a 2-D index. Every rung of the GCV ladders
 /// keeps its local fits (an inverse 3p x 3p system per point: 2.6 kB at p = 6) and
 /// gathers every point's support, so memory and time grow with G1 x G2: 200 x 200
-/// is about 100 MB per rung at p = 6, where 100,000 x 100,000 had the allocator
+/// is about 100 MB per rung at p = 6, and 100,000 x 100,000 would have the allocator
 /// abort the process.
 pub const MAX_GRID2_POINTS: usize = 40_000;
 

@@ -233,8 +233,8 @@ pub fn residual_schema() -> SchemaRef {
 
 /// residuals.parquet's rows, channel after channel, in batches of at most
 /// [`RESIDUAL_BATCH_ROWS`] rows ([`residual_schema`]): written one by one
-/// ([`crate::output::OutputSet::parquet_batches`]), a table of 1e8 rows is never
-/// held whole (it had been: one String per row).
+/// ([`crate::output::OutputSet::parquet_batches`]), so that a table of 1e8 rows is
+/// never held whole in memory.
 pub fn residual_batches<'a>(
     rows: &'a [ResidualRows<'a>],
 ) -> impl Iterator<Item = Result<RecordBatch>> + 'a {

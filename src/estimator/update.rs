@@ -139,8 +139,8 @@ pub struct ChannelState {
 }
 
 /// The most samples a state's `n` may count: f64's exact integers (rows, sigma2 and
-/// the tables take n as f64). An edited n of 2^64 - 1 had passed, and the update's
-/// count wrapped around (a panic in a debug build), blamed on the new samples.
+/// the tables take n as f64). A larger n (an edited state) is refused: the update's
+/// count would wrap around (a panic in a debug build) and be blamed on the new samples.
 pub const MAX_STATE_N: u64 = 1 << 53;
 
 impl ChannelState {

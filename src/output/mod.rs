@@ -90,7 +90,7 @@ fn host_name() -> Option<String> {
 /// Removes from `dir` (once per folder and process) the temporary files
 /// `.farma-HOST-PID-XXXXXX.tmp` left by killed runs: HOST this machine (`host_name`),
 /// PID a process that no longer exists (`/proc/PID` absent). Says how many on stderr.
-/// Errors are ignored: a file that cannot be removed stays, as before.
+/// Errors are ignored: a file that cannot be removed stays.
 pub fn sweep_stale_temps(dir: &Path) {
     static SWEPT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
     let Some(host) = host_name() else { return };
@@ -238,9 +238,9 @@ impl OutputSet {
     }
 
     /// A usage error when `dir` exists and is not a folder, or when the nearest of
-    /// its parents that exists is not a folder (`-o FILE/sub`, which had failed only
-    /// when the outputs were written, after the work, exit 1): for a run to check
-    /// before its work (nothing is created).
+    /// its parents that exists is not a folder (`-o FILE/sub`, which would otherwise
+    /// fail only when the outputs are written, after the work, exit 1): for a run to
+    /// check before its work (nothing is created).
     pub fn check(dir: &Path) -> Result<()> {
         if dir.exists() && !dir.is_dir() {
             return Err(Error::Usage(format!(

@@ -135,7 +135,7 @@ pub fn parse_orders(s: &str) -> Result<Vec<(usize, usize, usize)>> {
                     "--orders: '{item}': p, q at most 6 and d at most 1000"
                 )));
             }
-            // an order given twice is fitted once (its rows and F-tests had been
+            // an order given twice is fitted once (its rows and F-tests are not
             // repeated)
             [Some(p), Some(q), Some(d)] => {
                 if !out.contains(&(*p, *q, *d)) {

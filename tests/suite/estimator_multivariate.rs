@@ -253,8 +253,7 @@ fn two_d_fit_recovers_a_temperature_dependent_coefficient_and_1d_cannot() {
 /// A linear AR(1) with an unrelated second index: GCV keeps choosing the widest
 /// bandwidths, the ladder is extended upwards to its limit, and the fit says that the
 /// optimum may lie beyond (as the 1-D fit does); gcv.parquet's `j` is the rung the
-/// notes name, not the row number (both had been missing in 2-D: found by a helper's
-/// fuzzing).
+/// notes name, not the row number (as in 1-D).
 #[test]
 fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
     let n = 3000;
@@ -318,9 +317,9 @@ fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
 
 /// A fit whose RSS settles, after which GCV picks other bandwidths and the
 /// alternation goes on: its notes say what happened, and only a converged fit's notes
-/// say it converged. (They had said "bandwidths re-selected after convergence" also
-/// for fits that then ran into --max-iter without settling again: found by a helper's
-/// fuzzing, a 3-level temperature swinging between two pairs.)
+/// say it converged: a fit that then runs into --max-iter without settling again does
+/// not say "bandwidths re-selected after convergence". (The data: a 3-level
+/// temperature, on which GCV swings between two pairs.)
 #[test]
 fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
     let n = 1500;
@@ -410,9 +409,9 @@ fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
 
 /// A spike in the temperature channel stretches the second coordinate's bandwidth
 /// ladder (it starts at half the span): the fit says so and names the outlier's reach;
-/// the same data without the spike gets no such note (found by an earlier fuzzing
-/// round: on the multiaxis fixture with a 1000-degree spike in temp_c, GCV ended at
-/// h_2 = 250 degrees, the central values spanning 5, without a word).
+/// the same data without the spike gets no such note (on the multiaxis fixture with a
+/// 1000-degree spike in temp_c, GCV ends at h_2 = 250 degrees, the central values
+/// spanning 5: a fit that must not pass without a word).
 #[test]
 fn a_spike_in_the_index_channel_is_named_as_stretching_its_ladder() {
     let (x, mut temp) = temperature_model(4_000, 5);

@@ -140,10 +140,10 @@ fn the_literal_scheme_keeps_an_invertible_b_on_a_unit_root_ma() {
 
 /// A fit in other units is the same fit: b and the coefficient functions unchanged,
 /// sigma^2, RSS and the bandwidth scaled, inside `MAGNITUDE_LIMITS`; beyond them the
-/// fast path refuses the channel with the power of ten to rescale by (before, 1e40
-/// and 1e-55 failed as "no grid point has a local fit", and 1e-45 and 1e-50 returned
-/// fits with most grid points filled or the linear start), and the direct path fits
-/// it, inside its own `DIRECT_MAGNITUDE_LIMITS`.
+/// fast path refuses the channel with the power of ten to rescale by (rather than fail
+/// as "no grid point has a local fit", as at 1e40 and 1e-55, or return fits with most
+/// grid points filled or the linear start, as at 1e-45 and 1e-50), and the direct path
+/// fits it, inside its own `DIRECT_MAGNITUDE_LIMITS`.
 #[test]
 fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
     let x = simulate(5_000, 11);
@@ -206,7 +206,7 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
     }
     // the direct path's own limits, DIRECT_MAGNITUDE_LIMITS: 1e+-130 fitted, the same
     // fit; 1e+-200 refused with the power of ten to rescale by, not "the linear ARMA
-    // start failed (singular design)" as before (2026-11-26)
+    // start failed (singular design)"
     for scale in [1e-130, 1e130] {
         let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
         let m = fit(&xs, &direct).unwrap();
@@ -232,9 +232,9 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
 /// A channel of three levels 1 apart: the paper's largest bandwidth, h_0 = range/2 =
 /// 1, leaves the end grid points' open supports with one level (no local fit), so no
 /// rung of the ladder fits every grid point. The ladder is then extended upwards (h_-1
-/// = 1.1 fits them all, with a defined trace and GCV); before, the fit returned h_0 with
-/// NaN trace and GCV (a helper's fuzzing, 2026-11-25). At a fixed bandwidth of 1 trace
-/// and GCV are NaN, now with a note saying why.
+/// = 1.1 fits them all, with a defined trace and GCV), rather than return h_0 with NaN
+/// trace and GCV. At a fixed bandwidth of 1 trace and GCV are NaN, with a note saying
+/// why.
 #[test]
 fn a_ladder_with_no_rung_that_fits_every_point_is_extended_upwards() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
@@ -441,8 +441,8 @@ fn fit_never_ends_above_its_linear_start() {
         &m.0.coef.se[..3]
     );
     // the fit says it returned its linear start, and its state refuses an update: the
-    // state's sums are those of the local fits the fit rejected (an update had solved
-    // them, and two new samples changed f by 0.12: found by a helper's fuzzing)
+    // state's sums are those of the local fits the fit rejected (an update solving
+    // them would move f by 0.12 with two new samples)
     assert!(m.1.linear_start);
     let st = farma::estimator::update::state_from_fit("gyro", &x, &m.0, &m.1);
     assert!(st.linear_start);
@@ -505,8 +505,8 @@ fn a_bandwidth_re_selected_at_the_last_alternation_is_not_taken_without_a_fit() 
     // search over seeds 0..80 at n 1,000, 3,000 and 10,000, for a fit whose last
     // iterate is its best, so that no earlier iterate is returned). With --max-iter 5
     // no alternation is left to fit at it: the model must stay at the bandwidth its
-    // coefficients were fitted at (it had reported the new one), not converged, and
-    // say so.
+    // coefficients were fitted at (not report the new one), not converged, and say
+    // so.
     let x = simulate(3000, 44);
     let run = |max_iter| {
         let params = FarmaParams {

@@ -279,10 +279,10 @@ fn update_with_forgetting_equals_exponentially_weighted_least_squares() {
 /// A long update with forgetting: the recursion's P / lambda amplifies its rounding as
 /// lambda^-k (Ljung and Ljung 1985), so P and Theta are derived afresh from the
 /// discounted normal equations whenever the amplification since the last derivation
-/// passes 1e4, and the written f are solved from those normal equations. Before, 12,000
-/// new rows at lambda = 0.99 ended about 1e2 away from the brute force (a helper's
-/// fuzzing, 2026-11-25), and 0.99^74000 underflowing failed the update as "samples far
-/// off the model's scale".
+/// passes 1e4, and the written f are solved from those normal equations. Without the
+/// re-derivation, 12,000 new rows at lambda = 0.99 end about 1e2 away from the brute
+/// force, and 0.99^74000 underflows, failing the update as "samples far off the
+/// model's scale".
 #[test]
 fn a_long_update_with_forgetting_stays_with_the_weighted_least_squares() {
     let x = simulate(14_000, 8);

@@ -311,8 +311,8 @@ fn fit_names_a_spike_that_leaves_no_grid() {
 
 /// A closed stdout (`farma fit --json | head -c 0`) ends the run quietly with exit 0,
 /// the tables written; a stdout that cannot be written (a full disk, `> /dev/full`)
-/// is an output error, exit 1 with a message. Both had panicked (exit 101) in
-/// `println!` (found by a helper's fuzzing).
+/// is an output error, exit 1 with a message; neither panics (exit 101) in
+/// `println!`.
 #[test]
 fn fit_json_into_a_closed_or_full_stdout_is_no_panic() {
     use std::process::{Command, Stdio};
@@ -361,9 +361,8 @@ fn fit_json_into_a_closed_or_full_stdout_is_no_panic() {
     }
 }
 
-/// `--channel all` on a log with a time column only is an error naming the log (it had
-/// fitted nothing and written empty tables and an empty state with exit 0: found by a
-/// helper's fuzzing).
+/// `--channel all` on a log with a time column only is an error naming the log, not a
+/// run that fits nothing and writes empty tables and an empty state with exit 0.
 #[test]
 fn fit_of_all_channels_of_a_log_without_any_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -395,8 +394,7 @@ fn fit_of_all_channels_of_a_log_without_any_is_refused() {
 /// default --nan reject): only the columns a command reads are checked. The column
 /// itself, `--channel all`, a 2-D index on it and `farma ingest` of the whole file
 /// are refused, exit 2, naming the file, column and line (ingest also suggests
-/// --columns). The bad column had blocked every fit of the log, with only `--nan
-/// interpolate` suggested (found by a helper's fuzzing).
+/// --columns).
 #[test]
 fn a_nan_in_a_column_not_used_does_not_block_the_fit() {
     let dir = tempfile::tempdir().unwrap();
@@ -497,8 +495,7 @@ fn read_parquet(path: &std::path::Path) -> Vec<arrow_array::RecordBatch> {
 /// residuals.parquet flags the first max(p,q,d) samples (max(p,q,d,d2) with a 2-D
 /// index), whose lags reach before the series, with `in_fit` false: they are not
 /// residuals of the model, and the RSS of params.parquet is the sum of squares of the
-/// rows with `in_fit` true. They had been written unflagged beside the others (found
-/// by a helper's fuzzing).
+/// rows with `in_fit` true.
 #[test]
 fn residuals_flag_the_warm_up_rows_outside_the_fit() {
     use arrow_array::{Array, BooleanArray, Float64Array, Int64Array};
@@ -573,12 +570,10 @@ fn residuals_flag_the_warm_up_rows_outside_the_fit() {
 }
 
 /// Values beyond the direct path's reach (1e200, 1e-200 in magnitude) are refused with
-/// the power of ten to rescale by, on the fast path (which no longer sends them to
-/// `--method direct`), the direct path and a 2-D index alike, exit 2. The fast path's
-/// refusal had said "or fit with `--method direct` (slower, no such limit)", and the
-/// direct path (and a 2-D index) then failed with "the linear ARMA start failed
-/// (singular design)" (found by a helper's fuzzing). At 1e100 the fast path still
-/// points to the direct path, which fits it.
+/// the power of ten to rescale by, on the fast path (which does not send them to
+/// `--method direct`: they are beyond its reach too), the direct path and a 2-D index
+/// alike, exit 2, not "the linear ARMA start failed (singular design)". At 1e100 the
+/// fast path points to the direct path, which fits it.
 #[test]
 fn values_beyond_the_direct_paths_reach_are_refused_with_the_scale() {
     let dir = tempfile::tempdir().unwrap();
@@ -654,9 +649,8 @@ fn values_beyond_the_direct_paths_reach_are_refused_with_the_scale() {
 
 /// Several channels that fail are all named, in channel order, with a last line that
 /// counts them, exit 2, nothing written; a problem of the request itself (the order)
-/// is said once, not once per channel. The run had named one failing channel, not
-/// necessarily the first (c2 of c1, c2 here), so that each rerun found the next
-/// (found by a helper's fuzzing).
+/// is said once, not once per channel. Naming one failing channel, not necessarily the
+/// first (c2 of c1, c2 here), would have each rerun find the next.
 #[test]
 fn every_failing_channel_is_named_in_channel_order() {
     let dir = tempfile::tempdir().unwrap();
@@ -714,9 +708,9 @@ fn every_failing_channel_is_named_in_channel_order() {
 }
 
 /// `-o FILE/sub` (a folder under a file) is refused before the work, exit 2, the file
-/// kept, for `farma fit` (1-D and 2-D index) and `farma update`: it had failed only when
-/// the outputs were written, after the fit, with exit 1 ("Not a directory") (found by a
-/// helper's fuzzing). The log and the model are not reached (missing here).
+/// kept, for `farma fit` (1-D and 2-D index) and `farma update`, not only when the
+/// outputs are written, after the fit, with exit 1 ("Not a directory"). The log and
+/// the model are not reached (missing here).
 #[test]
 fn an_output_folder_under_a_file_is_refused_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
@@ -752,7 +746,7 @@ fn an_output_folder_under_a_file_is_refused_before_the_work() {
 }
 
 /// A run killed while it writes leaves its temporary files (`.farma-HOST-PID-*.tmp`)
-/// behind (a helper's fuzzing: some 40 after 10 kills). The next run writing into that
+/// behind (some 40 after 10 kills). The next run writing into that
 /// folder removes those of this machine whose process is gone, and says so; it leaves
 /// a live process's, another machine's and the older pattern's.
 #[test]

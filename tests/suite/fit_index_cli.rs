@@ -83,8 +83,8 @@ fn fit_with_a_temperature_index_writes_grid2_and_is_thread_independent() {
 }
 
 /// A 2-D index has the direct path only: an explicit `--method fast` says so on
-/// stderr (it had been silently the direct path) and fits what `--method direct` and
-/// no `--method` fit, byte for byte; the other two give no such warning.
+/// stderr (not silently the direct path) and fits what `--method direct` and no
+/// `--method` fit, byte for byte; the other two give no such warning.
 #[test]
 fn an_explicit_method_fast_with_a_2d_index_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
@@ -220,8 +220,7 @@ fn fit_with_a_bad_index_exits_2() {
             "--index-lag",
         ),
         // the fitted channel's own current value x_t as an index of the model of x_t
-        // (accepted before, with sigma2 0.21 where honest fits give 0.99: found by a
-        // helper's fuzzing)
+        // (a fit on it gives sigma2 0.21 where honest fits give 0.99)
         (
             vec![
                 "fit",
@@ -237,8 +236,7 @@ fn fit_with_a_bad_index_exits_2() {
             ],
             "own current value",
         ),
-        // --grid is the 1-D grid: with a 2-D index it had been ignored silently (found
-        // by a helper's fuzzing)
+        // --grid is the 1-D grid: with a 2-D index it is refused, not ignored silently
         (
             vec![
                 "fit",
@@ -254,8 +252,7 @@ fn fit_with_a_bad_index_exits_2() {
             ],
             "--grid 41: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)",
         ),
-        // the time column is no channel (it had been accepted as an index: found by a
-        // helper's fuzzing)
+        // the time column is no channel, so no index
         (
             vec![
                 "fit",
@@ -279,8 +276,8 @@ fn fit_with_a_bad_index_exits_2() {
 
 /// `--channel all` with a 2-D index fits every channel but the index channel (its
 /// model on itself at the same lag is refused), with a note that says so; a log whose
-/// only channel is the index channel is refused, exit 2. `all` had taken the index
-/// channel in, and the run failed on it (found by a helper's fuzzing).
+/// only channel is the index channel is refused, exit 2. (`all` taking the index
+/// channel in would fail the run on it.)
 #[test]
 fn channel_all_with_a_2d_index_leaves_the_index_channel_out() {
     use arrow_array::StringArray;
@@ -352,9 +349,9 @@ fn channel_all_with_a_2d_index_leaves_the_index_channel_out() {
     assert!(!out2.exists());
 }
 
-/// `--index-grid` has an upper bound: 100000,100000 had the allocator abort the
-/// process (exit 134) and 18446744073709551615,3 panicked on a capacity overflow
-/// (exit 101) after the log was read (found by a helper's fuzzing). Both are refused,
+/// `--index-grid` has an upper bound: 100000,100000 would have the allocator abort the
+/// process (exit 134) and 18446744073709551615,3 would panic on a capacity overflow
+/// (exit 101) after the log is read. Both are refused,
 /// exit 2, before the log is read (a missing log is not reached), as is one point
 /// beyond the bound.
 #[test]

@@ -308,8 +308,7 @@ fn other_commands_read_csv_through_the_cache_once() {
 
 /// An edit that keeps the file's size and modification time (`cp -p`, `rsync -t`, an
 /// editor that restores the mtime) is not served from the stale cached store: the
-/// cache key holds the inode and ctime as well. It had read the old values (found by a
-/// helper's fuzzing).
+/// cache key holds the inode and ctime as well, so the new values are read.
 #[cfg(unix)]
 #[test]
 fn an_edit_keeping_size_and_mtime_is_not_read_from_a_stale_cache() {

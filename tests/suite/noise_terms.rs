@@ -15,11 +15,12 @@
 //! exactly over each interval (the integral of Brownian motion over an interval is
 //! (tau0 / 2) dW + sqrt(tau0^3 / 12) z given the increment dW).
 //!
-//! History: the simulator's first flicker generator (point samples of a Gauss-Markov
-//! bank from tau_min / 10) had 2.08 times the floor's Allan variance at tau = 1 sample,
-//! and white n = 0.005 + rate random walk + that bias instability was identified with
-//! n = 0.0050455 +- 0.0000082 (5.6 uncertainties high, seed 1); the point-sampled rate
-//! random walk and Gauss-Markov had 1.5 times their Allan variance at tau = 1 sample.
+//! What the interval averages guard against: a flicker generator of point samples of a
+//! Gauss-Markov bank from tau_min / 10 has 2.08 times the floor's Allan variance at
+//! tau = 1 sample, and white n = 0.005 + rate random walk + that bias instability is
+//! identified with n = 0.0050455 +- 0.0000082 (5.6 uncertainties high, seed 1); a
+//! point-sampled rate random walk or Gauss-Markov has 1.5 times its Allan variance at
+//! tau = 1 sample.
 
 use farma::simulator::Component;
 use farma::stats::noise_terms::{Identification, Options, Term, identify};

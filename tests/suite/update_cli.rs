@@ -250,8 +250,8 @@ fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
 }
 
 /// A state.parquet with a NaN mean exits 2 naming the file, the channel and the field
-/// (it panicked); new samples 1e20 times the model's scale exit 2 and write nothing
-/// (they wrote NaN coefficients with exit 0).
+/// (no panic); new samples 1e20 times the model's scale exit 2 and write nothing (no
+/// NaN coefficients with exit 0).
 #[test]
 fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     use farma::estimator::update::read_state;
@@ -273,7 +273,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     );
     assert!(!err.contains("panicked"), "{err}");
     // this 1,1,1 fit of gyro_x returned its linear ARMA start: the state holds no fitted
-    // local model, and update refuses it (it had solved the rejected local fits)
+    // local model, and update refuses it (rather than solve the rejected local fits)
     let r = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
@@ -335,8 +335,7 @@ fn shift_time(dir: &Path, src: &Path, name: &str, by: f64) -> PathBuf {
 /// inside the new log (`--gaps split`), is bridged with a warning (as `farma fit`
 /// warns); the state records the last time stamp (`t_last_s`), also after an update,
 /// and a state file without that column (an older farma) is updated with a warning
-/// that nothing could be checked. All had been accepted silently (found by a helper's
-/// fuzzing).
+/// that nothing could be checked. None of these passes silently.
 #[test]
 fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
     use farma::estimator::update::{LastTime, read_state};
@@ -446,8 +445,7 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
 
 /// A new log of one row with a time column is updated when the rate comes from
 /// `--rate` (one row has no interval to take it from); without it the message says to
-/// give it. It had failed as "too short" even with --rate, while the same row without
-/// a time column worked (found by a helper's fuzzing).
+/// give it. One row is enough, with a time column as without one.
 #[test]
 fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
     use farma::estimator::update::{LastTime, read_state};
@@ -523,8 +521,7 @@ fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
 }
 
 /// `farma update` on the folder of a 2-D fit says that updates support the 1-D index
-/// only; it had suggested `--save-state`, which a 2-D fit refuses (found by a helper's
-/// fuzzing).
+/// only, and does not suggest `--save-state`, which a 2-D fit refuses.
 #[test]
 fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
     let dir = tempfile::tempdir().unwrap();
@@ -563,12 +560,11 @@ fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
     assert!(!out.exists());
 }
 
-/// A state whose channel returned its linear start is refused naming the state file
-/// (it had been named as NEW_LOG's problem: "new.csv: channel 'gyro_x': its fit
-/// returned the linear ARMA start"); a state whose `n` is 2^64 - 1
-/// is refused naming the field (it had passed, and the update's sample count wrapped
-/// around, blamed on the new samples; a panic in a debug build) (found by a helper's
-/// fuzzing).
+/// A state whose channel returned its linear start is refused naming the state file,
+/// not as NEW_LOG's problem ("new.csv: channel 'gyro_x': its fit returned the linear
+/// ARMA start"); a state whose `n` is 2^64 - 1 is refused naming the field, before the
+/// update's sample count can wrap around (a panic in a debug build) and be blamed on
+/// the new samples.
 #[test]
 fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
     use farma::estimator::update::read_state;
@@ -608,9 +604,8 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
 }
 
 /// A state whose `sample_rate_hz` metadata is not a positive number ('abc', NaN, 0)
-/// is refused naming the state file and the key, exit 2: 'abc' and NaN had been
-/// skipped, the new log's rate left unchecked, and 0 had been read as a model fitted
-/// at 0 Hz (found by a helper's fuzzing).
+/// is refused naming the state file and the key, exit 2: none is skipped (which would
+/// leave the new log's rate unchecked) or read as a model fitted at 0 Hz.
 #[test]
 fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
     use farma::estimator::update::read_state;
@@ -644,8 +639,8 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
 
 /// A state whose normal equations cannot start the recursions (every `gram` block
 /// zeroed, or a zero `b_gram`, as an edit or a corrupt file may leave them) is refused
-/// naming the state file, the channel and the field, not NEW_LOG (a helper's fuzzing:
-/// it had been named with the new log, whose samples were never read).
+/// naming the state file, the channel and the field, not NEW_LOG (whose samples are
+/// never read).
 #[test]
 fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
     use farma::estimator::update::read_state;
@@ -708,10 +703,9 @@ fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
 }
 
 /// `update --channel` updates some of the model's channels: a channel whose fit
-/// returned its linear start no longer blocks the others (its error names them and
+/// returned its linear start does not block the others (its error names them and
 /// `--channel`), the output model holds the updated channels only, and a channel the
-/// model does not hold is refused naming the model's channels (a helper's fuzzing:
-/// one such channel had blocked every update of the model).
+/// model does not hold is refused naming the model's channels.
 #[test]
 fn update_of_some_channels_leaves_out_a_linear_start() {
     use farma::estimator::update::read_state;

@@ -316,8 +316,8 @@ fn select_and_check_reject_an_output_that_is_a_file_before_the_work() {
 }
 
 /// `farma check` on edge input: a --holdout-s beyond any log's length in samples is
-/// refused (it had wrapped around and panicked, exit 101); `--channel` repeats are
-/// taken once (they had written every row twice) and a trailing comma is no channel;
+/// refused with a message, not a wrap-around and a panic (exit 101); `--channel`
+/// repeats are taken once (every row written once) and a trailing comma is no channel;
 /// a constant channel's failing ARMA baseline names the log.
 #[test]
 fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
@@ -353,9 +353,9 @@ fn check_refuses_a_huge_holdout_and_takes_each_channel_once() {
 
 /// `--orders` and `--grid` of `farma select` and `farma analyze` are checked before
 /// the log is read, naming the flag and not a channel (an order with p or d = 0, or a
-/// bad grid, had been reported as `LOG: channel 'x': --order: ...`, after the log was
-/// read and prepared); an order given twice is fitted once (its rows and F-tests had
-/// been repeated).
+/// bad grid, is not reported as `LOG: channel 'x': --order: ...` after the log is read
+/// and prepared); an order given twice is fitted once (its rows and F-tests are not
+/// repeated).
 #[test]
 fn select_and_analyze_check_orders_and_grid_before_the_log() {
     let dir = tempfile::tempdir().unwrap();
@@ -416,7 +416,7 @@ fn select_and_analyze_check_orders_and_grid_before_the_log() {
 }
 
 /// `farma analyze` names every failing channel at once, in channel order, as `farma
-/// fit` does (it had named the one error rayon met first), and writes nothing.
+/// fit` does (not only the one error rayon meets first), and writes nothing.
 #[test]
 fn analyze_names_every_failing_channel() {
     let dir = tempfile::tempdir().unwrap();
@@ -458,7 +458,8 @@ fn analyze_names_every_failing_channel() {
 }
 
 /// `farma check` on the folder of a fit on a 2-D index refuses it naming the index
-/// (exit 2); it had said "f_1 has a repeated grid point" of coef.parquet.
+/// (exit 2), not "f_1 has a repeated grid point" of coef.parquet (which repeats the lag
+/// index's grid once per point of the second).
 #[test]
 fn check_refuses_a_2d_index_fit_naming_the_index() {
     let dir = tempfile::tempdir().unwrap();

@@ -387,10 +387,9 @@ fn the_starts_residuals_from_its_last_pass_are_those_filled_afresh() {
 }
 
 /// A sandwich variance that rounds to 0 or below is NaN, not 0, and the note counts
-/// the fitted points without one. (A helper's fuzzing found 23 fitted rows with se
-/// exactly 0 on a 2-level channel with 1e-6 noise, condition numbers near 9e11; on
-/// such a channel at `--bandwidth 0.5 --grid 1000`, 29 fitted points now have NaN
-/// se, condition numbers up to 4.2e12.)
+/// the fitted points without one. (A 2-level channel with 1e-6 noise has condition
+/// numbers near 9e11 to 4.2e12: at `--bandwidth 0.5 --grid 1000`, 29 of its fitted
+/// points have NaN se rather than a se of exactly 0.)
 #[test]
 fn a_standard_error_lost_to_rounding_is_nan_and_noted() {
     use super::super::moments::sandwich_diag;

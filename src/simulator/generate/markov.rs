@@ -172,21 +172,21 @@ impl FlickerBank {
 /// octave tau in [tau_min_s, tau_max_s / 4] and within 0.23 % up to tau_max_s
 /// (computed for tau_min_s = 1 s and 30 values of tau_max_s from 10 s to 1e7 s, and
 /// for the tests' bands; tests/suite/simulate.rs checks it, then the simulation against
-/// it). With a margin of 10 above tau_max_s it was 0.22 % low at tau_max_s / 10 and
-/// 2.2 % at tau_max_s. Two per decade is enough: with 3 per decade the exact Allan
+/// it). A margin of 10 above tau_max_s would leave it 0.22 % low at tau_max_s / 10
+/// and 2.2 % at tau_max_s. Two per decade is enough: with 3 per decade the exact Allan
 /// deviation changes by less than 0.02 %. Below tau_min_s / 100 the spectrum is white
 /// rather than 1 / f; above 100 tau_max_s it is flat.
 ///
-/// Why the lower margin and the interval averages: the first version spanned
-/// [tau_min_s / 10, 10 tau_max_s] and took point samples of each process. With the
-/// default tau_min_s of one sample its fastest processes (T = 0.18 and 0.55 samples)
-/// are nearly white, and a point sample keeps their whole variance s^2 where an
-/// interval average keeps about 2 s^2 T / dt: at 100 Hz, b = 0.01, 2^18 samples the
-/// bank's exact Allan variance was 2.08 times the floor at tau = dt (1.49 at 2 dt,
-/// 1.22 at 4 dt, 1.10 at 8 dt: an excess falling as 1 / tau, white noise of
-/// n^2 = 4.8e-7), the simulator's own curve (mean of seeds 1-4) 2.08, 1.49, 1.22,
-/// 1.10; the identification of white n = 0.005 + rate random walk + this bias
-/// instability read n = 0.0050455 (n^2 = 2.5e-5 + 4.6e-7). Interval averages of the
+/// Why the lower margin and the interval averages: a bank over
+/// [tau_min_s / 10, 10 tau_max_s] that took point samples of each process would,
+/// with the default tau_min_s of one sample, have nearly white fastest processes
+/// (T = 0.18 and 0.55 samples), and a point sample keeps their whole variance s^2
+/// where an interval average keeps about 2 s^2 T / dt: at 100 Hz, b = 0.01, 2^18
+/// samples that bank's exact Allan variance is 2.08 times the floor at tau = dt (1.49
+/// at 2 dt, 1.22 at 4 dt, 1.10 at 8 dt: an excess falling as 1 / tau, white noise of
+/// n^2 = 4.8e-7), its simulated curve (mean of seeds 1-4) 2.08, 1.49, 1.22, 1.10, and
+/// the identification of white n = 0.005 + rate random walk + that bias instability
+/// reads n = 0.0050455 (n^2 = 2.5e-5 + 4.6e-7). Interval averages of the
 /// same bank would have been 13 % below the floor at tau = dt (the 1 / f spectrum
 /// above 1 / (2 pi T_low) missing), hence the margin of 100 and the white fill.
 pub fn bias_instability_bank(b: f64, tau_min_s: f64, tau_max_s: f64) -> FlickerBank {

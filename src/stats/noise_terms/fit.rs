@@ -28,9 +28,9 @@
 //! fit uses octave taus only (m = 1, 2, 4, ...), where the correlation of neighbours is
 //! moderate, and fits them as if independent (the estimate); the uncertainty then
 //! allows for their correlation (see `sandwich_cov`, correlations measured by Monte
-//! Carlo). Without that step the reported uncertainties were too small: in the tests
-//! (tests/suite/noise_terms.rs) three of 21 coefficients fell 3.1 to 3.3 of them from the
-//! truth, and a rate random walk often took a spurious ramp beside it. Any remaining
+//! Carlo). Without that step the reported uncertainties are too small: in the tests
+//! (tests/suite/noise_terms.rs) three of 21 coefficients fall 3.1 to 3.3 of them from the
+//! truth, and a rate random walk often takes a spurious ramp beside it. Any remaining
 //! misfit shows in the Pearson statistic X^2 = sum_i w_i (a_i - mu_i)^2, and the
 //! covariance is multiplied by the dispersion max(1, X^2 / (n_taus - n_params))
 //! (the moment estimate of the dispersion, McCullagh and Nelder).

@@ -1,0 +1,130 @@
+//! Least squares and searches shared by the estimates of the candidate effects: the
+//! weighted non-negative fit on Allan variances, ordinary least squares over the
+//! training ranges, log grids, golden-section search, and first differences that do
+//! not cross a block edge.
+
+use std::ops::Range;
+
+use crate::estimator::linalg::normal_equations;
+
+/// Weighted least squares of y on u with the coefficient >= 0: (c, weighted RSS).
+pub(super) fn fit_nonneg(y: &[f64], u: &[f64], a: &[f64], ms: &[usize]) -> (f64, f64) {
+    let w: Vec<f64> = ms
+        .iter()
+        .zip(a)
+        .map(|(m, a)| 1.0 / (*m as f64 * a * a).max(f64::MIN_POSITIVE))
+        .collect();
+    let suu: f64 = (0..y.len()).map(|i| w[i] * u[i] * u[i]).sum();
+    let suy: f64 = (0..y.len()).map(|i| w[i] * u[i] * y[i]).sum();
+    let c = if suu > 0.0 { (suy / suu).max(0.0) } else { 0.0 };
+    let rss = (0..y.len()).map(|i| w[i] * (y[i] - c * u[i]).powi(2)).sum();
+    (c, rss)
+}
+
+/// Least squares of y on the regressors (and an intercept) over `ranges`:
+/// (coefficients of the regressors, RSS).
+pub(super) fn ls(
+    y: &[f64],
+    regs: &[&[f64]],
+    intercept: bool,
+    ranges: &[Range<usize>],
+) -> Option<(Vec<f64>, f64)> {
+    let k = regs.len() + usize::from(intercept);
+    let mut ata = vec![0.0; k * k];
+    let mut aty = vec![0.0; k];
+    let mut row = vec![0.0; k];
+    for r in ranges {
+        for t in r.clone() {
+            let mut j = 0;
+            if intercept {
+                row[0] = 1.0;
+                j = 1;
+            }
+            for g in regs {
+                row[j] = g[t];
+                j += 1;
+            }
+            for a in 0..k {
+                aty[a] += row[a] * y[t];
+                for b in 0..k {
+                    ata[a * k + b] += row[a] * row[b];
+                }
+            }
+        }
+    }
+    let beta = normal_equations(&ata, &aty, k)?;
+    let mut rss = 0.0;
+    for r in ranges {
+        for t in r.clone() {
+            let mut f = if intercept { beta[0] } else { 0.0 };
+            for (j, g) in regs.iter().enumerate() {
+                f += beta[j + usize::from(intercept)] * g[t];
+            }
+            rss += (y[t] - f).powi(2);
+        }
+    }
+    let coefs = beta[usize::from(intercept)..].to_vec();
+    Some((coefs, rss))
+}
+
+/// `n` points from `lo` to `hi`, evenly spaced in ln.
+pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1).max(1) as f64))
+        .collect()
+}
+
+/// The minimiser of a unimodal `f` on [lo, hi] by golden-section search (`iters`
+/// steps, each shrinking the bracket by 0.618; Kiefer 1953).
+pub(super) fn golden_min(mut lo: f64, mut hi: f64, iters: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let mut a = hi - g * (hi - lo);
+    let mut b = lo + g * (hi - lo);
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - g * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + g * (hi - lo);
+            fb = f(b);
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// First differences x_t - x_{t-1}, 0 at t = 0.
+pub(super) fn diff(x: &[f64]) -> Vec<f64> {
+    let mut d = vec![0.0; x.len()];
+    for (t, v) in d.iter_mut().enumerate().skip(1) {
+        *v = x[t] - x[t - 1];
+    }
+    d
+}
+
+/// Ranges without their first sample (where a difference would cross a block edge).
+pub(super) fn shrink_ranges(r: &[Range<usize>]) -> Vec<Range<usize>> {
+    r.iter().map(|r| (r.start + 1)..r.end).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_section_finds_the_minimum() {
+        // near a quadratic minimum f changes by (dx)^2, below rounding once dx is under
+        // sqrt(eps) ~ 1.5e-8: that is as close as any comparison search can get
+        let x = golden_min(0.0, 4.0, 60, |v| (v - 1.3).powi(2) + 2.0);
+        assert!((x - 1.3).abs() < 1e-7, "{x}");
+        // at an end of the bracket it converges to that end
+        let y = golden_min(0.0, 1.0, 60, |v| v);
+        assert!(y < 1e-9, "{y}");
+    }
+}

@@ -1,0 +1,322 @@
+//! Candidate effects: what a spec may be missing, with parameters estimated on the
+//! training part of the real log only.
+//!
+//! Every component kind of contracts.md section 2 that the spec's target channel does
+//! not have is a candidate to add; every component it has, whose signal is linear in a
+//! size parameter, is a candidate to recalibrate (`recalibrate:<kind>`). Estimation
+//! (all on the training blocks):
+//! - deterministic effects by least squares of the residual r_t = x_t - xbar_t (the real
+//!   log minus the ensemble mean, which is the spec's deterministic part plus averaged
+//!   noise) on the effect's own signal, simulated with a unit parameter, plus an
+//!   intercept: constant_bias (mean of r), rate_ramp, warmup (amplitude for each of a
+//!   log grid of tau_s, the best by residual sum of squares, refined by golden-section
+//!   search between its grid neighbours), sinusoid (frequency of
+//!   the largest peak of the training-masked periodogram of r, refined by a
+//!   golden-section search of the least-squares power; amplitude and phase by least
+//!   squares), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
+//!   (coefficient for each smoothing of a grid, the best by residual sum of squares);
+//! - noise effects from the Allan variance, which adds over independent processes:
+//!   with A(m) the pooled training AVAR of the real log, E(m) the ensemble's mean and
+//!   U(m) the candidate simulated with a unit coefficient (mean over replicas),
+//!   c^2 = argmin sum_m w_m (A - E - c^2 U)^2, w_m = 1 / (m A(m)^2) (the relative
+//!   variance of an AVAR estimate grows like m / N), c^2 >= 0: white_noise,
+//!   quantization, bias_instability, rate_random_walk, gauss_markov (tau_s by the best
+//!   fit over a log grid), and recalibration of a noise component (A - E + V_k
+//!   against V_k, its own AVAR, giving the factor s^2 on its size);
+//! - outliers from spikes: the local second difference s_t = x_t - (x_{t-1} + x_{t+1})/2,
+//!   spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD) and is a local
+//!   maximum; the excess count over the ensemble's gives the rate, and the mean square
+//!   of the spikes, read as a normal sample truncated at the threshold
+//!   (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale and the share detected;
+//! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm gives
+//!   E[d^2] = a (1 + 2 phi slope (T - Tm)) to first order, phi being the share of the
+//!   modulated component in the variance of d (from the ensemble);
+//! - cross_axis: gain = cov(d_x, d_o) / var(d_o) over the training part, for each other
+//!   channel o of the spec present in the log.
+//!
+//! Candidates that mimic each other are told apart by the scoring, not here: each is
+//! scored on every statistic family of the withheld part, and pays for widening the
+//! ensemble's band (the spread term of `distance`), so a slow temperature drift (which
+//! moves the temperature family as well as the long-tau Allan deviation) beats a rate
+//! random walk, which matches the Allan curve and the window means only by letting
+//! them wander from one simulation to the next; T beats dT/dt where the mean
+//! by temperature bin moves, and the other way round; a ramp and a warm-up differ in
+//! the time family's window means.
+//!
+//! One file per kind of effect, in the order [`propose`] tries them:
+//! `deterministic.rs` (constant_bias, rate_ramp, warmup, sinusoid), `temperature.rs`
+//! (temperature_bias, thermal_rate, heteroskedastic), `noise.rs` (the power-law terms
+//! and gauss_markov), `outliers.rs`, `cross_axis.rs`, then `recalibrate.rs`; `lsq.rs`
+//! holds the least squares and searches they share, `params.rs` a component's size and
+//! JSON parameters, `resolution.rs` the output resolution of a log.
+
+mod cross_axis;
+mod deterministic;
+mod lsq;
+mod noise;
+mod outliers;
+mod params;
+mod recalibrate;
+mod resolution;
+mod temperature;
+
+use std::ops::Range;
+
+use serde_json::Value;
+
+use super::ensemble::SimBase;
+use super::features::{Layout, Temperature};
+use crate::error::Result;
+use crate::simulator::{Component, Kind, Spec};
+
+pub use params::{params_json, scaled};
+pub use resolution::output_resolution;
+
+/// How a candidate changes every replica's target channel.
+#[derive(Clone, Debug)]
+pub enum Delta {
+    /// The same signal in every replica (deterministic effects).
+    Same(Vec<f64>),
+    /// One signal per replica.
+    Each(Vec<Vec<f64>>),
+}
+
+impl Delta {
+    pub fn get(&self, r: usize) -> &[f64] {
+        match self {
+            Delta::Same(v) => v,
+            Delta::Each(v) => &v[r],
+        }
+    }
+}
+
+/// A proposed change of the spec.
+#[derive(Clone, Debug)]
+pub struct Proposal {
+    /// A component kind, or `recalibrate:<kind>`.
+    pub kind: String,
+    /// The component added, or the replacement of component `replaces`.
+    pub component: Component,
+    pub replaces: Option<usize>,
+    pub params: Value,
+    pub delta: Delta,
+    /// How the parameters were estimated.
+    pub note: String,
+}
+
+/// A candidate that could not be tried, and why.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct NotTried {
+    pub kind: String,
+    pub reason: String,
+}
+
+/// What estimation needs to know about the current state.
+pub struct Context<'a> {
+    pub spec: &'a Spec,
+    pub channel: usize,
+    pub sim: &'a SimBase<'a>,
+    pub train: &'a Layout,
+    pub real: &'a [f64],
+    pub temperature: Option<&'a Temperature>,
+    /// Other spec channels present in the real log: (name, real values).
+    pub others: &'a [(String, &'a [f64])],
+    /// Per replica, the target channel's simulation.
+    pub target: &'a [Vec<f64>],
+    /// Per replica, per spec component of the target channel, its signal.
+    pub parts: &'a [Vec<Vec<f64>>],
+}
+
+impl Context<'_> {
+    fn rate_hz(&self) -> f64 {
+        self.sim.rate_hz
+    }
+    fn ranges(&self) -> &[Range<usize>] {
+        self.train.ranges()
+    }
+    fn n_train(&self) -> usize {
+        self.ranges().iter().map(|r| r.len()).sum()
+    }
+    fn avar(&self, x: &[f64]) -> Vec<f64> {
+        self.train.ln_avar(x).into_iter().map(f64::exp).collect()
+    }
+    fn mean_avar<'b>(&self, xs: impl Iterator<Item = &'b [f64]>) -> Vec<f64> {
+        let mut acc: Vec<f64> = Vec::new();
+        let mut n = 0.0f64;
+        for x in xs {
+            let a = self.avar(x);
+            if acc.is_empty() {
+                acc = a;
+            } else {
+                for (s, v) in acc.iter_mut().zip(a) {
+                    *s += v;
+                }
+            }
+            n += 1.0;
+        }
+        acc.iter().map(|s| s / n.max(1.0)).collect()
+    }
+    /// The signal of `c` added to the target channel, simulated once (deterministic
+    /// effects: the same in every replica).
+    fn unit(&self, c: Component) -> Result<Vec<f64>> {
+        Ok(self
+            .sim
+            .extra_signal(self.spec, self.channel, &c)?
+            .pop()
+            .unwrap_or_default())
+    }
+}
+
+/// What every estimate reads from the training part, computed once per [`propose`].
+struct Training {
+    /// Samples in the log.
+    n: usize,
+    /// Sample rate (Hz) and the log's duration (s).
+    fs: f64,
+    duration_s: f64,
+    /// The residual r_t = x_t - xbar_t against the ensemble mean.
+    res: Vec<f64>,
+    /// The training blocks.
+    ranges: Vec<Range<usize>>,
+    /// A(m), the pooled training AVAR of the real log, at the cluster sizes `ms`.
+    a_real: Vec<f64>,
+    ms: Vec<usize>,
+    /// A(m) - E(m), E the ensemble's mean training AVAR.
+    excess: Vec<f64>,
+}
+
+impl Training {
+    fn new(cx: &Context) -> Self {
+        let m_reps = cx.target.len();
+        let n = cx.real.len();
+        let fs = cx.rate_hz();
+        let duration_s = n as f64 / fs;
+
+        // residual against the ensemble mean
+        let mut xbar = vec![0.0; n];
+        for t in cx.target {
+            for (a, v) in xbar.iter_mut().zip(t) {
+                *a += v / m_reps as f64;
+            }
+        }
+        let res: Vec<f64> = cx.real.iter().zip(&xbar).map(|(a, b)| a - b).collect();
+        let ranges = cx.ranges().to_vec();
+
+        let a_real = cx.avar(cx.real);
+        let a_ens = cx.mean_avar(cx.target.iter().map(|v| v.as_slice()));
+        let ms = cx.train.adev_factors().to_vec();
+        let excess: Vec<f64> = a_real.iter().zip(&a_ens).map(|(a, e)| a - e).collect();
+        Training {
+            n,
+            fs,
+            duration_s,
+            res,
+            ranges,
+            a_real,
+            ms,
+            excess,
+        }
+    }
+}
+
+/// The candidates found so far: proposals to score, and those not tried.
+#[derive(Default)]
+struct Found {
+    props: Vec<Proposal>,
+    skipped: Vec<NotTried>,
+}
+
+impl Found {
+    fn skip(&mut self, kind: &str, why: &str) {
+        self.skipped.push(NotTried {
+            kind: kind.into(),
+            reason: why.into(),
+        })
+    }
+
+    /// A deterministic addition: component `c`, the same signal `sig` in every replica.
+    fn same(&mut self, kind: &str, c: Component, sig: Vec<f64>, note: String) {
+        self.props.push(Proposal {
+            kind: kind.into(),
+            params: params_json(&c),
+            component: c,
+            replaces: None,
+            delta: Delta::Same(sig),
+            note,
+        })
+    }
+}
+
+/// Every candidate for the current state: proposals to score, and those not tried.
+/// Each kind of component the target channel lacks is tried as an addition, in this
+/// order, then every component it has is tried for recalibration.
+pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
+    let comps = &cx.spec.channels[cx.channel].components;
+    let has = |k: Kind| comps.iter().any(|c| c.kind() == k);
+    let tr = Training::new(cx);
+    let mut out = Found::default();
+
+    // -- deterministic additions
+    if !has(Kind::ConstantBias) {
+        deterministic::constant_bias(cx, &tr, &mut out);
+    }
+    if !has(Kind::RateRamp) {
+        deterministic::rate_ramp(cx, &tr, &mut out)?;
+    }
+    if !has(Kind::Warmup) {
+        deterministic::warmup(cx, &tr, &mut out)?;
+    }
+    if !has(Kind::Sinusoid) {
+        deterministic::sinusoid(cx, &tr, &mut out)?;
+    }
+    match cx.temperature {
+        None => {
+            for k in ["temperature_bias", "thermal_rate", "heteroskedastic"] {
+                out.skip(
+                    k,
+                    "the log has no temperature channel (temperature_channel in the spec)",
+                );
+            }
+        }
+        Some(tp) => {
+            let tm = tp.t_c.iter().sum::<f64>() / tr.n as f64;
+            if !has(Kind::TemperatureBias) {
+                temperature::temperature_bias(cx, &tr, tm, &mut out)?;
+            }
+            if !has(Kind::ThermalRate) {
+                temperature::thermal_rate(cx, &tr, &mut out)?;
+            }
+            if !has(Kind::Heteroskedastic) {
+                temperature::heteroskedastic(cx, tp, tm, &mut out)?;
+            }
+        }
+    }
+
+    // -- noise additions, from the training Allan variance
+    for (kind, unit_c) in noise::unit_components() {
+        if !has(kind) {
+            noise::power_law(cx, &tr, kind, unit_c, &mut out)?;
+        }
+    }
+    if !has(Kind::GaussMarkov) {
+        noise::gauss_markov(cx, &tr, &mut out)?;
+    }
+    if !has(Kind::Outliers) {
+        outliers::outliers(cx, &mut out)?;
+    }
+    if !has(Kind::CrossAxis) {
+        cross_axis::cross_axis(cx, &tr, &mut out)?;
+    }
+    for k in [Kind::Arma, Kind::Farma] {
+        if !has(k) {
+            out.skip(
+                k.as_str(),
+                "not estimated as an added effect: the state statistic shows state-dependent dynamics; fit them with `farma fit` and add the model",
+            );
+        }
+    }
+
+    // -- recalibration of what the spec has
+    recalibrate::recalibrate(cx, &tr, &mut out)?;
+    Ok((out.props, out.skipped))
+}

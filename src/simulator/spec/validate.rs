@@ -1,0 +1,358 @@
+//! Validating a typed spec: value ranges (finite numbers, non-negative sizes, positive
+//! time constants), the stationarity of ARMA parts, and the cross-references between
+//! channels (temperature channel, cross_axis sources, heteroskedastic targets), with
+//! messages that name the key (module doc of [`super`]).
+
+use std::collections::HashSet;
+
+use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
+
+impl Spec {
+    /// Checks values and cross-references (module doc); the message names the key.
+    ///
+    /// [`parse_spec`](super::parse_spec) runs this; a spec built in code (the noise-term
+    /// identification) is checked by [`Spec::to_toml`].
+    pub fn validate(&self) -> Result<(), String> {
+        let rate = self.sample_rate_hz;
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(format!(
+                "the top level: 'sample_rate_hz' must be > 0, found {rate}"
+            ));
+        }
+        if let Some(seed) = self.seed
+            && seed > i64::MAX as u64
+        {
+            return Err(format!(
+                "the top level: 'seed' must be at most {} (TOML integers are signed 64-bit), found {seed}",
+                i64::MAX
+            ));
+        }
+        if let Some(t) = &self.temperature_channel {
+            if t.is_empty() {
+                return Err("the top level: 'temperature_channel' must not be empty".into());
+            }
+            if self.channels.iter().any(|c| &c.name == t) {
+                return Err(format!(
+                    "the top level: 'temperature_channel' = '{t}' is also a simulated channel; the temperature channel is read from the real log"
+                ));
+            }
+        }
+        if self.channels.is_empty() {
+            return Err("the spec has no [[channel]] table".into());
+        }
+        let mut names = HashSet::new();
+        for (i, channel) in self.channels.iter().enumerate() {
+            if channel.name.is_empty() {
+                return Err(format!("channel {}: 'name' must not be empty", i + 1));
+            }
+            if !names.insert(channel.name.as_str()) {
+                return Err(format!(
+                    "channel '{}' appears twice (channel {}); channel names must be unique",
+                    channel.name,
+                    i + 1
+                ));
+            }
+        }
+        for channel in &self.channels {
+            self.validate_channel(channel)?;
+        }
+        Ok(())
+    }
+
+    fn validate_channel(&self, channel: &ChannelSpec) -> Result<(), String> {
+        let name = &channel.name;
+        if channel.components.is_empty() {
+            return Err(format!(
+                "channel '{name}' has no components (add [[channel.component]] tables)"
+            ));
+        }
+        let kinds: HashSet<Kind> = channel.components.iter().map(Component::kind).collect();
+        let mut modulated = HashSet::new();
+        let mut sources = HashSet::new();
+        for (i, component) in channel.components.iter().enumerate() {
+            let place = format!(
+                "channel '{name}' component {} ({})",
+                i + 1,
+                component.kind()
+            );
+            let check = Check { place: &place };
+            if component.kind().needs_temperature() && self.temperature_channel.is_none() {
+                return Err(format!(
+                    "{place}: needs a temperature: set 'temperature_channel' at the top level"
+                ));
+            }
+            match component {
+                Component::ConstantBias { value } => check.finite("value", *value)?,
+                Component::WhiteNoise { n } => check.non_negative("n", *n)?,
+                Component::Quantization { q } => check.non_negative("q", *q)?,
+                Component::BiasInstability {
+                    b,
+                    tau_min_s,
+                    tau_max_s,
+                } => {
+                    check.non_negative("b", *b)?;
+                    if let Some(lo) = tau_min_s {
+                        check.positive("tau_min_s", *lo)?;
+                    }
+                    if let Some(hi) = tau_max_s {
+                        check.positive("tau_max_s", *hi)?;
+                    }
+                    if let (Some(lo), Some(hi)) = (tau_min_s, tau_max_s)
+                        && lo >= hi
+                    {
+                        return Err(format!(
+                            "{place}: 'tau_min_s' ({lo}) must be below 'tau_max_s' ({hi})"
+                        ));
+                    }
+                }
+                Component::RateRandomWalk { k } => check.non_negative("k", *k)?,
+                Component::RateRamp { r } => check.finite("r", *r)?,
+                Component::GaussMarkov { sigma, tau_s } => {
+                    check.non_negative("sigma", *sigma)?;
+                    check.positive("tau_s", *tau_s)?;
+                }
+                Component::Sinusoid {
+                    amplitude,
+                    freq_hz,
+                    phase_rad,
+                } => {
+                    if amplitude.is_finite() && *amplitude < 0.0 {
+                        return Err(format!(
+                            "{place}: 'amplitude' must be >= 0, found {amplitude} (use 'phase_rad' to flip the sign)"
+                        ));
+                    }
+                    check.non_negative("amplitude", *amplitude)?;
+                    check.non_negative("freq_hz", *freq_hz)?;
+                    check.finite("phase_rad", *phase_rad)?;
+                    let nyquist = self.sample_rate_hz / 2.0;
+                    if *freq_hz >= nyquist {
+                        return Err(format!(
+                            "{place}: 'freq_hz' = {freq_hz} must be below the Nyquist frequency {nyquist} Hz (sample_rate_hz / 2)"
+                        ));
+                    }
+                }
+                Component::Arma { ar, ma, sigma } => {
+                    check.all_finite("ar", ar)?;
+                    check.all_finite("ma", ma)?;
+                    check.non_negative("sigma", *sigma)?;
+                    if !ar_is_stationary(ar) {
+                        return Err(format!(
+                            "{place}: 'ar' = {ar:?} is not stationary (a root of 1 - sum ar[m] z^m lies on or inside the unit circle); a simulation would diverge"
+                        ));
+                    }
+                }
+                Component::Farma(FarmaModel::Fitted { model, channel }) => {
+                    if model.as_os_str().is_empty() {
+                        return Err(format!("{place}: 'model' must not be empty"));
+                    }
+                    if channel.as_deref() == Some("") {
+                        return Err(format!("{place}: 'channel' must not be empty"));
+                    }
+                }
+                Component::Farma(FarmaModel::Inline {
+                    p,
+                    q,
+                    d,
+                    f,
+                    ma,
+                    sigma,
+                }) => {
+                    if *d == 0 {
+                        return Err(format!("{place}: 'd' must be >= 1 (the index is x_(t-d))"));
+                    }
+                    if f.len() != *p {
+                        return Err(format!(
+                            "{place}: 'f' has {} polynomial(s) but p = {p}",
+                            f.len()
+                        ));
+                    }
+                    if ma.len() != *q {
+                        return Err(format!(
+                            "{place}: 'ma' has {} coefficient(s) but q = {q}",
+                            ma.len()
+                        ));
+                    }
+                    for (m, poly) in f.iter().enumerate() {
+                        if poly.is_empty() {
+                            return Err(format!(
+                                "{place}: 'f' entry {} (f_{}) has no coefficients",
+                                m + 1,
+                                m + 1
+                            ));
+                        }
+                        check.all_finite("f", poly)?;
+                    }
+                    check.all_finite("ma", ma)?;
+                    check.non_negative("sigma", *sigma)?;
+                }
+                Component::TemperatureBias {
+                    coeffs,
+                    reference_c,
+                } => {
+                    if coeffs.is_empty() {
+                        return Err(format!(
+                            "{place}: 'coeffs' must hold at least one coefficient [u/degC, u/degC^2, ...]"
+                        ));
+                    }
+                    check.all_finite("coeffs", coeffs)?;
+                    if let Some(t) = reference_c {
+                        check.finite("reference_c", *t)?;
+                    }
+                }
+                Component::ThermalRate { coeff, smoothing_s } => {
+                    check.finite("coeff", *coeff)?;
+                    check.non_negative("smoothing_s", *smoothing_s)?;
+                }
+                Component::Warmup { amplitude, tau_s } => {
+                    check.finite("amplitude", *amplitude)?;
+                    check.positive("tau_s", *tau_s)?;
+                }
+                Component::Outliers { rate_hz, scale } => {
+                    check.non_negative("rate_hz", *rate_hz)?;
+                    check.non_negative("scale", *scale)?;
+                    if *rate_hz > self.sample_rate_hz {
+                        return Err(format!(
+                            "{place}: 'rate_hz' = {rate_hz} exceeds sample_rate_hz = {} (at most one outlier per sample)",
+                            self.sample_rate_hz
+                        ));
+                    }
+                }
+                Component::Heteroskedastic { of, slope } => {
+                    check.finite("slope", *slope)?;
+                    if !of.is_noise() {
+                        return Err(format!(
+                            "{place}: 'of' = '{of}' is not a noise kind (expected one of: {})",
+                            noise_kinds()
+                        ));
+                    }
+                    if !kinds.contains(of) {
+                        return Err(format!(
+                            "{place}: 'of' = '{of}' but channel '{name}' has no {of} component"
+                        ));
+                    }
+                    if !modulated.insert(*of) {
+                        return Err(format!(
+                            "{place}: a second heteroskedastic component for '{of}' in channel '{name}'"
+                        ));
+                    }
+                }
+                Component::CrossAxis { from, gain } => {
+                    check.finite("gain", *gain)?;
+                    if from == name {
+                        return Err(format!(
+                            "{place}: 'from' = '{from}' is this channel; cross_axis couples another channel"
+                        ));
+                    }
+                    if !self.channels.iter().any(|c| &c.name == from) {
+                        let names: Vec<&str> =
+                            self.channels.iter().map(|c| c.name.as_str()).collect();
+                        return Err(format!(
+                            "{place}: 'from' = '{from}' is not a channel of the spec (channels: {})",
+                            names.join(", ")
+                        ));
+                    }
+                    if !sources.insert(from.as_str()) {
+                        return Err(format!(
+                            "{place}: a second cross_axis from '{from}' in channel '{name}' (give one with the total gain)"
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Range checks for one component's parameters.
+struct Check<'a> {
+    place: &'a str,
+}
+
+impl Check<'_> {
+    fn finite(&self, key: &str, x: f64) -> Result<(), String> {
+        if x.is_finite() {
+            Ok(())
+        } else {
+            Err(format!("{}: '{key}' must be finite, found {x}", self.place))
+        }
+    }
+
+    fn all_finite(&self, key: &str, xs: &[f64]) -> Result<(), String> {
+        match xs.iter().find(|x| !x.is_finite()) {
+            None => Ok(()),
+            Some(x) => Err(format!(
+                "{}: '{key}' must hold finite numbers, found {x}",
+                self.place
+            )),
+        }
+    }
+
+    fn non_negative(&self, key: &str, x: f64) -> Result<(), String> {
+        self.finite(key, x)?;
+        if x >= 0.0 {
+            Ok(())
+        } else {
+            Err(format!("{}: '{key}' must be >= 0, found {x}", self.place))
+        }
+    }
+
+    fn positive(&self, key: &str, x: f64) -> Result<(), String> {
+        self.finite(key, x)?;
+        if x > 0.0 {
+            Ok(())
+        } else {
+            Err(format!("{}: '{key}' must be > 0, found {x}", self.place))
+        }
+    }
+}
+
+/// Whether x_t = sum_m ar[m-1] x_{t-m} + e_t is stationary: every root of
+/// 1 - sum_m ar[m-1] z^m outside the unit circle. The Schur-Cohn step-down (reverse
+/// Levinson-Durbin) recursion turns the coefficients into partial autocorrelations,
+/// which all lie strictly inside (-1, 1) exactly when the process is stationary.
+pub fn ar_is_stationary(ar: &[f64]) -> bool {
+    let mut a: Vec<f64> = ar.to_vec();
+    while let Some(&last) = a.last() {
+        if last == 0.0 {
+            a.pop();
+        } else {
+            break;
+        }
+    }
+    while let Some(&k) = a.last() {
+        if k.is_nan() || k.abs() >= 1.0 {
+            return false;
+        }
+        let order = a.len();
+        let denom = 1.0 - k * k;
+        let prev: Vec<f64> = (0..order - 1)
+            .map(|j| (a[j] + k * a[order - 2 - j]) / denom)
+            .collect();
+        a = prev;
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ar_stationarity_matches_known_cases() {
+        assert!(ar_is_stationary(&[]));
+        assert!(ar_is_stationary(&[0.9]));
+        assert!(!ar_is_stationary(&[1.0]));
+        assert!(!ar_is_stationary(&[-1.01]));
+        // AR(2): stationary iff a2 + a1 < 1, a2 - a1 < 1, |a2| < 1.
+        assert!(ar_is_stationary(&[0.5, 0.3]));
+        assert!(!ar_is_stationary(&[0.5, 0.6]));
+        assert!(ar_is_stationary(&[1.8, -0.9]));
+        assert!(!ar_is_stationary(&[0.2, -1.0]));
+        // (1 - 0.5 z)(1 - 0.5 z)(1 - 2 z): one root inside.
+        assert!(!ar_is_stationary(&[3.0, -2.25, 0.5]));
+        // (1 - 0.5 z)^3 = 1 - 1.5 z + 0.75 z^2 - 0.125 z^3.
+        assert!(ar_is_stationary(&[1.5, -0.75, 0.125]));
+        // Trailing zeros do not change the answer.
+        assert!(ar_is_stationary(&[0.5, 0.0, 0.0]));
+    }
+}
