@@ -49,11 +49,13 @@
 mod bstep;
 mod gcv;
 mod grid;
+pub(crate) mod grid2;
 mod notes;
 mod params;
 mod passes;
 mod report;
 mod smoother;
+pub(crate) mod smoother2;
 mod start;
 #[cfg(test)]
 mod tests;
