@@ -300,76 +300,6 @@ pub fn fit_json(name: &str, m: &FittedFarma, coef_path: &str) -> Value {
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use arrow_array::Array;
-
-    /// Batches of 3 rows over channels of 7, 0 and 4 rows (a boundary inside a
-    /// channel, an empty channel, one at a channel's end) hold the rows written one
-    /// by one: channel, t from first_t, the value, in_fit from in_fit_from.
-    #[test]
-    fn residual_batches_hold_the_rows_one_by_one() {
-        let a: Vec<f64> = (0..7).map(|k| k as f64 * 0.5 - 1.0).collect();
-        let c = [4.0, -3.0, 2.5, 1e-300];
-        let rows = [
-            ResidualRows {
-                channel: "a",
-                values: &a,
-                first_t: 0,
-                in_fit_from: 2,
-            },
-            ResidualRows {
-                channel: "b",
-                values: &[],
-                first_t: 5,
-                in_fit_from: 0,
-            },
-            ResidualRows {
-                channel: "c",
-                values: &c,
-                first_t: 100,
-                in_fit_from: 0,
-            },
-        ];
-        let mut want = Vec::new();
-        for r in &rows {
-            for (k, v) in r.values.iter().enumerate() {
-                want.push((
-                    r.channel.to_string(),
-                    r.first_t + k as i64,
-                    v.to_bits(),
-                    k >= r.in_fit_from,
-                ));
-            }
-        }
-        let mut got = Vec::new();
-        let mut sizes = Vec::new();
-        for b in residual_batches_of(&rows, 3) {
-            let b = b.unwrap();
-            assert_eq!(b.schema(), residual_schema());
-            sizes.push(b.num_rows());
-            let col = |i: usize| b.column(i).clone();
-            let (ch, t, r, f) = (col(0), col(1), col(2), col(3));
-            let ch = ch.as_any().downcast_ref::<StringArray>().unwrap();
-            let t = t.as_any().downcast_ref::<Int64Array>().unwrap();
-            let r = r.as_any().downcast_ref::<Float64Array>().unwrap();
-            let f = f.as_any().downcast_ref::<BooleanArray>().unwrap();
-            assert_eq!(f.null_count(), 0);
-            for i in 0..b.num_rows() {
-                got.push((
-                    ch.value(i).to_string(),
-                    t.value(i),
-                    r.value(i).to_bits(),
-                    f.value(i),
-                ));
-            }
-        }
-        assert_eq!(sizes, [3, 3, 1, 3, 1]);
-        assert_eq!(got, want);
-    }
-}
-
 /// Coefficient functions on the 2-D grid: the columns of the 1-D coef.parquet plus
 /// `grid2` (the second index value) and `slope2` (df/du_2); `slope` is df/du_1.
 pub fn coef_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
@@ -495,4 +425,74 @@ pub fn gcv_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
         ("n_failed", i(nf)),
         ("chosen", Arc::new(BooleanArray::from(chosen))),
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arrow_array::Array;
+
+    /// Batches of 3 rows over channels of 7, 0 and 4 rows (a boundary inside a
+    /// channel, an empty channel, one at a channel's end) hold the rows written one
+    /// by one: channel, t from first_t, the value, in_fit from in_fit_from.
+    #[test]
+    fn residual_batches_hold_the_rows_one_by_one() {
+        let a: Vec<f64> = (0..7).map(|k| k as f64 * 0.5 - 1.0).collect();
+        let c = [4.0, -3.0, 2.5, 1e-300];
+        let rows = [
+            ResidualRows {
+                channel: "a",
+                values: &a,
+                first_t: 0,
+                in_fit_from: 2,
+            },
+            ResidualRows {
+                channel: "b",
+                values: &[],
+                first_t: 5,
+                in_fit_from: 0,
+            },
+            ResidualRows {
+                channel: "c",
+                values: &c,
+                first_t: 100,
+                in_fit_from: 0,
+            },
+        ];
+        let mut want = Vec::new();
+        for r in &rows {
+            for (k, v) in r.values.iter().enumerate() {
+                want.push((
+                    r.channel.to_string(),
+                    r.first_t + k as i64,
+                    v.to_bits(),
+                    k >= r.in_fit_from,
+                ));
+            }
+        }
+        let mut got = Vec::new();
+        let mut sizes = Vec::new();
+        for b in residual_batches_of(&rows, 3) {
+            let b = b.unwrap();
+            assert_eq!(b.schema(), residual_schema());
+            sizes.push(b.num_rows());
+            let col = |i: usize| b.column(i).clone();
+            let (ch, t, r, f) = (col(0), col(1), col(2), col(3));
+            let ch = ch.as_any().downcast_ref::<StringArray>().unwrap();
+            let t = t.as_any().downcast_ref::<Int64Array>().unwrap();
+            let r = r.as_any().downcast_ref::<Float64Array>().unwrap();
+            let f = f.as_any().downcast_ref::<BooleanArray>().unwrap();
+            assert_eq!(f.null_count(), 0);
+            for i in 0..b.num_rows() {
+                got.push((
+                    ch.value(i).to_string(),
+                    t.value(i),
+                    r.value(i).to_bits(),
+                    f.value(i),
+                ));
+            }
+        }
+        assert_eq!(sizes, [3, 3, 1, 3, 1]);
+        assert_eq!(got, want);
+    }
 }

@@ -1,26 +1,32 @@
-//! The 2-D index's fit: the alternation of [`super::fit`](fn@super::fit) with the
-//! smoother of [`super::grid2`], its parameters and their checks.
+//! The 2-D index's smoother under the alternation ([`super::alternate`]), its fit
+//! ([`fit2`]: data checks, grid, linear start, the alternation, the returned model's
+//! trace and standard errors), its parameters and their checks.
 //!
 //! - Bandwidths: GCV over a common scaled ladder h_j = 1.1^-j (range_1/2, range_2/2),
 //!   j = 0..20 (the paper's rule applied to each coordinate's range with one j), so
 //!   the box is a square in scaled units and the Chebyshev gather fetches nothing
 //!   outside it; the ladder is extended while the minimum sits at an end, as in 1-D.
 //!   A fixed pair (h_1, h_2) can be given instead.
-//! - The alternation (ARMA start, f-step, least-squares b-step (`ma_cls`), residual
-//!   recursion, GCV on the first f-step and again each time the RSS settles, at most
-//!   twice; a new pair continues the alternation) is the one of
-//!   [`super::fit`](fn@super::fit), written here for the 2-D smoother.
+//! - Start: a linear ARMA(p,q) by conditional least squares on every sample
+//!   ([`fit_arma`]), constant f_m = a_m.
+//! - b-step: least squares of w_t = x_t - sum f_m(U_t) x_{t-m} on its own MA
+//!   recursion ([`ma_cls`]: Gauss-Newton with step halving, from the previous b); the
+//!   residuals are then recomputed with that b.
+//! - The rest is the alternation's (GCV on the first f-step and again each time the
+//!   RSS settles, at most twice; the [`super::PATIENCE`] rule; the stop at residuals
+//!   that are not finite; the iterate of least RSS returned, the linear start
+//!   included, with the linear model's trace p and standard errors). A fit whose
+//!   bandwidths GCV changed and that then runs to `max_iter` gets a note of its own.
 
 use super::bstep::ma_cls;
 use super::grid2::{
     Grid2, Grid2Fit, Index2, Vc2Problem, fill_failed2, fit_grid2, residuals2, rss_trace2,
     se_factors2,
 };
-use super::notes::{
-    ma_edge_note, missing_se_note, reselection_limit_note, stretched_ladder_note,
-    undefined_trace_note,
-};
+use super::notes::{ma_edge_note, missing_se_note, stretched_ladder_note, undefined_trace_note};
 use super::params::{FarmaParams, FitPath, check_magnitude};
+use super::start::linear_se_factors;
+use super::{Alternation, BandwidthWords, Control, Ended, Iterate, Selection, Smoother, alternate};
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
 use crate::estimator::multivariate::{Fitted2, Gcv2Row};
@@ -83,13 +89,14 @@ fn quantile_pair(mut v: Vec<f64>, (lo, hi): (f64, f64)) -> (f64, f64) {
     (q(lo), q(hi))
 }
 
-struct Smoother2<'a> {
+/// The f-step machinery at one alternation's residuals and MA coefficients.
+struct Step2<'a> {
     prob: Vc2Problem<'a>,
     grid: &'a Grid2,
     index: &'a Index2,
 }
 
-impl Smoother2<'_> {
+impl Step2<'_> {
     fn at(&self, h: (f64, f64)) -> (Grid2Fit, Option<(f64, f64)>) {
         let f = fit_grid2(&self.prob, self.index, self.grid, h);
         let rt = f.all_ok().then(|| rss_trace2(&self.prob, self.grid, &f));
@@ -97,11 +104,153 @@ impl Smoother2<'_> {
     }
 }
 
-/// GCV over the common scaled ladder, extended while the minimum sits at an end.
-fn gcv_select2(
-    sm: &Smoother2,
+/// RSS of the rows from `start` on, summed in order.
+fn rss_of(e: &[f64], start: usize) -> f64 {
+    e[start..].iter().map(|v| v * v).sum::<f64>()
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Test hook: the residual pass of the alternation with this number (1 the first)
+    /// leaves its first residual NaN (the recursion would carry it to every later one,
+    /// as an overflow does).
+    pub(super) static NAN_RESIDUALS_AT: std::cell::Cell<Option<usize>> =
+        const { std::cell::Cell::new(None) };
+}
+
+/// The 2-D index's smoother under the alternation: its grid, the KD-tree of its index
+/// values (which do not change during a fit) and its b-step, least squares of w on its
+/// own residual recursion ([`ma_cls`], Gauss-Newton with step halving).
+struct Index2Smoother<'a> {
+    /// The series, index channel, shape and first row (no residuals, no b).
+    prob0: Vc2Problem<'a>,
+    grid: &'a Grid2,
+    index: &'a Index2,
+    /// Half the range of each coordinate: the ladder's scale and the fill's distance.
     half: (f64, f64),
-) -> (Vec<Gcv2Row>, Grid2Fit, usize, bool, Vec<String>) {
+    q: usize,
+    #[cfg(test)]
+    residual_passes: usize,
+}
+
+impl<'a> Index2Smoother<'a> {
+    fn step<'s>(&self, e: &'s [f64], b: &'s [f64]) -> Step2<'s>
+    where
+        'a: 's,
+    {
+        Step2 {
+            prob: Vc2Problem { e, b, ..self.prob0 },
+            grid: self.grid,
+            index: self.index,
+        }
+    }
+}
+
+impl Smoother for Index2Smoother<'_> {
+    type H = (f64, f64);
+    type Coef = Grid2Fit;
+    type Row = Gcv2Row;
+    const WORDS: BandwidthWords = BandwidthWords {
+        noun: "bandwidths",
+        pronoun: "them",
+        verb: "are",
+        fixed_by: "--bandwidth and --bandwidth2",
+    };
+    const RECHECK_TABLE_AT_MAX_ITER: bool = false;
+
+    fn fmt_h(h: (f64, f64)) -> String {
+        format!("({:.6e}, {:.6e})", h.0, h.1)
+    }
+
+    fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self> {
+        let (rows, fit, best, extended, notes) = gcv_select2(&self.step(e, b), self.half);
+        Selection {
+            h: rows[best].bandwidth,
+            fit,
+            rows,
+            extended,
+            notes,
+        }
+    }
+
+    fn fit_at(&mut self, e: &[f64], b: &[f64], h: (f64, f64)) -> Grid2Fit {
+        let step = self.step(e, b);
+        fit_grid2(&step.prob, self.index, self.grid, h)
+    }
+
+    fn fill(&self, coef: &mut Grid2Fit, h: (f64, f64)) -> Result<Vec<bool>> {
+        fill_failed2(coef, self.grid, self.half).ok_or_else(|| {
+            Error::Usage(format!(
+                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular: bandwidths far from the index values' spread, too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (an index channel that copies a lag of the channel, a deterministic trend)",
+                h.0, h.1
+            ))
+        })
+    }
+
+    /// b minimises sum e_t^2 with e_t = w_t - sum b_m e_{t-m}, w_t = x_t - sum
+    /// f_m(U_t) x_{t-m} ([`ma_cls`] from the previous b); the residuals are then
+    /// recomputed ([`Smoother::residuals`]).
+    fn b_step(
+        &mut self,
+        coef: &Grid2Fit,
+        _h: (f64, f64),
+        (b, _): (&mut Vec<f64>, &mut Vec<f64>),
+        _e: &mut [f64],
+        _iteration: usize,
+    ) -> Option<f64> {
+        if self.q > 0 {
+            let pr = &self.prob0;
+            let mut w = vec![0.0; pr.x.len()];
+            residuals2(pr.x, pr.z, (pr.d, pr.d2), self.grid, coef, &[], &mut w);
+            *b = ma_cls(&w, pr.start, b);
+        }
+        None
+    }
+
+    fn residuals(&mut self, coef: &Grid2Fit, b: &[f64], e: &mut [f64]) -> f64 {
+        let pr = &self.prob0;
+        residuals2(pr.x, pr.z, (pr.d, pr.d2), self.grid, coef, b, e);
+        #[cfg(test)]
+        {
+            self.residual_passes += 1;
+            if NAN_RESIDUALS_AT.get() == Some(self.residual_passes) {
+                e[pr.start] = f64::NAN;
+            }
+        }
+        rss_of(e, pr.start)
+    }
+
+    /// A fit whose bandwidths GCV changed and that then ran to `--max-iter` without
+    /// settling again says so.
+    fn end_notes(&mut self, alt: &Alternation<Self>) -> Vec<String> {
+        if alt.ended != Ended::MaxIter || alt.chosen.len() < 2 {
+            return Vec::new();
+        }
+        let (visited, h) = (&alt.chosen, alt.h);
+        let swing = visited[..visited.len() - 1].contains(&h);
+        vec![format!(
+            "NOT converged: after {} bandwidth re-selection(s) the alternation did not settle again within --max-iter {} alternations; the model is at bandwidths {}, GCV's last choice{}",
+            visited.len() - 1,
+            alt.iterations,
+            Self::fmt_h(h),
+            if swing {
+                format!(
+                    "; GCV swung back and forth ({}): fix the pair with --bandwidth H1 --bandwidth2 H2, or raise --max-iter",
+                    visited
+                        .iter()
+                        .map(|v| Self::fmt_h(*v))
+                        .collect::<Vec<_>>()
+                        .join(" -> ")
+                )
+            } else {
+                String::new()
+            }
+        )]
+    }
+}
+
+/// GCV over the common scaled ladder, extended while the minimum sits at an end.
+fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, bool, Vec<String>) {
     let m = sm.prob.n_rows() as f64;
     let mut rows: Vec<Gcv2Row> = Vec::new();
     let mut fits: Vec<Grid2Fit> = Vec::new();
@@ -306,17 +455,15 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     // 1. start: linear ARMA(p,q)
     let arma = fit_arma(&x, p, q)
         .ok_or_else(|| Error::Usage("the linear ARMA start failed (singular design)".into()))?;
-    let mut b = arma.ma;
+    let b = arma.ma;
     let mut coef = Grid2Fit::new(gl, p, (f64::NAN, f64::NAN));
     for g in 0..gl {
         coef.status[g] = PointStatus::Ok;
         coef.f[g * p..(g + 1) * p].copy_from_slice(&arma.ar);
+        // constant f_m: slopes 0 (no local system), as the note of a returned start says
+        coef.slope1[g * p..(g + 1) * p].fill(0.0);
+        coef.slope2[g * p..(g + 1) * p].fill(0.0);
     }
-    let mut e = vec![0.0; n];
-    residuals2(&x, z, (d, d2), &grid, &coef, &b, &mut e);
-    let rss_of = |e: &[f64]| e[pp..].iter().map(|v| v * v).sum::<f64>();
-    let mut rss = rss_of(&e);
-
     // the index values do not change during the alternation: one tree
     let prob0 = Vc2Problem {
         x: &x,
@@ -329,8 +476,18 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
         start: pp,
     };
     let index = Index2::build(&prob0, half);
-    let mut h = params.bandwidth.unwrap_or((f64::NAN, f64::NAN));
-    let mut gcv_table = Vec::new();
+    let mut sm = Index2Smoother {
+        prob0,
+        grid: &grid,
+        index: &index,
+        half,
+        q,
+        #[cfg(test)]
+        residual_passes: 0,
+    };
+    let mut e = vec![0.0; n];
+    residuals2(&x, z, (d, d2), &grid, &coef, &b, &mut e);
+    let rss = rss_of(&e, pp);
     let mut notes = Vec::new();
     if params.bandwidth.is_none() {
         notes.extend(stretched_ladder_note(
@@ -346,146 +503,57 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
             prm.grid_quantiles,
         ));
     }
-    let mut ladder_extended = false;
-    let mut filled = vec![false; gl];
-    let (mut iterations, mut converged, mut reselections) = (0, false, 0);
-    // the bandwidth pairs the alternation has run at, in order (GCV's choices)
-    let mut visited: Vec<(f64, f64)> = Vec::new();
-    let mut stopped_at_reselection = false;
-    let mut need_gcv = params.bandwidth.is_none();
-    while iterations < prm.max_iter {
-        iterations += 1;
+    let start = Iterate {
+        index: 0,
+        rss,
+        coef,
+        b,
+        h: (f64::NAN, f64::NAN),
+        filled: vec![false; gl],
+    };
+    let ctl = Control {
+        p,
+        q,
+        max_iter: prm.max_iter,
+        tol: prm.tol,
+        bandwidth: params.bandwidth,
+    };
+    let alt = alternate(&mut sm, &ctl, start, e, notes)?;
+    let (coef, b, e, rss, h) = (alt.coef, alt.b, alt.e, alt.rss, alt.h);
+    let (filled, gcv_table, mut notes) = (alt.filled, alt.gcv_table, alt.notes);
+    let (ladder_extended, iterations, converged) =
+        (alt.ladder_extended, alt.iterations, alt.converged);
+    let m = (n - pp) as f64;
+    let sigma2 = rss / m;
+    // the returned model's trace, GCV (from its own RSS, as the 1-D fit's) and standard
+    // errors
+    let (trace, factors, status, cond) = if alt.returned_start {
+        // the linear model with constant f_m (as the 1-D fit's)
+        let factors = linear_se_factors(&x, p, pp).repeat(gl);
+        (p as f64, factors, coef.status.clone(), coef.cond.clone())
+    } else {
         let prob = Vc2Problem {
             e: &e,
             b: &b,
             ..prob0
         };
-        let sm = Smoother2 {
+        let step = Step2 {
             prob,
             grid: &grid,
             index: &index,
         };
-        let mut fit_h = if need_gcv {
-            need_gcv = false;
-            let (rows, f, best, ext, nt) = gcv_select2(&sm, half);
-            ladder_extended |= ext;
-            notes.extend(nt);
-            h = rows[best].bandwidth;
-            gcv_table = rows;
-            f
-        } else {
-            sm.at(h).0
-        };
-        filled = fill_failed2(&mut fit_h, &grid, half).ok_or_else(|| {
-            Error::Usage(format!(
-                "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular: bandwidths far from the index values' spread, too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (an index channel that copies a lag of the channel, a deterministic trend)",
-                h.0, h.1
-            ))
-        })?;
-        coef = fit_h;
-        if q > 0 {
-            let mut w = vec![0.0; n];
-            residuals2(&x, z, (d, d2), &grid, &coef, &[], &mut w);
-            b = ma_cls(&w, pp, &b);
-        }
-        residuals2(&x, z, (d, d2), &grid, &coef, &b, &mut e);
-        let new_rss = rss_of(&e);
-        let change = (rss - new_rss).abs();
-        rss = new_rss;
-        if change <= prm.tol * rss.max(f64::MIN_POSITIVE) {
-            if params.bandwidth.is_none() && reselections < 2 {
-                let prob = Vc2Problem {
-                    e: &e,
-                    b: &b,
-                    ..prob0
-                };
-                let sm = Smoother2 {
-                    prob,
-                    grid: &grid,
-                    index: &index,
-                };
-                let (rows, _, best, ext, nt) = gcv_select2(&sm, half);
-                reselections += 1;
-                if rows[best].bandwidth != h && iterations == prm.max_iter {
-                    // no alternation left to fit at the new pair: the model stays at h
-                    // (its coefficients are the f-step's at h), not converged
-                    notes.push(format!(
-                        "alternation {iterations}: the RSS settled at bandwidths ({:.6e}, {:.6e}); GCV at those residuals chose ({:.6e}, {:.6e}), but --max-iter {} ends the alternation here: NOT converged, the model is at the bandwidths it settled at",
-                        h.0, h.1, rows[best].bandwidth.0, rows[best].bandwidth.1, prm.max_iter
-                    ));
-                    stopped_at_reselection = true;
-                    break;
-                }
-                if rows[best].bandwidth != h {
-                    // the alternation settled at h, but has not converged: it goes on
-                    // at the new pair, and may not settle again within --max-iter
-                    notes.push(format!(
-                        "alternation {iterations}: the RSS settled at bandwidths ({:.6e}, {:.6e}); GCV at those residuals chose ({:.6e}, {:.6e}), and the alternation went on at them",
-                        h.0, h.1, rows[best].bandwidth.0, rows[best].bandwidth.1
-                    ));
-                    if visited.is_empty() {
-                        visited.push(h);
-                    }
-                    visited.push(rows[best].bandwidth);
-                    ladder_extended |= ext;
-                    notes.extend(nt);
-                    h = rows[best].bandwidth;
-                    gcv_table = rows;
-                    continue;
-                }
-                gcv_table = rows;
-            } else if params.bandwidth.is_none() {
-                notes.push(reselection_limit_note(iterations, &visited, |h| {
-                    format!("({:.6e}, {:.6e})", h.0, h.1)
-                }));
-            }
-            converged = true;
-            break;
-        }
-    }
-    if !converged && !stopped_at_reselection && !visited.is_empty() {
-        let fmt = |h: (f64, f64)| format!("({:.6e}, {:.6e})", h.0, h.1);
-        let swing = visited[..visited.len() - 1].contains(&h);
-        notes.push(format!(
-            "NOT converged: after {} bandwidth re-selection(s) the alternation did not settle again within --max-iter {} alternations; the model is at bandwidths {}, GCV's last choice{}",
-            visited.len() - 1,
-            prm.max_iter,
-            fmt(h),
-            if swing {
-                format!(
-                    "; GCV swung back and forth ({}): fix the pair with --bandwidth H1 --bandwidth2 H2, or raise --max-iter",
-                    visited.iter().map(|v| fmt(*v)).collect::<Vec<_>>().join(" -> ")
-                )
-            } else {
-                String::new()
-            }
-        ));
-    }
-    let prob = Vc2Problem {
-        e: &e,
-        b: &b,
-        ..prob0
+        let (final_fit, rt) = step.at(h);
+        let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
+        let factors = se_factors2(&prob, &index, &grid, &final_fit);
+        (trace, factors, final_fit.status, final_fit.cond)
     };
-    let sm = Smoother2 {
-        prob,
-        grid: &grid,
-        index: &index,
-    };
-    let (final_fit, rt) = sm.at(h);
-    let m = (n - pp) as f64;
-    // the returned model's GCV, from its own RSS (as the 1-D fit's)
-    let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
     if trace.is_nan() {
         let at = format!("bandwidths ({:.6e}, {:.6e})", h.0, h.1);
-        notes.push(undefined_trace_note(&final_fit.status, &at));
+        notes.push(undefined_trace_note(&status, &at));
     }
     let gcv = (rss / m) / (1.0 - trace / m).powi(2);
-    let sigma2 = rss / m;
-    let se: Vec<f64> = se_factors2(&prob, &index, &grid, &final_fit)
-        .iter()
-        .map(|f| f * sigma2.sqrt())
-        .collect();
-    notes.extend(missing_se_note(&final_fit.status, &final_fit.cond, &se, p));
+    let se: Vec<f64> = factors.iter().map(|f| f * sigma2.sqrt()).collect();
+    notes.extend(missing_se_note(&status, &cond, &se, p));
     notes.extend(ma_edge_note(&b));
     let n_filled = filled.iter().filter(|f| **f).count();
     if n_filled > 0 {
