@@ -1,5 +1,6 @@
 //! Fitted models as tables (Parquet) and JSON: the coefficient functions, the
-//! parameters, the GCV table and the residuals, one row per channel and item.
+//! parameters, the GCV table and the residuals, one row per channel and item, for the
+//! lag index and (the `...2` tables) the 2-D index.
 //! Column names are the contract of `shared/design/contracts.md` section 4.
 
 use std::sync::Arc;
@@ -11,6 +12,7 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use serde_json::{Value, json};
 
+use super::multivariate::Fitted2;
 use crate::error::Result;
 use crate::model::{Farma, Report};
 use crate::output::{OutputSet, batch};
@@ -299,6 +301,133 @@ pub fn fit_json(name: &str, m: &Farma, r: Report, coef_path: &str) -> Value {
         v["n_new"] = u.w.len().into();
     }
     v
+}
+
+/// Coefficient functions on the 2-D grid: the columns of the 1-D coef.parquet plus
+/// `grid2` (the second index value) and `slope2` (df/du_2); `slope` is df/du_1.
+pub fn coef_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
+    let (mut ch, mut m_, mut g1, mut g2, mut fv) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut s1, mut s2, mut se, mut nsup, mut mass) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut cond, mut status, mut filled) = (vec![], vec![], vec![]);
+    for (name, m) in models {
+        let p = m.p;
+        for g in 0..m.grid.len() {
+            let (a, b) = m.grid.point(g);
+            for k in 0..p {
+                ch.push(name.clone());
+                m_.push(k as i64 + 1);
+                g1.push(a + m.mean);
+                g2.push(b);
+                fv.push(m.coef.f[g * p + k]);
+                s1.push(m.coef.slope1[g * p + k]);
+                s2.push(m.coef.slope2[g * p + k]);
+                se.push(m.se[g * p + k]);
+                nsup.push(m.coef.n_support[g]);
+                mass.push(m.coef.kernel_mass[g]);
+                cond.push(m.coef.cond[g]);
+                status.push(m.coef.status[g].as_str().to_string());
+                filled.push(m.filled[g]);
+            }
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("m", i(m_)),
+        ("grid", f(g1)),
+        ("grid2", f(g2)),
+        ("f", f(fv)),
+        ("slope", f(s1)),
+        ("slope2", f(s2)),
+        ("se", f(se)),
+        ("n_support", Arc::new(UInt64Array::from(nsup))),
+        ("kernel_mass", f(mass)),
+        ("cond", f(cond)),
+        ("status", s(status)),
+        ("filled", Arc::new(BooleanArray::from(filled))),
+    ])
+}
+
+/// One row per channel: the columns of the 1-D params.parquet (`bandwidth` is h_1)
+/// plus `bandwidth2`, `d2` and `index2` (the second index channel).
+pub fn params_table2(models: &[(String, &Fitted2)], index2: &str) -> Result<RecordBatch> {
+    let mut b = ListBuilder::new(Float64Builder::new());
+    for (_, m) in models {
+        b.values().append_slice(&m.b);
+        b.append(true);
+    }
+    let col = |g: &dyn Fn(&Fitted2) -> f64| f(models.iter().map(|(_, m)| g(m)).collect());
+    let coli = |g: &dyn Fn(&Fitted2) -> i64| i(models.iter().map(|(_, m)| g(m)).collect());
+    let k = models.len();
+    batch(vec![
+        (
+            "channel",
+            s(models.iter().map(|(n, _)| n.clone()).collect()),
+        ),
+        ("p", coli(&|m| m.p as i64)),
+        ("q", coli(&|m| m.q as i64)),
+        ("d", coli(&|m| m.d as i64)),
+        ("b", Arc::new(b.finish())),
+        ("mean", col(&|m| m.mean)),
+        ("sigma2", col(&|m| m.sigma2)),
+        ("bandwidth", col(&|m| m.bandwidth.0)),
+        ("rss", col(&|m| m.rss)),
+        ("trace", col(&|m| m.trace)),
+        ("gcv", col(&|m| m.gcv)),
+        ("iterations", coli(&|m| m.iterations as i64)),
+        (
+            "converged",
+            Arc::new(BooleanArray::from(
+                models.iter().map(|(_, m)| m.converged).collect::<Vec<_>>(),
+            )),
+        ),
+        (
+            "ladder_extended",
+            Arc::new(BooleanArray::from(
+                models
+                    .iter()
+                    .map(|(_, m)| m.ladder_extended)
+                    .collect::<Vec<_>>(),
+            )),
+        ),
+        ("init", s(vec!["arma".to_string(); k])),
+        ("method", s(vec!["direct".to_string(); k])),
+        ("n", coli(&|m| m.n as i64)),
+        ("n_rows", coli(&|m| m.n_rows as i64)),
+        ("bandwidth2", col(&|m| m.bandwidth.1)),
+        ("d2", coli(&|m| m.d2 as i64)),
+        ("index2", s(vec![index2.to_string(); k])),
+    ])
+}
+
+/// The GCV ladder: the 1-D columns (`bandwidth` is h_1) plus `bandwidth2`.
+pub fn gcv_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
+    let (mut ch, mut j, mut h1, mut h2, mut rss) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut tr, mut gcv, mut nf, mut chosen) = (vec![], vec![], vec![], vec![]);
+    for (name, m) in models {
+        for r in &m.gcv_table {
+            ch.push(name.clone());
+            // the rung, as the notes name it (h_j = 1.1^-j (range_1/2, range_2/2))
+            j.push(r.j as i64);
+            h1.push(r.bandwidth.0);
+            h2.push(r.bandwidth.1);
+            rss.push(r.rss);
+            tr.push(r.trace);
+            gcv.push(r.gcv);
+            nf.push(r.n_failed as i64);
+            chosen.push(r.bandwidth == m.bandwidth);
+        }
+    }
+    batch(vec![
+        ("channel", s(ch)),
+        ("j", i(j)),
+        ("bandwidth", f(h1)),
+        ("bandwidth2", f(h2)),
+        ("rss", f(rss)),
+        ("trace", f(tr)),
+        ("gcv", f(gcv)),
+        ("n_failed", i(nf)),
+        ("chosen", Arc::new(BooleanArray::from(chosen))),
+    ])
 }
 
 #[cfg(test)]

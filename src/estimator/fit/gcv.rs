@@ -2,7 +2,7 @@
 //! minimum sits at an end.
 
 use super::params::FitPath;
-use super::smoother::{Smoother, StepCache};
+use super::smoother::{LagStep, StepCache};
 use crate::estimator::moments::Families;
 use crate::estimator::moments::IntervalIndex;
 use crate::estimator::moments::LocalSystems;
@@ -67,7 +67,7 @@ impl LadderCache {
     }
 }
 
-impl<'a> Smoother<'a> {
+impl<'a> LagStep<'a> {
     /// Fits (and RSS, trace) on the fast path for rungs `js`, through `cache`: a kept
     /// table covering them is brought up to date (`fresh`: it already is) with the
     /// y families only; otherwise one is built for the rungs plus [`ladder_ahead`].
@@ -180,7 +180,7 @@ impl<'a> Smoother<'a> {
 /// GCV over the ladder, extended at either end while the minimum sits there.
 /// Returns (table sorted by decreasing h, index of the minimum, extended?, notes).
 pub(super) fn gcv_select(
-    sm: &Smoother,
+    sm: &LagStep,
     range: f64,
     cache: &mut StepCache,
 ) -> (Vec<GcvRow>, Vec<GridFit>, usize, bool, Vec<String>) {

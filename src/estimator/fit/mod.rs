@@ -45,15 +45,32 @@
 //! that iterate cannot change what is returned unless the RSS comes back below it, hence the
 //! [`PATIENCE`] rule (`converged` is true when either rule stopped the alternation,
 //! false when `max_iter` did).
+//!
+//! The alternation is one loop, `alternate`, generic over the f-step's smoother (the
+//! trait `Smoother`): the lag index's (`smoother::LagSmoother`, fast and direct paths)
+//! and the 2-D index's (`smoother2::Index2Smoother`). The smoother brings what depends on the index:
+//! its local fits, GCV over its ladder, the fill of grid points without a fit, the
+//! b-step and the residual recursion; the loop holds what does not: the order of the
+//! steps, the rules that stop it, the bandwidth re-selections, the iterate of least
+//! RSS and the notes on them. A trait, not an enum: the two indexes differ in their
+//! types (a bandwidth is h or (h_1, h_2); the local fits and a GCV row differ), which
+//! an enum would have to unify at every use, and each keeps caches of its own; a third
+//! index is a third implementation, with no match to extend.
+//!
+//! This file is over 600 lines because it also holds [`fit`], the lag index's entry
+//! (data checks, grid, linear start, the loop, then the returned model's trace and
+//! standard errors).
 
 mod bstep;
 mod gcv;
 mod grid;
+pub(crate) mod grid2;
 mod notes;
 mod params;
 mod passes;
 
 mod smoother;
+pub(crate) mod smoother2;
 mod start;
 #[cfg(test)]
 mod tests;
@@ -61,14 +78,9 @@ mod tests;
 use crate::error::Error;
 use crate::error::Result;
 use crate::estimator::arma::fit_arma;
-use crate::estimator::arma::lagged_normal;
-use crate::estimator::arma::ma_invertible;
 use crate::estimator::buffers;
 use crate::estimator::direct;
-use crate::estimator::linalg::normal_equations;
-use crate::estimator::linalg::spd_solve_inverse;
 use crate::estimator::moments::Families;
-use crate::estimator::moments::IntervalLookup;
 use crate::estimator::moments::MomentTable;
 use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
@@ -76,8 +88,6 @@ use crate::estimator::problem::PointStatus;
 pub use crate::model::report::{AlternationTiming, FitReport, FitTimings, GcvRow};
 use crate::model::{Coef, Farma, Order};
 pub use bstep::{SMALL_STEP, ma_cls, ma_step};
-use bstep::{gn_b_step, ma_step_from};
-use gcv::gcv_select;
 use grid::quantiles;
 pub use notes::{
     MA_EDGE, STRETCH_RATIO, ma_edge_note, missing_se_note, reselection_limit_note,
@@ -87,12 +97,12 @@ pub use params::{
     DIRECT_MAGNITUDE_LIMITS, FarmaParams, FitPath, Init, MAGNITUDE_LIMITS, MAX_GRID, ValidParams,
     check_magnitude,
 };
+use passes::rss_from;
 pub use passes::{FILTER_CHUNK, FILTER_LEAD, residuals, residuals_indexed};
-use passes::{SpanFill, eval_with, rss_from, w_indexed_filler};
 pub use smoother::fill_failed;
-use smoother::{Smoother, StepCache, residuals_at};
+use smoother::{LagSmoother, LagStep};
 pub use start::{REFINE_RATIO, START_ENOUGH, START_MAX, arma_cls, arma_cls_within, linear_start};
-use start::{arma_residuals_rss, linear_start_into};
+use start::{arma_residuals_rss, linear_se_factors, linear_start_into};
 use std::time::Instant;
 
 /// Whether the last iterate's RSS `rss` ends above the least one, `best_rss`, by more
@@ -104,21 +114,354 @@ fn went_back(rss: f64, best_rss: f64, tol: f64) -> bool {
 }
 
 /// One iterate of the alternation, kept while it has the least global RSS.
-struct Iterate {
+pub(super) struct Iterate<C, H> {
     /// Its index in `rss_history` (0: the linear start).
-    index: usize,
-    rss: f64,
-    coef: GridFit,
-    b: Vec<f64>,
+    pub(super) index: usize,
+    pub(super) rss: f64,
+    pub(super) coef: C,
+    pub(super) b: Vec<f64>,
     /// Its bandwidth (NaN for the start).
-    h: f64,
-    filled: Vec<bool>,
+    pub(super) h: H,
+    pub(super) filled: Vec<bool>,
 }
 
 /// Alternations without a new least RSS after which the alternation stops when its
 /// last RSS is above that least one by more than `tol` (it is past its minimum; the
 /// iterate of least RSS is returned).
 pub const PATIENCE: usize = 2;
+
+/// How the alternation's notes name a smoother's bandwidth.
+pub(super) struct BandwidthWords {
+    /// "bandwidth" or "bandwidths".
+    pub(super) noun: &'static str,
+    /// "it" or "them".
+    pub(super) pronoun: &'static str,
+    /// "is" or "are".
+    pub(super) verb: &'static str,
+    /// The options that fix it.
+    pub(super) fixed_by: &'static str,
+}
+
+/// GCV's choice over a smoother's ladder.
+pub(super) struct Selection<S: Smoother + ?Sized> {
+    /// The ladder's table.
+    pub(super) rows: Vec<S::Row>,
+    /// The local fits at the chosen bandwidth.
+    pub(super) fit: S::Coef,
+    pub(super) h: S::H,
+    /// Whether the ladder was extended.
+    pub(super) extended: bool,
+    pub(super) notes: Vec<String>,
+}
+
+/// The f-step's smoother of one index, with the b-step and the residual recursion
+/// that go with its local fits (module doc).
+pub(super) trait Smoother {
+    /// A bandwidth: h on the lag index, (h_1, h_2) on the 2-D one.
+    type H: Copy + PartialEq;
+    /// The local fits at the grid points.
+    type Coef: Clone;
+    /// A row of the GCV table.
+    type Row;
+    const WORDS: BandwidthWords;
+    /// Whether the model keeps the GCV table of a re-check that `--max-iter` leaves no
+    /// alternation to act on (else the table of the bandwidth it settled at).
+    const RECHECK_TABLE_AT_MAX_ITER: bool;
+    /// A bandwidth as the notes print it.
+    fn fmt_h(h: Self::H) -> String;
+    /// GCV over the ladder at residuals `e`, the response's MA coefficients `b`.
+    fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self>;
+    /// GCV chose `h` (first choice or a re-selection that changed it).
+    fn chose(&mut self, _h: Self::H) {}
+    /// Local fits at bandwidth `h` at residuals `e` and MA coefficients `b`.
+    fn fit_at(&mut self, e: &[f64], b: &[f64], h: Self::H) -> Self::Coef;
+    /// Fills the grid points without a local fit, returning which; an error when no
+    /// point has one.
+    fn fill(&self, coef: &mut Self::Coef, h: Self::H) -> Result<Vec<bool>>;
+    /// The b-step with f = `coef` fixed, from the residuals `e` of the last iterate and
+    /// the response's `b_resp`: sets the iterate's `b` and the next response's
+    /// `b_resp`. Some(RSS) when it also left the iterate's residuals in `e`; None when
+    /// they are still to be computed ([`Smoother::residuals`], with `b_resp` = `b`).
+    fn b_step(
+        &mut self,
+        coef: &Self::Coef,
+        h: Self::H,
+        b: (&mut Vec<f64>, &mut Vec<f64>),
+        e: &mut [f64],
+        iteration: usize,
+    ) -> Option<f64>;
+    /// The residuals of (`coef`, `b`) into `e` (zeros before the first sample), and
+    /// their RSS.
+    fn residuals(&mut self, coef: &Self::Coef, b: &[f64], e: &mut [f64]) -> f64;
+    /// Notes of its own when the loop has ended, before the iterate of least RSS is
+    /// taken back.
+    fn end_notes(&mut self, _alt: &Alternation<Self>) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// What ended the alternation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Ended {
+    /// The RSS settled (either rule of the module doc): converged.
+    Settled,
+    /// `max_iter` alternations without settling.
+    MaxIter,
+    /// The RSS settled in the last alternation `max_iter` allows and GCV chose another
+    /// bandwidth there.
+    MaxIterAtReselection,
+    /// The residuals were not finite.
+    NotFinite,
+}
+
+/// The order and the rules of an alternation.
+pub(super) struct Control<H> {
+    pub(super) p: usize,
+    pub(super) q: usize,
+    pub(super) max_iter: usize,
+    pub(super) tol: f64,
+    /// A fixed bandwidth instead of GCV.
+    pub(super) bandwidth: Option<H>,
+}
+
+/// The alternation's result: the returned iterate and the alternation's record.
+pub(super) struct Alternation<S: Smoother + ?Sized> {
+    pub(super) coef: S::Coef,
+    pub(super) b: Vec<f64>,
+    /// Residuals e_t for every t, of (`coef`, `b`).
+    pub(super) e: Vec<f64>,
+    pub(super) rss: f64,
+    pub(super) h: S::H,
+    pub(super) filled: Vec<bool>,
+    /// RSS after the start and after each alternation.
+    pub(super) rss_history: Vec<f64>,
+    pub(super) gcv_table: Vec<S::Row>,
+    pub(super) ladder_extended: bool,
+    pub(super) notes: Vec<String>,
+    pub(super) iterations: usize,
+    pub(super) converged: bool,
+    pub(super) ended: Ended,
+    /// The bandwidths GCV chose, in order (the first selection, then each re-selection
+    /// that changed it).
+    pub(super) chosen: Vec<S::H>,
+    /// Whether the returned iterate is the linear start.
+    pub(super) returned_start: bool,
+    pub(super) timings: Vec<AlternationTiming>,
+}
+
+/// The alternation (module doc, steps 2 to 4) from `start` (iterate 0, with its
+/// residuals `e`), with smoother `sm`; `notes` are the fit's notes so far.
+pub(super) fn alternate<S: Smoother>(
+    sm: &mut S,
+    ctl: &Control<S::H>,
+    start: Iterate<S::Coef, S::H>,
+    mut e: Vec<f64>,
+    mut notes: Vec<String>,
+) -> Result<Alternation<S>> {
+    let mut clock = Instant::now();
+    // seconds since the last lap
+    let mut lap = move || {
+        let s = clock.elapsed().as_secs_f64();
+        clock = Instant::now();
+        s
+    };
+    let (mut coef, mut b, mut rss) = (start.coef.clone(), start.b.clone(), start.rss);
+    let mut filled = start.filled.clone();
+    let mut h = ctl.bandwidth.unwrap_or(start.h);
+    // The best iterate by global RSS, the linear start being iterate 0 (see the end).
+    let mut best = start;
+    let mut rss_history = vec![rss];
+    let mut timings = Vec::new();
+    let mut gcv_table = Vec::new();
+    let mut ladder_extended = false;
+    let mut iterations = 0;
+    let mut ended = Ended::MaxIter;
+    let mut reselections = 0;
+    let mut chosen: Vec<S::H> = Vec::new();
+    // rss_history index of the last bandwidth re-selection
+    let mut reselected_at = 0;
+    let mut need_gcv = ctl.bandwidth.is_none();
+    // the b of the response y_t = x_t - sum b_m e_{t-m} of the next f-step: the
+    // iterate's own b, or the Gauss-Newton step from it (see the b-step)
+    let mut b_resp = b.clone();
+    let words = S::WORDS;
+    while iterations < ctl.max_iter {
+        iterations += 1;
+        let mut at = AlternationTiming::default();
+        lap();
+        // 2. f-step
+        let mut fit_h = if need_gcv {
+            need_gcv = false;
+            let s = sm.select(&e, &b_resp);
+            sm.chose(s.h);
+            at.gcv_s = lap();
+            ladder_extended |= s.extended;
+            notes.extend(s.notes);
+            h = s.h;
+            chosen.push(h);
+            gcv_table = s.rows;
+            s.fit
+        } else {
+            sm.fit_at(&e, &b_resp, h)
+        };
+        filled = sm.fill(&mut fit_h, h)?;
+        coef = fit_h;
+        at.f_step_s = lap();
+        // 3. b-step; 4. residuals
+        let stepped = sm.b_step(&coef, h, (&mut b, &mut b_resp), &mut e, iterations);
+        at.b_step_s = lap();
+        let new_rss = match stepped {
+            Some(rss) => rss,
+            None => {
+                b_resp = b.clone();
+                sm.residuals(&coef, &b, &mut e)
+            }
+        };
+        at.residuals_s = lap();
+        if !new_rss.is_finite() {
+            // residuals that overflow (local fits far off the data's scale at a small
+            // bandwidth): no later step can start from them; the iterate of least RSS
+            // is returned below (`went_back`), not converged
+            notes.push(format!(
+                "alternation {iterations}: the residuals are not finite (RSS {new_rss}): the alternation stops"
+            ));
+            rss = new_rss;
+            rss_history.push(rss);
+            timings.push(at);
+            ended = Ended::NotFinite;
+            break;
+        }
+        let change = (rss - new_rss).abs();
+        rss = new_rss;
+        rss_history.push(rss);
+        if rss < best.rss {
+            best = Iterate {
+                index: rss_history.len() - 1,
+                rss,
+                coef: coef.clone(),
+                b: b.clone(),
+                h,
+                filled: filled.clone(),
+            };
+        }
+        // settled: the RSS changed by less than tol, or the least RSS so far was not
+        // beaten for PATIENCE alternations while the last is above it by more than tol
+        // (the iterate of least RSS is then returned, see below)
+        // (counted from the last bandwidth re-selection, if later: a new h gets its own
+        // PATIENCE alternations)
+        let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
+        let settled = change <= ctl.tol * rss.max(f64::MIN_POSITIVE)
+            || (since_best >= PATIENCE && rss - best.rss > ctl.tol * rss);
+        if settled {
+            if ctl.bandwidth.is_none() && reselections < 2 {
+                // re-check the bandwidth at the converged residuals
+                let s = sm.select(&e, &b_resp);
+                at.gcv_s += lap();
+                timings.push(at.clone());
+                reselections += 1;
+                let (noun, now, new) = (words.noun, S::fmt_h(h), S::fmt_h(s.h));
+                if s.h != h && iterations == ctl.max_iter {
+                    // no alternation left to fit at the new bandwidth: the model stays
+                    // at h (its coefficients are the f-step's at h), not converged
+                    let table = if S::RECHECK_TABLE_AT_MAX_ITER {
+                        gcv_table = s.rows;
+                        " (the GCV table is the re-check's)"
+                    } else {
+                        ""
+                    };
+                    notes.push(format!(
+                        "alternation {iterations}: the RSS settled at {noun} {now}; GCV at those residuals chose {new}, but --max-iter {} ends the alternation here: NOT converged, the model is at the {noun} it settled at{table}",
+                        ctl.max_iter
+                    ));
+                    ended = Ended::MaxIterAtReselection;
+                    break;
+                }
+                if s.h != h {
+                    notes.push(format!(
+                        "alternation {iterations}: the RSS settled at {noun} {now}; GCV at those residuals chose {new}, and the alternation went on at {}",
+                        words.pronoun
+                    ));
+                    ladder_extended |= s.extended;
+                    notes.extend(s.notes);
+                    h = s.h;
+                    chosen.push(h);
+                    sm.chose(h);
+                    gcv_table = s.rows;
+                    reselected_at = rss_history.len() - 1;
+                    continue;
+                }
+                gcv_table = s.rows;
+            } else {
+                if ctl.bandwidth.is_none() {
+                    notes.push(reselection_limit_note(iterations, &chosen, S::fmt_h));
+                }
+                timings.push(at.clone());
+            }
+            ended = Ended::Settled;
+            break;
+        }
+        timings.push(at);
+    }
+    let mut alt = Alternation {
+        coef,
+        b,
+        e,
+        rss,
+        h,
+        filled,
+        rss_history,
+        gcv_table,
+        ladder_extended,
+        notes,
+        iterations,
+        converged: ended == Ended::Settled,
+        ended,
+        chosen,
+        returned_start: false,
+        timings,
+    };
+    let end = sm.end_notes(&alt);
+    alt.notes.extend(end);
+    // The alternation is not a descent method (module doc): the f-step minimises local
+    // weighted sums of squares with the residuals held fixed, not the global RSS, so it
+    // can end above an earlier iterate, even above the linear start it nests (on the
+    // quantised ADIS16405 gyros with q = 2, see tests/suite/estimator_recovery.rs). The
+    // iterate of least global RSS is returned when the last one is above it by more
+    // than the convergence tolerance. The linear start (constant f_m = a_m) is the
+    // linear model: trace p, its GCV, and the least-squares standard errors of a_m
+    // (the bandwidth field keeps the one GCV last chose, unused by that model).
+    if went_back(alt.rss, best.rss, ctl.tol) {
+        let (p, q, rss) = (ctl.p, ctl.q, alt.rss);
+        alt.notes.push(if best.index == 0 {
+            format!(
+                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m, slope 0, no local systems: n_support and kernel_mass 0, cond NaN; trace p = {p}, the linear model's; h = {} {} the {} {})",
+                best.rss,
+                S::fmt_h(alt.h),
+                words.verb,
+                words.noun,
+                if ctl.bandwidth.is_some() {
+                    format!("fixed by {}", words.fixed_by)
+                } else {
+                    "GCV last chose".to_string()
+                }
+            )
+        } else {
+            format!(
+                "the alternation ended above its iterate {} (RSS {rss:.7e} > {:.7e}): that iterate is returned",
+                best.index, best.rss
+            )
+        });
+        alt.returned_start = best.index == 0;
+        alt.coef = best.coef;
+        alt.b = best.b;
+        alt.filled = best.filled;
+        if best.index > 0 {
+            alt.h = best.h;
+        }
+        alt.rss = sm.residuals(&alt.coef, &alt.b, &mut alt.e);
+    }
+    Ok(alt)
+}
 
 /// Fits a FARMA model to `series`.
 pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
@@ -197,7 +540,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     // the residuals at the start: written by the linear start's last pass over every
     // sample when it evaluated the returned (a, b), else by arma_residuals_rss
     let mut e_start = vec![0.0; if prm.init == Init::Arma { n } else { 0 }];
-    let (a0, mut b, start_holds) = match prm.init {
+    let (a0, b, start_holds) = match prm.init {
         Init::Arma => match linear_start_into(&x, p, q, pp, Some(&mut e_start)) {
             Some(abh) => abh,
             None => {
@@ -222,28 +565,22 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     // constant f_m = a_m: the linear ARMA's recursion, the same operations as
     // `residuals` with every grid value a_m (interpolating between equal values
     // gives a_m itself), without finding cells
-    let (mut e, mut rss) = if start_holds {
+    let (e, rss) = if start_holds {
         let rss = rss_from(&e_start, pp);
         (e_start, rss)
     } else {
         drop(e_start);
         arma_residuals_rss(&x, &a0, &b, pp)
     };
-    let mut rss_history = vec![rss];
     timings.start_s = lap();
-    // The best iterate by global RSS, the linear start being iterate 0 (see the end).
-    let mut best = Iterate {
+    let start = Iterate {
         index: 0,
         rss,
-        coef: coef.clone(),
-        b: b.clone(),
+        coef,
+        b,
         h: f64::NAN,
         filled: vec![false; g],
     };
-
-    let mut h = prm.bandwidth.unwrap_or(f64::NAN);
-    let mut gcv_table = Vec::new();
-    let mut ladder_extended = false;
     let mut notes = Vec::new();
     if prm.bandwidth.is_none() {
         notes.extend(stretched_ladder_note(
@@ -253,289 +590,41 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
             prm.grid_quantiles,
         ));
     }
-    let mut filled = vec![false; g];
-    let mut iterations = 0;
-    let mut converged = false;
-    let mut reselections = 0;
-    // the bandwidths GCV chose, in order (the first selection, then each re-selection)
-    let mut chosen: Vec<f64> = Vec::new();
-    // rss_history index of the last bandwidth re-selection
-    let mut reselected_at = 0;
-    let mut need_gcv = prm.bandwidth.is_none();
-    // the b of the response y_t = x_t - sum b_m e_{t-m} of the next f-step: the
-    // iterate's own b, or the Gauss-Newton step from it (see the b-step)
-    let mut b_resp = b.clone();
-    // left-hand sides of the local systems and each row's interval at the current h
-    let mut cache = StepCache::default();
-    // `Init::Literal`: (first alternation, its least-squares b, alternations) where the
-    // least-squares b was not invertible and the previous b was kept
-    let mut not_invertible_kept: Option<(usize, Vec<f64>, usize)> = None;
-    while iterations < prm.max_iter {
-        iterations += 1;
-        let mut at = AlternationTiming::default();
-        lap();
-        // 2. f-step
-        let sm = Smoother::new(&x, &e, &b_resp, (p, d), &grid, prm.path, (xmin, xmax));
-        let mut fit_h = if need_gcv {
-            need_gcv = false;
-            let (rows, mut fits, best, ext, nt) = gcv_select(&sm, range, &mut cache);
-            // the next f-steps' left-hand sides, from the ladder's table (they depend
-            // on X and U only)
-            if let Some(lad) = &cache.ladder {
-                cache.systems = Some(lad.systems_at(&grid, rows[best].bandwidth));
-            }
-            at.gcv_s = lap();
-            ladder_extended |= ext;
-            notes.extend(nt);
-            h = rows[best].bandwidth;
-            chosen.push(h);
-            gcv_table = rows;
-            fits.swap_remove(best)
-        } else {
-            sm.fit_at(h, &mut cache)
-        };
-        filled = fill_failed(&mut fit_h, &grid).ok_or_else(|| {
-            let fixed = match prm.bandwidth {
-                Some(_) => format!(
-                    "a --bandwidth far from the index values' spread (they span {range:.6e}; the grid {:.6e}), ",
-                    grid[g - 1] - grid[0]
-                ),
-                None => String::new(),
-            };
-            Error::Usage(format!(
-                "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular: {fixed}too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (a deterministic trend or sinusoid)"
-            ))
-        })?;
-        coef = fit_h;
-        at.f_step_s = lap();
-        // 3. b-step; 4. residuals. For Gauss-Newton the residual buffer first takes
-        // w_t = x_t - sum f_m(U_t) x_{t-m} (the old residuals are no longer needed),
-        // b is fitted to it by streaming passes, and the MA filter then turns w into
-        // the new residuals in place: one N-long vector in all.
-        let new_rss;
-        if q > 0 && prm.init == Init::Arma {
-            let index = cache.index_for(&sm.prob, &grid, h);
-            let w_into = |buf: &mut [f64]| residuals_at(&x, d, &grid, (&coef, &[]), buf, index);
-            // one pass: w, the residuals at b_resp and the Gauss-Newton sums there,
-            // chunk by chunk; with a small step the iterate is (f, b_resp), its
-            // residuals in hand, and the step goes into the next f-step's response
-            // (q > 2: no one-pass step; w written in place for ma_step)
-            let filler = index
-                .filter(|_| q <= 2)
-                .and_then(|ix| w_indexed_filler(&x, d, &grid, &coef, ix));
-            let fill = filler.as_ref().map(|f| f as &SpanFill<'_>);
-            if fill.is_none() {
-                w_into(&mut e);
-            }
-            // (the iterate's b, the next response's b, the iterate's RSS)
-            let (b_iter, b_next, rss_iter) = match gn_b_step(&mut e, pp, &b_resp, fill, w_into) {
-                // the iterate is (f, b_resp), its residuals in `e`; the step goes
-                // into the next f-step's response
-                Some((rss_b, b_next, decrease))
-                    if decrease <= SMALL_STEP * rss_b && ma_invertible(&b_next) =>
-                {
-                    (b_resp.clone(), b_next, rss_b)
-                }
-                // a larger step, checked: w again, the filter at the stepped b (the
-                // Gauss-Newton step is the one-pass step's, not summed again)
-                Some((rss_b, b_next, _)) => {
-                    w_into(&mut e);
-                    let (b_new, rss_new) =
-                        ma_step_from(&mut e, pp, &b_resp, (rss_b, b_next), w_into);
-                    (b_new.clone(), b_new, rss_new)
-                }
-                // q > 2: ma_step's own passes on w
-                None => {
-                    let (b_new, rss_new) = ma_step(&mut e, pp, &b_resp, w_into);
-                    (b_new.clone(), b_new, rss_new)
-                }
-            };
-            b = b_iter;
-            b_resp = b_next;
-            new_rss = rss_iter;
-            at.b_step_s = lap();
-        } else {
-            if q > 0 {
-                // the paper's step: least squares of w_t on the previous residuals
-                let lookup = IntervalLookup::new(&grid);
-                let mut f = vec![0.0; p];
-                let mut ata = vec![0.0; q * q];
-                let mut aty = vec![0.0; q];
-                for t in pp..n {
-                    eval_with(&coef, &grid, &lookup, x[t - d], &mut f);
-                    let mut w = x[t];
-                    for m in 0..p {
-                        w -= f[m] * x[t - m - 1];
-                    }
-                    for i in 0..q {
-                        for j in 0..q {
-                            ata[i * q + j] += e[t - i - 1] * e[t - j - 1];
-                        }
-                        aty[i] += e[t - i - 1] * w;
-                    }
-                }
-                // a b that is not invertible makes the residual recursion grow
-                // without bound: the previous b is kept (as the Gauss-Newton step's
-                // check does for `Init::Arma`)
-                match normal_equations(&ata, &aty, q) {
-                    Some(b_ls) if ma_invertible(&b_ls) => b = b_ls,
-                    Some(b_ls) => {
-                        let kept = not_invertible_kept.get_or_insert((iterations, b_ls, 0));
-                        kept.2 += 1;
-                    }
-                    None => {}
-                }
-            }
-            at.b_step_s = lap();
-            residuals_at(&x, d, &grid, (&coef, &b), &mut e, cache.any_index());
-            new_rss = rss_from(&e, pp);
-            b_resp = b.clone();
-        }
-        at.residuals_s = lap();
-        if !new_rss.is_finite() {
-            // residuals that overflow (local fits far off the data's scale at a small
-            // bandwidth): no later step can start from them; the iterate of least RSS
-            // is returned below (`went_back`), not converged
-            notes.push(format!(
-                "alternation {iterations}: the residuals are not finite (RSS {new_rss}): the alternation stops"
-            ));
-            rss = new_rss;
-            rss_history.push(rss);
-            timings.alternations.push(at);
-            break;
-        }
-        let change = (rss - new_rss).abs();
-        rss = new_rss;
-        rss_history.push(rss);
-        if rss < best.rss {
-            best = Iterate {
-                index: rss_history.len() - 1,
-                rss,
-                coef: coef.clone(),
-                b: b.clone(),
-                h,
-                filled: filled.clone(),
-            };
-        }
-        // settled: the RSS changed by less than tol, or the least RSS so far was not
-        // beaten for PATIENCE alternations while the last is above it by more than tol
-        // (the iterate of least RSS is then returned, see below)
-        // (counted from the last bandwidth re-selection, if later: a new h gets its own
-        // PATIENCE alternations)
-        let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
-        let settled = change <= prm.tol * rss.max(f64::MIN_POSITIVE)
-            || (since_best >= PATIENCE && rss - best.rss > prm.tol * rss);
-        if settled {
-            if prm.bandwidth.is_none() && reselections < 2 {
-                // re-check the bandwidth at the converged residuals
-                let sm = Smoother::new(&x, &e, &b_resp, (p, d), &grid, prm.path, (xmin, xmax));
-                let (rows, _, best, ext, nt) = gcv_select(&sm, range, &mut cache);
-                at.gcv_s += lap();
-                timings.alternations.push(at.clone());
-                reselections += 1;
-                if rows[best].bandwidth != h && iterations == prm.max_iter {
-                    // no alternation left to fit at the new bandwidth: the model stays
-                    // at h (its coefficients are the f-step's at h), not converged
-                    notes.push(format!(
-                        "alternation {iterations}: the RSS settled at bandwidth {h:.6e}; GCV at those residuals chose {:.6e}, but --max-iter {} ends the alternation here: NOT converged, the model is at the bandwidth it settled at (the GCV table is the re-check's)",
-                        rows[best].bandwidth, prm.max_iter
-                    ));
-                    gcv_table = rows;
-                    break;
-                }
-                if rows[best].bandwidth != h {
-                    notes.push(format!(
-                        "alternation {iterations}: the RSS settled at bandwidth {h:.6e}; GCV at those residuals chose {:.6e}, and the alternation went on at it",
-                        rows[best].bandwidth
-                    ));
-                    ladder_extended |= ext;
-                    notes.extend(nt);
-                    h = rows[best].bandwidth;
-                    chosen.push(h);
-                    if let Some(lad) = &cache.ladder {
-                        cache.systems = Some(lad.systems_at(&grid, h));
-                    }
-                    gcv_table = rows;
-                    reselected_at = rss_history.len() - 1;
-                    continue;
-                }
-                gcv_table = rows;
-            } else {
-                if prm.bandwidth.is_none() {
-                    notes.push(reselection_limit_note(iterations, &chosen, |h| {
-                        format!("{h:.6e}")
-                    }));
-                }
-                timings.alternations.push(at.clone());
-            }
-            converged = true;
-            break;
-        }
-        timings.alternations.push(at);
-    }
-    // The alternation is not a descent method (module doc): the f-step minimises local
-    // weighted sums of squares with the residuals held fixed, not the global RSS, so it
-    // can end above an earlier iterate, even above the linear start it nests (on the
-    // quantised ADIS16405 gyros with q = 2, see tests/suite/estimator_recovery.rs). The
-    // iterate of least global RSS is returned when the last one is above it by more
-    // than the convergence tolerance. The linear start (constant f_m = a_m) is the
-    // linear model: trace p, its GCV, and the least-squares standard errors of a_m
-    // (the bandwidth field keeps the one GCV last chose, unused by that model).
-    if let Some((first, b_ls, times)) = not_invertible_kept {
-        notes.push(format!(
-            "the least-squares b was not invertible in {times} alternation(s) (first in alternation {first}: {b_ls:?}); the previous b was kept each time"
-        ));
-    }
-    let went_back = went_back(rss, best.rss, prm.tol);
-    let returned_start = went_back && best.index == 0;
-    if went_back {
-        notes.push(if best.index == 0 {
-            format!(
-                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m, slope 0, no local systems: n_support and kernel_mass 0, cond NaN; trace p = {p}, the linear model's; h = {h:.6e} is the bandwidth {})",
-                best.rss,
-                if prm.bandwidth.is_some() {
-                    "fixed by --bandwidth"
-                } else {
-                    "GCV last chose"
-                }
-            )
-        } else {
-            format!(
-                "the alternation ended above its iterate {} (RSS {rss:.7e} > {:.7e}): that iterate is returned",
-                best.index, best.rss
-            )
-        });
-        coef = best.coef;
-        b = best.b;
-        filled = best.filled;
-        if best.index > 0 {
-            h = best.h;
-        }
-        residuals_at(&x, d, &grid, (&coef, &b), &mut e, cache.any_index());
-        rss = rss_from(&e, pp);
-    }
+    let mut sm = LagSmoother::new(
+        &x,
+        &grid,
+        (p, q, d),
+        prm.path,
+        prm.init,
+        (xmin, xmax),
+        prm.bandwidth.is_some(),
+    );
+    let ctl = Control {
+        p,
+        q,
+        max_iter: prm.max_iter,
+        tol: prm.tol,
+        bandwidth: prm.bandwidth,
+    };
+    let alt = alternate(&mut sm, &ctl, start, e, notes)?;
+    timings.alternations = alt.timings;
+    let (coef, b, e, rss, h) = (alt.coef, alt.b, alt.e, alt.rss, alt.h);
+    let (filled, rss_history, gcv_table) = (alt.filled, alt.rss_history, alt.gcv_table);
+    let (ladder_extended, mut notes, iterations) = (alt.ladder_extended, alt.notes, alt.iterations);
+    let (converged, returned_start) = (alt.converged, alt.returned_start);
+    let mut cache = sm.cache;
     lap();
     // trace, GCV and standard errors at the final bandwidth: the trace and the
     // standard errors depend on X and U only (not on the residuals), and the GCV is
     // the returned model's, from its own RSS
-    let sm = Smoother::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+    let sm = LagStep::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
     let m = (n - pp) as f64;
     let sigma2 = rss / (n - pp) as f64;
     let (trace, factors) = match prm.path {
-        _ if returned_start => {
-            // the linear model with constant f_m: trace p (the least-squares hat
-            // matrix on X_1..X_p), and Var(a) = sigma^2 (X'X)^-1 with the MA part
-            // sum b_m e_{t-m} taken as a known offset, the same at every grid point
-            let lags: Vec<(usize, usize)> = (1..=p).map(|m| (0, m)).collect();
-            let (xtx, _) = lagged_normal(&x, &[&x], &lags, pp..n);
-            let rhs = vec![0.0; p];
-            let diag: Vec<f64> = match spd_solve_inverse(&xtx, &rhs, p) {
-                Some((_, inv, _)) => (0..p).map(|i| inv[i * p + i].sqrt()).collect(),
-                None => vec![f64::NAN; p],
-            };
-            (Some(p as f64), diag.repeat(g))
-        }
+        // the linear model with constant f_m: trace p, the least-squares standard
+        // errors of a_m
+        _ if returned_start => (Some(p as f64), linear_se_factors(&x, p, pp).repeat(g)),
         FitPath::Fast => {
             // one table of the design's families to degree 10 (K^2 for the standard
             // errors): the local systems' inverses, the trace, the standard errors

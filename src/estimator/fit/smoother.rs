@@ -1,20 +1,30 @@
 //! The f-step's smoother on the lag index U_t = x_{t-d}: local-linear Biweight fits at
 //! the grid points by either path (moment tables or KD-tree gathers), with the caches
-//! an alternation keeps between its steps.
+//! an alternation keeps between its steps, and the b-steps and residual recursion that
+//! go with it ([`LagSmoother`], the lag index's [`Smoother`]).
 
-use super::gcv::{LadderCache, RungFit};
-use super::params::FitPath;
-use super::passes::{residuals, residuals_indexed};
+use super::bstep::{SMALL_STEP, gn_b_step, ma_step, ma_step_from};
+use super::gcv::{LadderCache, RungFit, gcv_select};
+use super::params::{FitPath, Init};
+use super::passes::{
+    SpanFill, eval_with, residuals, residuals_indexed, rss_from, w_indexed_filler,
+};
+use super::{Alternation, BandwidthWords, Selection, Smoother};
+use crate::error::{Error, Result};
+use crate::estimator::arma::ma_invertible;
 use crate::estimator::direct;
 use crate::estimator::direct::DirectIndex;
+use crate::estimator::linalg::normal_equations;
 use crate::estimator::moments::Families;
 use crate::estimator::moments::IntervalIndex;
+use crate::estimator::moments::IntervalLookup;
 use crate::estimator::moments::LocalSystems;
 use crate::estimator::moments::MomentTable;
 use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
 use crate::estimator::problem::VcProblem;
+use crate::model::report::GcvRow;
 
 /// Fills failed grid points by linear interpolation between the nearest Ok points
 /// (constant beyond the outermost). Returns which were filled; None if none is Ok.
@@ -50,7 +60,7 @@ pub fn fill_failed(fit: &mut GridFit, grid: &[f64]) -> Option<Vec<bool>> {
 
 /// The f-step machinery for one alternation: fits for a set of bandwidths and their
 /// RSS / trace, by either path.
-pub(super) struct Smoother<'a> {
+pub(super) struct LagStep<'a> {
     pub(super) prob: VcProblem<'a>,
     pub(super) grid: &'a [f64],
     pub(super) path: FitPath,
@@ -58,7 +68,7 @@ pub(super) struct Smoother<'a> {
     pub(super) umax: f64,
 }
 
-impl<'a> Smoother<'a> {
+impl<'a> LagStep<'a> {
     /// The smoother for series `x`, residuals `e`, MA coefficients `b`, shape
     /// (p, d) (first row max(p, q, d)), on `grid`, with index values in `span`.
     pub(super) fn new(
@@ -71,7 +81,7 @@ impl<'a> Smoother<'a> {
         (umin, umax): (f64, f64),
     ) -> Self {
         let prob = VcProblem::new(x, e, b, p, d);
-        Smoother {
+        LagStep {
             prob,
             grid,
             path,
@@ -114,7 +124,7 @@ impl<'a> Smoother<'a> {
     }
 
     /// Fits (and RSS, trace where every point is Ok) for each bandwidth, on the
-    /// direct path (the fast path's ladders go through [`Smoother::ladder_cached`]),
+    /// direct path (the fast path's ladders go through [`LagStep::ladder_cached`]),
     /// with `index` the KD-tree over this problem's index values.
     pub(super) fn ladder_direct(&self, index: &DirectIndex, hs: &[f64]) -> Vec<RungFit> {
         hs.iter()
@@ -191,5 +201,231 @@ pub(super) fn residuals_at(
     match index {
         Some(ix) => residuals_indexed(x, d, grid, coef, b, e, ix),
         None => residuals(x, d, grid, coef, b, e),
+    }
+}
+
+/// The lag index's smoother under the alternation: its grid, its caches (kept from one
+/// f-step to the next) and its b-step, by Gauss-Newton (`Init::Arma`) or the paper's
+/// least-squares step (`Init::Literal`), as the module doc of [`super`] describes.
+pub(super) struct LagSmoother<'a> {
+    x: &'a [f64],
+    grid: &'a [f64],
+    /// (p, q, d) and the first row max(p, q, d).
+    pqd: (usize, usize, usize),
+    pp: usize,
+    path: FitPath,
+    init: Init,
+    /// The index values' extremes (xmin, xmax) and their range.
+    span: (f64, f64),
+    range: f64,
+    /// Whether --bandwidth fixed the bandwidth (for the message of a grid without fits).
+    fixed: bool,
+    pub(super) cache: StepCache,
+    /// `Init::Literal`: (first alternation, its least-squares b, alternations) where the
+    /// least-squares b was not invertible and the previous b was kept.
+    not_invertible_kept: Option<(usize, Vec<f64>, usize)>,
+}
+
+impl<'a> LagSmoother<'a> {
+    /// The smoother of series `x` (centred, extremes `span`) on `grid`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new(
+        x: &'a [f64],
+        grid: &'a [f64],
+        (p, q, d): (usize, usize, usize),
+        path: FitPath,
+        init: Init,
+        span: (f64, f64),
+        fixed: bool,
+    ) -> Self {
+        LagSmoother {
+            x,
+            grid,
+            pqd: (p, q, d),
+            pp: p.max(q).max(d),
+            path,
+            init,
+            span,
+            range: span.1 - span.0,
+            fixed,
+            cache: StepCache::default(),
+            not_invertible_kept: None,
+        }
+    }
+
+    /// The f-step machinery at residuals `e` and MA coefficients `b`.
+    pub(super) fn step<'s>(&self, e: &'s [f64], b: &'s [f64]) -> LagStep<'s>
+    where
+        'a: 's,
+    {
+        let (p, _, d) = self.pqd;
+        LagStep::new(self.x, e, b, (p, d), self.grid, self.path, self.span)
+    }
+}
+
+impl Smoother for LagSmoother<'_> {
+    type H = f64;
+    type Coef = GridFit;
+    type Row = GcvRow;
+    const WORDS: BandwidthWords = BandwidthWords {
+        noun: "bandwidth",
+        pronoun: "it",
+        verb: "is",
+        fixed_by: "--bandwidth",
+    };
+    const RECHECK_TABLE_AT_MAX_ITER: bool = true;
+
+    fn fmt_h(h: f64) -> String {
+        format!("{h:.6e}")
+    }
+
+    fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self> {
+        let sm = self.step(e, b);
+        let (rows, mut fits, best, extended, notes) = gcv_select(&sm, self.range, &mut self.cache);
+        Selection {
+            h: rows[best].bandwidth,
+            fit: fits.swap_remove(best),
+            rows,
+            extended,
+            notes,
+        }
+    }
+
+    /// The next f-steps' left-hand sides, from the ladder's table (they depend on X
+    /// and U only).
+    fn chose(&mut self, h: f64) {
+        if let Some(lad) = &self.cache.ladder {
+            self.cache.systems = Some(lad.systems_at(self.grid, h));
+        }
+    }
+
+    fn fit_at(&mut self, e: &[f64], b: &[f64], h: f64) -> GridFit {
+        let sm = self.step(e, b);
+        sm.fit_at(h, &mut self.cache)
+    }
+
+    fn fill(&self, coef: &mut GridFit, h: f64) -> Result<Vec<bool>> {
+        let (grid, range) = (self.grid, self.range);
+        fill_failed(coef, grid).ok_or_else(|| {
+            let fixed = if self.fixed {
+                format!(
+                    "a --bandwidth far from the index values' spread (they span {range:.6e}; the grid {:.6e}), ",
+                    grid[grid.len() - 1] - grid[0]
+                )
+            } else {
+                String::new()
+            };
+            Error::Usage(format!(
+                "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular: {fixed}too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (a deterministic trend or sinusoid)"
+            ))
+        })
+    }
+
+    /// For Gauss-Newton the residual buffer first takes w_t = x_t - sum f_m(U_t)
+    /// x_{t-m} (the old residuals are no longer needed), b is fitted to it by streaming
+    /// passes, and the MA filter then turns w into the new residuals in place: one
+    /// N-long vector in all.
+    fn b_step(
+        &mut self,
+        coef: &GridFit,
+        h: f64,
+        (b, b_resp): (&mut Vec<f64>, &mut Vec<f64>),
+        e: &mut [f64],
+        iteration: usize,
+    ) -> Option<f64> {
+        let (x, grid, pp) = (self.x, self.grid, self.pp);
+        let (p, q, d) = self.pqd;
+        if q > 0 && self.init == Init::Arma {
+            let index = self
+                .cache
+                .index_for(&VcProblem::new(x, e, b_resp, p, d), grid, h);
+            let w_into = |buf: &mut [f64]| residuals_at(x, d, grid, (coef, &[]), buf, index);
+            // one pass: w, the residuals at b_resp and the Gauss-Newton sums there,
+            // chunk by chunk; with a small step the iterate is (f, b_resp), its
+            // residuals in hand, and the step goes into the next f-step's response
+            // (q > 2: no one-pass step; w written in place for ma_step)
+            let filler = index
+                .filter(|_| q <= 2)
+                .and_then(|ix| w_indexed_filler(x, d, grid, coef, ix));
+            let fill = filler.as_ref().map(|f| f as &SpanFill<'_>);
+            if fill.is_none() {
+                w_into(e);
+            }
+            // (the iterate's b, the next response's b, the iterate's RSS)
+            let (b_iter, b_next, rss_iter) = match gn_b_step(e, pp, b_resp, fill, w_into) {
+                // the iterate is (f, b_resp), its residuals in `e`; the step goes
+                // into the next f-step's response
+                Some((rss_b, b_next, decrease))
+                    if decrease <= SMALL_STEP * rss_b && ma_invertible(&b_next) =>
+                {
+                    (b_resp.clone(), b_next, rss_b)
+                }
+                // a larger step, checked: w again, the filter at the stepped b (the
+                // Gauss-Newton step is the one-pass step's, not summed again)
+                Some((rss_b, b_next, _)) => {
+                    w_into(e);
+                    let (b_new, rss_new) = ma_step_from(e, pp, b_resp, (rss_b, b_next), w_into);
+                    (b_new.clone(), b_new, rss_new)
+                }
+                // q > 2: ma_step's own passes on w
+                None => {
+                    let (b_new, rss_new) = ma_step(e, pp, b_resp, w_into);
+                    (b_new.clone(), b_new, rss_new)
+                }
+            };
+            *b = b_iter;
+            *b_resp = b_next;
+            return Some(rss_iter);
+        }
+        if q > 0 {
+            // the paper's step: least squares of w_t on the previous residuals
+            let lookup = IntervalLookup::new(grid);
+            let mut f = vec![0.0; p];
+            let mut ata = vec![0.0; q * q];
+            let mut aty = vec![0.0; q];
+            for t in pp..x.len() {
+                eval_with(coef, grid, &lookup, x[t - d], &mut f);
+                let mut w = x[t];
+                for m in 0..p {
+                    w -= f[m] * x[t - m - 1];
+                }
+                for i in 0..q {
+                    for j in 0..q {
+                        ata[i * q + j] += e[t - i - 1] * e[t - j - 1];
+                    }
+                    aty[i] += e[t - i - 1] * w;
+                }
+            }
+            // a b that is not invertible makes the residual recursion grow without
+            // bound: the previous b is kept (as the Gauss-Newton step's check does
+            // for `Init::Arma`)
+            match normal_equations(&ata, &aty, q) {
+                Some(b_ls) if ma_invertible(&b_ls) => *b = b_ls,
+                Some(b_ls) => {
+                    let kept = self.not_invertible_kept.get_or_insert((iteration, b_ls, 0));
+                    kept.2 += 1;
+                }
+                None => {}
+            }
+        }
+        None
+    }
+
+    fn residuals(&mut self, coef: &GridFit, b: &[f64], e: &mut [f64]) -> f64 {
+        let d = self.pqd.2;
+        residuals_at(self.x, d, self.grid, (coef, b), e, self.cache.any_index());
+        rss_from(e, self.pp)
+    }
+
+    fn end_notes(&mut self, _: &Alternation<Self>) -> Vec<String> {
+        self.not_invertible_kept
+            .take()
+            .map(|(first, b_ls, times)| {
+                format!(
+                    "the least-squares b was not invertible in {times} alternation(s) (first in alternation {first}: {b_ls:?}); the previous b was kept each time"
+                )
+            })
+            .into_iter()
+            .collect()
     }
 }

@@ -6,9 +6,11 @@ use super::passes::{FILTER_CHUNK, ma_filter_rss};
 use crate::estimator::arma::arma_pass;
 use crate::estimator::arma::arma_pass_into;
 use crate::estimator::arma::fit_arma;
+use crate::estimator::arma::lagged_normal;
 use crate::estimator::arma::ma_invertible;
 use crate::estimator::buffers;
 use crate::estimator::linalg::normal_equations;
+use crate::estimator::linalg::spd_solve_inverse;
 
 /// Gauss-Newton for the linear ARMA(p,q) on every sample, from (a0, b0): (a, b)
 /// minimise sum_{t >= start} e_t^2 (`arma_pass`), with step halving and the MA part
@@ -218,3 +220,18 @@ pub const REFINE_RATIO: usize = 16;
 /// it is then refined on longer prefixes and on every sample by the streaming
 /// [`arma_cls_within`] ([`linear_start`]).
 pub const START_MAX: usize = 1 << 14;
+
+/// The least-squares standard-error factors of the linear model's constant
+/// coefficients a_m, sqrt([(X'X)^-1]_mm) with X the lagged values x_{t-1}..x_{t-p}
+/// over the rows from `start` on: the linear model with constant f_m has trace p (the
+/// least-squares hat matrix on X_1..X_p) and Var(a) = sigma^2 (X'X)^-1 with the MA
+/// part sum b_m e_{t-m} taken as a known offset. NaN where X'X is singular.
+pub(super) fn linear_se_factors(x: &[f64], p: usize, start: usize) -> Vec<f64> {
+    let lags: Vec<(usize, usize)> = (1..=p).map(|m| (0, m)).collect();
+    let (xtx, _) = lagged_normal(x, &[x], &lags, start..x.len());
+    let rhs = vec![0.0; p];
+    match spd_solve_inverse(&xtx, &rhs, p) {
+        Some((_, inv, _)) => (0..p).map(|i| inv[i * p + i].sqrt()).collect(),
+        None => vec![f64::NAN; p],
+    }
+}

@@ -452,3 +452,68 @@ fn quantiles_by_selection_equal_those_of_a_full_sort() {
         }
     }
 }
+
+/// A 2-D fit whose residuals turn non-finite (here by the test hook, as an overflow
+/// would leave them) stops at that alternation, not converged, and returns the iterate
+/// of least RSS with its own finite residuals, with a note for each, as the 1-D fit.
+#[test]
+fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
+    use super::smoother2::{Farma2Params, NAN_RESIDUALS_AT, fit2};
+    // FARMA(1,1,1) whose f_1 follows a slow temperature-like channel
+    let n = 3000;
+    let a = uniform(n, 11);
+    let temp: Vec<f64> = (0..n)
+        .map(|t| 25.0 + 5.0 * (t as f64 / 400.0).sin())
+        .collect();
+    let mut x = vec![0.0; n];
+    for t in 1..n {
+        let f = 0.5 + 0.3 * (temp[t - 1] - 25.0).tanh();
+        x[t] = f * x[t - 1] + a[t] + 0.4 * a[t - 1];
+    }
+    let params = |max_iter| Farma2Params {
+        base: FarmaParams {
+            p: 1,
+            q: 1,
+            d: 1,
+            max_iter,
+            ..Default::default()
+        },
+        d2: 1,
+        grid: (7, 7),
+        bandwidth: None,
+    };
+    // the first two iterates (the start and alternation 1) and their least-RSS one
+    let one = fit2(&x, &temp, &params(1)).unwrap();
+    let clean = fit2(&x, &temp, &params(20)).unwrap();
+    assert!(clean.iterations > 2, "{}", clean.iterations);
+    NAN_RESIDUALS_AT.set(Some(2));
+    let m = fit2(&x, &temp, &params(20));
+    NAN_RESIDUALS_AT.set(None);
+    let m = m.unwrap();
+    assert_eq!(m.iterations, 2, "it stops at the non-finite residuals");
+    assert!(!m.converged);
+    assert!(
+        m.notes
+            .iter()
+            .any(|s| s.starts_with("alternation 2: the residuals are not finite (RSS NaN)")),
+        "{:?}",
+        m.notes
+    );
+    assert!(
+        m.notes
+            .iter()
+            .any(|s| s.starts_with("the alternation ended above its")),
+        "{:?}",
+        m.notes
+    );
+    assert!(m.rss.is_finite() && m.residuals.iter().all(|v| v.is_finite()));
+    assert!(m.coef.f.iter().all(|v| v.is_finite()));
+    // the iterate of least RSS of the two before (a fit of one alternation returns
+    // it): its RSS, b and f, bit for bit
+    assert_eq!(m.rss.to_bits(), one.rss.to_bits());
+    assert_eq!(m.b, one.b);
+    assert_eq!(m.coef.f, one.coef.f);
+    let pp = 1;
+    let rss: f64 = m.residuals[pp..].iter().map(|v| v * v).sum();
+    assert_eq!(rss.to_bits(), m.rss.to_bits());
+}
