@@ -2,7 +2,10 @@
 //! test-stand logs, and diagnosis of where a gyro simulator differs from the sensor.
 //!
 //! Where things are:
-//! - [`estimator`]: the FARMA estimator (local-linear fits, fast exact moment tables);
+//! - [`model`]: the fitted FARMA model every verb reads, its fit and update reports,
+//!   the update state and the model folder on disk;
+//! - [`estimator`]: the FARMA estimator (the alternation, local-linear fits, GCV,
+//!   fast exact moment tables, online updates);
 //! - [`log`]: reading logs (CSV, Parquet, Arrow IPC) with their time base and the
 //!   policies for bad values and irregular sampling;
 //! - [`store`]: the memory-mapped Arrow IPC store every command reads;

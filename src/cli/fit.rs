@@ -14,8 +14,9 @@ use crate::estimator::tables::{
 };
 use crate::estimator::{FarmaParams, FitPath, Init, fit, update};
 use crate::log::Progress;
+use crate::model::folder::state_file::{state_metadata, state_table};
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, PARAMS_FILE, STATE_FILE};
-use crate::model::{Farma, FitReport, Report};
+use crate::model::{ChannelState, Farma, FitReport, Report};
 use crate::output::OutputSet;
 
 #[derive(Args, Debug)]
@@ -227,27 +228,26 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     // many long channels holds the residuals of the fits in flight, not one series per
     // channel (measured on 6 channels of 1e7 samples: 0.98 GB maxrss, against 1.29 GB
     // with every channel's residuals held to the end; BENCHMARKS.md).
-    let fitted: Vec<(String, (Farma, FitReport), Option<update::ChannelState>)> =
-        super::every_channel(
-            names
-                .par_iter()
-                .map(|n| {
-                    let x = store.column(n)?;
-                    let (m, mut r) = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
-                    let state = t_last.map(|t| {
-                        let mut s = update::state_from_fit(n, x, &m, &r);
-                        s.t_last = t;
-                        s
-                    });
-                    if !a.residuals {
-                        r.residuals = Vec::new();
-                    }
-                    bar.inc(1);
-                    Ok((n.clone(), (m, r), state))
-                })
-                .collect(),
-            FIT_CHANNELS_HINT,
-        )?;
+    let fitted: Vec<(String, (Farma, FitReport), Option<ChannelState>)> = super::every_channel(
+        names
+            .par_iter()
+            .map(|n| {
+                let x = store.column(n)?;
+                let (m, mut r) = fit(x, &valid).map_err(|e| super::on_channel(&a.log, n, e))?;
+                let state = t_last.map(|t| {
+                    let mut s = update::state_from_fit(n, x, &m, &r);
+                    s.t_last = t;
+                    s
+                });
+                if !a.residuals {
+                    r.residuals = Vec::new();
+                }
+                bar.inc(1);
+                Ok((n.clone(), (m, r), state))
+            })
+            .collect(),
+        FIT_CHANNELS_HINT,
+    )?;
     bar.finish_and_clear();
     let mut fits = Vec::with_capacity(fitted.len());
     let mut states = Vec::new();
@@ -288,8 +288,8 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             );
         }
         let refs: Vec<_> = states.iter().collect();
-        let table = update::state_table(&refs)?;
-        out.parquet(STATE_FILE, &table, &update::state_metadata(&md))?;
+        let table = state_table(&refs)?;
+        out.parquet(STATE_FILE, &table, &state_metadata(&md))?;
     }
     super::commit_outputs(out, &FIT_OUTPUTS)?;
     for (n, (m, r)) in &fits {

@@ -11,11 +11,11 @@ use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::estimator::tables::{ModelRow, ResidualRows, stage_residuals};
 use crate::estimator::tables::{coef_table, fit_json, gcv_table, params_table};
-use crate::estimator::update::{
-    ChannelState, LastTime, read_state, state_metadata, state_table, update,
-};
+use crate::estimator::update::update;
 use crate::log::Progress;
+use crate::model::folder::state_file::{read_state, state_metadata, state_table};
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, ModelDir, PARAMS_FILE, STATE_FILE};
+use crate::model::state::{ChannelState, LastTime};
 use crate::model::{Farma, Report, UpdateReport};
 use crate::output::OutputSet;
 

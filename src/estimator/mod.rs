@@ -7,9 +7,11 @@
 //! from which every grid point and every bandwidth of the GCV ladder is solved; see
 //! `shared/design/fast-exact-fits.md`). [`problem`] defines the regression both solve,
 //! [`kernel`] the Biweight, [`linalg`] the small dense solves (faer).
-//! [`update`] continues a fit over new samples by recursive least squares (the state
-//! file of `farma update`); [`multivariate`] fits f_m on a 2-D index
-//! (x_{t-d}, z_{t-d2}), z another channel such as temperature.
+//! [`fit`](mod@fit) is the alternation (start, f-step by a smoother, b-step, GCV) with two
+//! smoothers: the lag index x_{t-d} and the 2-D index (x_{t-d}, z_{t-d2}), z another
+//! channel such as temperature ([`multivariate`]). [`update`] continues a fit over new
+//! samples by recursive least squares. What they make, the fitted model, its report,
+//! the update state and the model folder, lives in [`crate::model`].
 
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 

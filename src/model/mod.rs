@@ -25,10 +25,12 @@ pub mod coef;
 pub mod folder;
 pub mod order;
 pub mod report;
+pub mod state;
 
 pub use coef::Coef;
 pub use order::Order;
 pub use report::{FitReport, Report, UpdateReport};
+pub use state::ChannelState;
 
 /// A fitted FARMA(p,q,d) model of one channel on the lag index x_{t-d}.
 #[derive(Clone, Debug, PartialEq)]

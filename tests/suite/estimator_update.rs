@@ -6,10 +6,10 @@
 use farma::estimator::direct::{DirectIndex, fit_grid};
 use farma::estimator::kernel::biweight;
 use farma::estimator::linalg::spd_solve_inverse;
-use farma::estimator::update::{
-    ChannelState, read_state, state_from_fit, state_from_fit_direct, update, write_state,
-};
+use farma::estimator::update::{state_from_fit, state_from_fit_direct, update};
 use farma::estimator::{FarmaParams, FitPath, PointStatus, VcProblem, fit};
+use farma::model::ChannelState;
+use farma::model::folder::state_file::{read_state, write_state};
 use farma::model::{Farma, FitReport};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -462,7 +462,7 @@ fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
     lin.linear_start = true;
     write_state(&path, &[&lin], &[]).unwrap();
     assert!(read_state(&path).unwrap().0[0].linear_start);
-    let table = farma::estimator::update::state_table(&[&st]).unwrap();
+    let table = farma::model::folder::state_file::state_table(&[&st]).unwrap();
     let old = table
         .project(
             &(0..table.num_columns())
@@ -471,8 +471,12 @@ fn corrupt_state_fields_are_rejected_naming_file_channel_and_field() {
         )
         .unwrap();
     assert_eq!(old.num_columns() + 1, table.num_columns());
-    farma::output::write_parquet(&path, &old, &farma::estimator::update::state_metadata(&[]))
-        .unwrap();
+    farma::output::write_parquet(
+        &path,
+        &old,
+        &farma::model::folder::state_file::state_metadata(&[]),
+    )
+    .unwrap();
     let back = read_state(&path).unwrap().0;
     assert!(!back[0].linear_start);
     assert_eq!(back[0], st);

@@ -70,7 +70,7 @@ fn fit_state(d: &Path, old: &Path, order: &str, grid: &str) -> PathBuf {
 /// passed through `edit_md(key, value)`: an edited model folder. Returns `dir`.
 fn write_edited_state(
     dir: &Path,
-    states: &[farma::estimator::update::ChannelState],
+    states: &[farma::model::state::ChannelState],
     md: &[(String, String)],
     edit_md: impl Fn(&str, &str) -> String,
 ) -> PathBuf {
@@ -81,7 +81,7 @@ fn write_edited_state(
         .map(|(k, v)| (k.as_str(), edit_md(k, v)))
         .collect();
     let refs: Vec<_> = states.iter().collect();
-    farma::estimator::update::write_state(&dir.join("state.parquet"), &refs, &md).unwrap();
+    farma::model::folder::state_file::write_state(&dir.join("state.parquet"), &refs, &md).unwrap();
     dir.to_path_buf()
 }
 
@@ -254,7 +254,7 @@ fn update_rejects_bad_model_folders_and_logs_with_exit_2() {
 /// NaN coefficients with exit 0).
 #[test]
 fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
-    use farma::estimator::update::read_state;
+    use farma::model::folder::state_file::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);
@@ -338,7 +338,8 @@ fn shift_time(dir: &Path, src: &Path, name: &str, by: f64) -> PathBuf {
 /// that nothing could be checked. None of these passes silently.
 #[test]
 fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
-    use farma::estimator::update::{LastTime, read_state};
+    use farma::model::folder::state_file::read_state;
+    use farma::model::state::LastTime;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d); // t = 0 .. 199.9 s and 200 .. 249.9 s
@@ -413,7 +414,7 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
     assert_eq!(o.status.code(), Some(0), "{err}");
     assert!(err.contains("2 segments (gaps)"), "{err}");
     // a state file without t_last_s (written before it): updated, with a warning
-    let table = farma::estimator::update::state_table(
+    let table = farma::model::folder::state_file::state_table(
         &read_state(&model.join("state.parquet"))
             .unwrap()
             .0
@@ -429,7 +430,7 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
     farma::output::write_parquet(
         &older.join("state.parquet"),
         &table.project(&keep).unwrap(),
-        &farma::estimator::update::state_metadata(&[("sample_rate_hz", "10".into())]),
+        &farma::model::folder::state_file::state_metadata(&[("sample_rate_hz", "10".into())]),
     )
     .unwrap();
     let (states, _) = read_state(&older.join("state.parquet")).unwrap();
@@ -448,7 +449,8 @@ fn update_refuses_a_log_that_does_not_continue_the_fitted_one_in_time() {
 /// give it. One row is enough, with a time column as without one.
 #[test]
 fn update_by_a_single_row_with_a_time_column_takes_the_rate_from_the_flag() {
-    use farma::estimator::update::{LastTime, read_state};
+    use farma::model::folder::state_file::read_state;
+    use farma::model::state::LastTime;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let old = slice_log(d, "old.csv", 0, 2000, None);
@@ -567,7 +569,7 @@ fn update_of_a_2d_model_names_the_2d_index_not_save_state() {
 /// the new samples.
 #[test]
 fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
-    use farma::estimator::update::read_state;
+    use farma::model::folder::state_file::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);
@@ -608,7 +610,7 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
 /// leave the new log's rate unchecked) or read as a model fitted at 0 Hz.
 #[test]
 fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
-    use farma::estimator::update::read_state;
+    use farma::model::folder::state_file::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);
@@ -643,7 +645,7 @@ fn update_refuses_a_state_whose_sample_rate_is_not_a_number() {
 /// never read).
 #[test]
 fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
-    use farma::estimator::update::read_state;
+    use farma::model::folder::state_file::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);
@@ -665,7 +667,7 @@ fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
     );
     assert_eq!(r.status.code(), Some(0), "{}", stderr(&r));
     let i = states.iter().position(|st| st.channel == "gyro_x").unwrap();
-    type Edit = fn(&mut farma::estimator::update::ChannelState);
+    type Edit = fn(&mut farma::model::state::ChannelState);
     let edits: [(&str, Edit, &str); 2] = [
         ("gram", |st| st.gram.fill(0.0), "field 'gram'"),
         ("b_gram", |st| st.b_gram.fill(0.0), "field 'b_gram'"),
@@ -708,7 +710,7 @@ fn update_names_the_state_for_normal_equations_it_cannot_start_from() {
 /// model does not hold is refused naming the model's channels.
 #[test]
 fn update_of_some_channels_leaves_out_a_linear_start() {
-    use farma::estimator::update::read_state;
+    use farma::model::folder::state_file::read_state;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);

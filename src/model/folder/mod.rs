@@ -13,6 +13,7 @@
 //! records `index` and `index2` in the metadata of its params.parquet.
 
 mod read;
+pub mod state_file;
 
 use std::path::{Path, PathBuf};
 
