@@ -21,6 +21,7 @@ pub mod cli;
 pub mod diagnosis;
 pub mod error;
 pub mod estimator;
+pub mod jobs;
 pub mod log;
 pub mod model;
 pub mod output;

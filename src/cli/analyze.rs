@@ -1,27 +1,20 @@
 //! `farma analyze LOG -o OUTDIR`: prep -> select -> fit -> check for every channel, in
-//! parallel; every table in one folder (Parquet) and a readable summary.
+//! parallel; every table in one folder (Parquet) and a readable summary. The
+//! arguments turned into an [`AnalyzeJob`], its result printed.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::Args;
-use rayon::prelude::*;
 use serde_json::json;
 
 use super::LogArgs;
-use super::prep::{PrepFlags, prep_store};
-use super::select::{SelectFlags, select_json, select_text};
+use super::prep::PrepFlags;
+use super::select::SelectFlags;
 use crate::error::{Error, Result};
-use crate::estimator::tables::{ModelRow, coef_table, gcv_table, params_table};
+use crate::jobs::analyze::AnalyzeJob;
+use crate::jobs::select::select_json;
 use crate::log::Progress;
-use crate::model::Report;
 use crate::output::OutputSet;
-use crate::workflow::analyze::{AnalyzeParams, ChannelAnalysis, analyze_channel};
-use crate::workflow::select::{Selection, order_name};
-use crate::workflow::tables::{
-    acf_table, constancy_table, ftest_table, ljung_box_table, poly_table, prediction_table,
-    select_table,
-};
 
 #[derive(Args, Debug)]
 pub struct AnalyzeArgs {
@@ -53,88 +46,7 @@ pub struct AnalyzeArgs {
     pub json: bool,
 }
 
-fn summary(a: &ChannelAnalysis, rate: f64) -> String {
-    let s: &Selection = &a.selection;
-    let mut o = String::new();
-    o += "== preparation\n";
-    for st in &a.prep.steps {
-        o += &format!("  {:<20} {}\n", st.step, st.detail);
-    }
-    o += &format!(
-        "== order selection on the first {} samples ({:.1} s)\n",
-        a.n_train,
-        a.n_train as f64 / rate
-    );
-    o += &select_text(&a.name, s, a.constancy.as_ref());
-    let r = &s.rows[s.selected];
-    let w = &a.check.whiteness;
-    o += &format!(
-        "== check of {}\n  residual ACF: {} of {} lags outside +-{:.4}\n",
-        order_name(r.order),
-        w.outside,
-        w.acf.len(),
-        w.band
-    );
-    for lb in &w.ljung_box {
-        o += &format!(
-            "  Ljung-Box lag {:>3}: Q = {:>10.3} on {} df, p = {:.4}\n",
-            lb.lag, lb.q, lb.df, lb.p_value
-        );
-    }
-    if let Some(pr) = &a.check.prediction {
-        o += &format!(
-            "  hold-out prediction of the last {} samples ({:.1} s; hold-out std {:.4e}):\n",
-            pr.holdout,
-            pr.holdout as f64 / rate,
-            pr.holdout_std
-        );
-        o += "      k     rmse FARMA      rmse ARMA  FARMA/ARMA\n";
-        for h in &pr.horizons {
-            o += &format!(
-                "  {:>5} {:>14.6e} {:>14.6e} {:>11.4}\n",
-                h.k,
-                h.rmse_farma,
-                h.rmse_arma,
-                h.rmse_farma / h.rmse_arma
-            );
-        }
-    }
-    for pf in &a.check.poly {
-        o += &format!(
-            "  f_{} ~ polynomial of degree {} in u = x - mean (BIC on the pointwise se): coef {:?}, rms {:.3e}\n",
-            pf.m,
-            pf.degree,
-            pf.coef
-                .iter()
-                .map(|c| format!("{c:.4e}"))
-                .collect::<Vec<_>>(),
-            pf.wrms
-        );
-    }
-    o
-}
-
-/// The files `farma analyze` writes into its output folder (a run removes those of
-/// an earlier run that it does not write).
-pub(super) const ANALYZE_OUTPUTS: &[&str] = &[
-    "clean.arrow",
-    "prep.parquet",
-    "replaced.parquet",
-    "select.parquet",
-    "ftests.parquet",
-    "constancy.parquet",
-    "coef.parquet",
-    "params.parquet",
-    "gcv.parquet",
-    "acf.parquet",
-    "ljung_box.parquet",
-    "prediction.parquet",
-    "poly.parquet",
-    "summary.txt",
-];
-
 pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
-    let t0 = Instant::now();
     OutputSet::check(&a.output)?;
     if !(a.holdout_s.is_finite() && a.holdout_s >= 0.0) {
         return Err(Error::Usage(format!(
@@ -142,108 +54,20 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
             a.holdout_s
         )));
     }
-    let orders = a.select.check()?;
+    let select = a.select.job(&a.log, None)?;
     let store = a.log_args.open(&a.log, progress)?;
-    let names = store.select_channels(&a.channel)?;
-    let rate = store.sample_rate_hz();
-    let (chans, dropped) = prep_store(&store, &names, &a.prep.params())?;
-    let prm = AnalyzeParams {
-        orders,
-        farma: a.select.farma(),
-        bootstrap: a.select.bootstrap,
-        seed: a.select.seed,
-        holdout: (a.holdout_s * rate).round() as usize,
+    let job = AnalyzeJob {
+        log: a.log.clone(),
+        output: a.output.clone(),
+        channels: store.select_channels(&a.channel)?,
+        prep: a.prep.params(),
+        select,
+        holdout_s: a.holdout_s,
         maxlag: a.maxlag,
         max_degree: a.max_degree,
     };
-    // every failing channel is named at once, in channel order, as `farma fit` does
-    // (the first error rayon meets is any one of them: each rerun would find the next)
-    let bar = progress.count_bar("channels done", chans.len() as u64);
-    let results: Vec<ChannelAnalysis> = super::every_channel(
-        chans
-            .clone()
-            .into_par_iter()
-            .map(|c| {
-                let name = c.name.clone();
-                let r = analyze_channel(c, &prm).map_err(|e| super::on_channel(&a.log, &name, e));
-                bar.inc(1);
-                r
-            })
-            .collect(),
-        super::fit::FIT_CHANNELS_HINT,
-    )?;
-    bar.finish_and_clear();
-    let secs = t0.elapsed().as_secs_f64();
-    let dir = &a.output;
-    let mut set = OutputSet::new(dir)?;
-    let (size, mtime) = crate::log::source_identity(&a.log)?;
-    let md = vec![
-        ("source", a.log.display().to_string()),
-        ("source_size", size.to_string()),
-        ("source_mtime_ns", mtime.to_string()),
-        ("sample_rate_hz", rate.to_string()),
-    ];
-    super::prep::stage_prep(&mut set, &store, (&chans, dropped), &md)?;
-    let sels: Vec<(String, &Selection)> = results
-        .iter()
-        .map(|r| (r.name.clone(), &r.selection))
-        .collect();
-    set.parquet("select.parquet", &select_table(&sels)?, &md)?;
-    set.parquet("ftests.parquet", &ftest_table(&sels)?, &md)?;
-    let cons: Vec<_> = results
-        .iter()
-        .filter_map(|r| {
-            r.constancy.as_ref().map(|c| {
-                (
-                    r.name.clone(),
-                    r.selection.rows[r.selection.selected].order,
-                    c,
-                )
-            })
-        })
-        .collect();
-    set.parquet("constancy.parquet", &constancy_table(&cons)?, &md)?;
-    let models: Vec<ModelRow> = results
-        .iter()
-        .map(|r| {
-            let (m, rep) = &r.selection.fits[r.selection.selected];
-            (r.name.clone(), m, Report::Fit(rep))
-        })
-        .collect();
-    set.parquet("coef.parquet", &coef_table(&models)?, &md)?;
-    set.parquet("params.parquet", &params_table(&models)?, &md)?;
-    set.parquet("gcv.parquet", &gcv_table(&models)?, &md)?;
-    let ws: Vec<_> = results
-        .iter()
-        .map(|r| (r.name.clone(), &r.check.whiteness))
-        .collect();
-    set.parquet("acf.parquet", &acf_table(&ws)?, &md)?;
-    set.parquet("ljung_box.parquet", &ljung_box_table(&ws)?, &md)?;
-    let ps: Vec<_> = results
-        .iter()
-        .filter_map(|r| r.check.prediction.as_ref().map(|p| (r.name.clone(), p)))
-        .collect();
-    set.parquet("prediction.parquet", &prediction_table(&ps)?, &md)?;
-    let polys: Vec<_> = results
-        .iter()
-        .map(|r| (r.name.clone(), r.check.poly.as_slice()))
-        .collect();
-    set.parquet("poly.parquet", &poly_table(&polys)?, &md)?;
-    let mut text = format!(
-        "farma analyze {} ({} channel(s), {} samples at {} Hz; {:.2} s)\n",
-        a.log.display(),
-        results.len(),
-        store.n_samples(),
-        rate,
-        secs
-    );
-    for r in &results {
-        text += &format!("\n######## {}\n", r.name);
-        text += &summary(r, rate);
-    }
-    set.file("summary.txt", |p| crate::output::write_text(p, &text))?;
-    super::commit_outputs(set, ANALYZE_OUTPUTS)?;
-    for r in &results {
+    let done = job.run(&store, progress)?;
+    for r in &done.results {
         if a.json {
             let mut v = select_json(&r.name, &r.selection, r.constancy.as_ref());
             let w = &r.check.whiteness;
@@ -279,12 +103,13 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         }
     }
     if !a.json {
-        out!("{text}");
+        out!("{}", done.text);
     }
     eprintln!(
-        "farma: {} channel(s) analysed in {secs:.2} s; tables and summary.txt in {}",
-        results.len(),
-        dir.display()
+        "farma: {} channel(s) analysed in {:.2} s; tables and summary.txt in {}",
+        done.results.len(),
+        done.secs,
+        a.output.display()
     );
     Ok(())
 }

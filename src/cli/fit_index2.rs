@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde_json::json;
 
-use super::fit::{FitArgs, parse_order};
+use super::fit::FitArgs;
 use crate::error::{Error, Result};
 use crate::estimator::multivariate::{
     Farma2Params, Fitted2, check_fit2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
@@ -14,6 +14,7 @@ use crate::estimator::multivariate::{
 use crate::estimator::tables::{ResidualRows, stage_residuals};
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
+use crate::model::Order;
 use crate::output::OutputSet;
 
 /// The second index channel of `--index`, or None for the 1-D index (`lag`).
@@ -75,7 +76,7 @@ pub fn cost_warning(
 }
 
 pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
-    let (p, q, d) = parse_order(&a.order)?;
+    let Order { p, q, d } = Order::parse_flag(&a.order)?;
     OutputSet::check(&a.output)?;
     if a.save_state {
         return Err(Error::Usage(
@@ -113,7 +114,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     check_grid2(grid)?;
     let d2 = a.index_lag.unwrap_or(d);
     let store = a.log_args.open(&a.log, progress)?;
-    super::fit::warn_gaps(&store, &a.log);
+    crate::jobs::warn_gaps(&store, &a.log);
     if store.meta().time_col.as_deref() == Some(index2.as_str()) {
         return Err(Error::column(
             &a.log,
@@ -198,12 +199,13 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     })?;
     let t0 = Instant::now();
     let bar = progress.count_bar("channels fitted", names.len() as u64);
-    let fits: Vec<(String, Fitted2)> = super::every_channel(
+    let fits: Vec<(String, Fitted2)> = crate::jobs::every_channel(
         names
             .par_iter()
             .map(|n| {
                 let x = store.column(n)?;
-                let mut m = fit2(x, z, &params).map_err(|e| super::on_channel(&a.log, n, e))?;
+                let mut m =
+                    fit2(x, z, &params).map_err(|e| crate::jobs::on_channel(&a.log, n, e))?;
                 // N values per channel: kept only for residuals.parquet (as `farma fit`)
                 if !a.residuals {
                     m.residuals = Vec::new();
@@ -212,7 +214,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 Ok((n.clone(), m))
             })
             .collect(),
-        super::fit::FIT_CHANNELS_HINT,
+        crate::jobs::fit::FIT_CHANNELS_HINT,
     )?;
     bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
@@ -241,7 +243,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             .collect();
         stage_residuals(&mut out, &rows, &md)?;
     }
-    super::commit_outputs(out, &crate::model::folder::FIT_OUTPUTS)?;
+    crate::jobs::commit_outputs(out, &crate::model::folder::FIT_OUTPUTS)?;
     for (n, m) in &fits {
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",

@@ -37,10 +37,13 @@ pub fn run(a: InfoArgs, progress: &Progress) -> Result<()> {
             have: store.n_samples() as u64,
         });
     }
-    let summaries: Vec<ChannelSummary> = names
-        .par_iter()
-        .map(|n| Ok(summarize(n, store.column_with_nonfinite(n)?)))
-        .collect::<Result<_>>()?;
+    let summaries: Vec<ChannelSummary> = crate::jobs::every_channel(
+        names
+            .par_iter()
+            .map(|n| Ok(summarize(n, store.column_with_nonfinite(n)?)))
+            .collect(),
+        "leave the failing ones out of --channel",
+    )?;
     let meta = store.meta();
     let nonfinite: Vec<_> = names.iter().filter_map(|n| store.nonfinite(n)).collect();
     if a.json {

@@ -177,60 +177,6 @@ pub(crate) fn write_stdout(args: std::fmt::Arguments) -> Result<()> {
         })
 }
 
-/// Commits an output set ([`crate::output::OutputSet::commit`]) and says on stderr
-/// which files of an earlier run it removed.
-pub(crate) fn commit_outputs(set: crate::output::OutputSet, outputs: &[&str]) -> Result<()> {
-    for stale in set.commit(outputs)? {
-        eprintln!(
-            "farma: removed {} (an earlier run's; this run does not write it)",
-            stale.display()
-        );
-    }
-    Ok(())
-}
-
-/// An error of one channel's work on `log`, named with the channel: a usage error
-/// becomes an error of the log's channel, a too-short series says which log and
-/// channel; other errors stay as they are.
-pub(crate) fn on_channel(log: &std::path::Path, channel: &str, e: Error) -> Error {
-    match e {
-        Error::Usage(msg) => Error::Column {
-            path: log.to_path_buf(),
-            msg: format!("channel '{channel}': {msg}"),
-        },
-        Error::TooShort { what, need, have } => Error::TooShort {
-            what: format!("{}: channel {channel}: {what}", log.display()),
-            need,
-            have,
-        },
-        other => other,
-    }
-}
-
-/// The results of a run's per-channel work, in channel order: every value; or the
-/// error of the one channel that failed; or, when several did, all their errors in
-/// channel order ([`Error::Channels`]). A run writes the outputs of every channel or
-/// of none, and names every failing channel at once, so that one rerun after the
-/// fixes is enough (naming one of them, not necessarily the first, would have each
-/// rerun find the next).
-/// `hint` says what to do (in the last line of the message).
-pub(crate) fn every_channel<T>(results: Vec<Result<T>>, hint: &'static str) -> Result<Vec<T>> {
-    let of = results.len();
-    let mut values = Vec::with_capacity(of);
-    let mut errors = Vec::new();
-    for r in results {
-        match r {
-            Ok(v) => values.push(v),
-            Err(e) => errors.push(e),
-        }
-    }
-    match errors.len() {
-        0 => Ok(values),
-        1 => Err(errors.pop().expect("one error")),
-        _ => Err(Error::Channels { errors, of, hint }),
-    }
-}
-
 /// `--threads` is capped at this many threads per available core.
 pub const MAX_THREADS_PER_CORE: usize = 4;
 

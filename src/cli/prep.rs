@@ -4,18 +4,16 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use rayon::prelude::*;
 use serde_json::json;
 
 use super::LogArgs;
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::jobs::prep::PrepJob;
 use crate::log::Progress;
 use crate::output::OutputSet;
-use crate::store::Store;
 use crate::workflow::pauta::Replace;
-use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams, align, prep_channel};
+use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams};
 use crate::workflow::stationarity::SegmentStat;
-use crate::workflow::tables::{prep_table, replaced_table, write_prepared_store};
 
 /// The preparation flags (shared with `farma analyze`).
 #[derive(Args, Debug, Clone)]
@@ -78,71 +76,17 @@ pub struct PrepArgs {
     pub json: bool,
 }
 
-/// Prepares `names` of `store` in parallel, aligned to a common length.
-pub fn prep_store(
-    store: &Store,
-    names: &[String],
-    prm: &PrepParams,
-) -> Result<(Vec<ChannelPrep>, usize)> {
-    let mut chans: Vec<ChannelPrep> = names
-        .par_iter()
-        .map(|n| {
-            let x = store.column(n)?;
-            prm.validate(x.len()).map_err(|e| match e {
-                Error::TooShort { what, need, have } => Error::TooShort {
-                    what: format!("{}: channel {n}: {what}", store.label().display()),
-                    need,
-                    have,
-                },
-                o => o,
-            })?;
-            Ok(prep_channel(n, x, prm))
-        })
-        .collect::<Result<_>>()?;
-    let dropped = align(&mut chans);
-    Ok((chans, dropped))
-}
-
-/// The files `farma prep` can write into its output folder: a run removes those of an
-/// earlier run that it does not write.
-pub(super) const PREP_OUTPUTS: &[&str] = &["clean.arrow", "prep.parquet", "replaced.parquet"];
-
-/// Stages the prepared log (clean.arrow) and its two tables (prep.parquet,
-/// replaced.parquet) in `set`: the part of its folder `farma analyze` shares with
-/// `farma prep`.
-pub(super) fn stage_prep(
-    set: &mut OutputSet,
-    store: &Store,
-    (chans, dropped): (&[ChannelPrep], usize),
-    md: &[(&str, String)],
-) -> Result<()> {
-    set.file("clean.arrow", |p| {
-        write_prepared_store(p, store, chans, dropped)
-    })?;
-    set.parquet("prep.parquet", &prep_table(chans)?, md)?;
-    set.parquet(
-        "replaced.parquet",
-        &replaced_table(chans, store.sample_rate_hz())?,
-        md,
-    )
-}
-
 pub fn run(a: PrepArgs, progress: &Progress) -> Result<()> {
     OutputSet::check(&a.output)?;
     let store = a.log_args.open(&a.log, progress)?;
-    let names = store.select_channels(&a.channel)?;
     let prm = a.prep.params();
-    let (chans, dropped) = prep_store(&store, &names, &prm)?;
-    let mut set = OutputSet::new(&a.output)?;
-    let (size, mtime) = crate::log::source_identity(&a.log)?;
-    let md = vec![
-        ("source", a.log.display().to_string()),
-        ("source_size", size.to_string()),
-        ("source_mtime_ns", mtime.to_string()),
-        ("sample_rate_hz", store.sample_rate_hz().to_string()),
-    ];
-    stage_prep(&mut set, &store, (&chans, dropped), &md)?;
-    super::commit_outputs(set, PREP_OUTPUTS)?;
+    let job = PrepJob {
+        log: a.log.clone(),
+        output: a.output.clone(),
+        channels: store.select_channels(&a.channel)?,
+        params: prm.clone(),
+    };
+    let chans = job.run(&store)?;
     for c in &chans {
         if a.json {
             outln!("{}", prep_json(c, prm.alpha));

@@ -481,3 +481,97 @@ fn check_refuses_a_2d_index_fit_naming_the_index() {
         "{err}"
     );
 }
+
+/// `farma check`, `farma select` and `farma prep` name every failing channel at once
+/// (exit 2), in channel order, not the first one met: one rerun sees them all.
+#[test]
+fn check_select_and_prep_name_every_failing_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let model = dir.path().join("m");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x,gyro_y",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "21",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (m, l) = (model.to_str().unwrap(), log.to_str().unwrap());
+    let out = dir.path().join("c");
+    let o = farma(
+        &[
+            "check",
+            m,
+            l,
+            "--holdout-s",
+            "1e300",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    let (a, b) = (err.find("channel gyro_x"), err.find("channel gyro_y"));
+    assert!(a.is_some() && b.is_some() && a < b, "{err}");
+    assert!(err.contains("2 of 2 channels failed"), "{err}");
+    assert!(!out.exists());
+
+    // two constant channels beside a noisy one
+    let flat = dir.path().join("flat.csv");
+    let mut csv = String::from("time_s,flat_a,noise,flat_b\n");
+    let mut s: u64 = 99;
+    for i in 0..600 {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        csv += &format!("{},1.5,{u},2.5\n", i as f64 / 10.0);
+    }
+    std::fs::write(&flat, csv).unwrap();
+    let f = flat.to_str().unwrap();
+    let o = farma(
+        &[
+            "select",
+            f,
+            "--channel",
+            "all",
+            "--grid",
+            "21",
+            "--bootstrap",
+            "0",
+            "--orders",
+            "1,1,1",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    let (a, b) = (err.find("flat_a"), err.find("flat_b"));
+    assert!(a.is_some() && b.is_some() && a < b, "{err}");
+    assert!(!err.contains("'noise'"), "{err}");
+    // prep of a log too short for the reverse-arrangement test's segments, every channel
+    let short = dir.path().join("short.csv");
+    std::fs::write(&short, "time_s,a,b\n0,1,2\n0.1,2,1\n0.2,1,3\n0.3,2,2\n").unwrap();
+    let out = dir.path().join("p");
+    let o = farma(
+        &["prep", short.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("channel a") && err.contains("channel b"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
