@@ -7,9 +7,10 @@ use std::path::PathBuf;
 use clap::Args;
 
 use super::LogArgs;
+use super::choices::{FitPathArg, InitArg};
 use crate::error::{Error, Result};
 use crate::estimator::tables::fit_json;
-use crate::estimator::{FarmaParams, FitPath, Init};
+use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::log::Progress;
 use crate::model::{Order, Report};
@@ -39,10 +40,10 @@ pub struct FitArgs {
     /// lag,CHANNEL, always takes the direct path: KD-tree gather per grid point; an
     /// explicit --method fast there is warned about).
     #[arg(long, value_enum)]
-    pub method: Option<FitPath>,
+    pub method: Option<FitPathArg>,
     /// Start of the alternation (`literal`: the paper's scheme, for comparison).
-    #[arg(long, value_enum, default_value_t = Init::Arma)]
-    pub init: Init,
+    #[arg(long, value_enum, default_value_t = InitArg::Arma)]
+    pub init: InitArg,
     #[arg(long, default_value_t = 50)]
     pub max_iter: usize,
     /// Relative RSS change that ends the alternation.
@@ -115,8 +116,8 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             d,
             grid_size: a.grid.unwrap_or(DEFAULT_GRID),
             bandwidth: a.bandwidth,
-            init: a.init,
-            path: a.method.unwrap_or(FitPath::Fast),
+            init: a.init.into(),
+            path: a.method.map_or(FitPath::Fast, Into::into),
             max_iter: a.max_iter,
             tol: a.tol,
             demean: !a.no_demean,

@@ -88,14 +88,14 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             "--grid {g}: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)"
         )));
     }
-    if a.init == Init::Literal {
+    if a.init == super::choices::InitArg::Literal {
         return Err(Error::Usage(
             "--init literal: a 2-D index starts from the linear ARMA only".into(),
         ));
     }
     // a 2-D index has the direct path only (KD-tree gather): an explicit --method
     // fast is not what runs, and says so (--method direct is what runs anyway)
-    if a.method == Some(FitPath::Fast) {
+    if a.method == Some(super::choices::FitPathArg::Fast) {
         eprintln!(
             "farma: warning: --method fast: a 2-D index has no moment tables (a window in two variables is no union of 1-D intervals); the direct path fits it (a KD-tree gather per grid point), as --method direct would"
         );

@@ -26,6 +26,7 @@ mod acf;
 mod adev;
 mod analyze;
 mod check;
+mod choices;
 mod fit;
 mod fit_index2;
 mod gap;
@@ -42,7 +43,8 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand};
 
 use crate::error::{EXIT_OK, Error, Result};
-use crate::log::{CachePolicy, Delimiter, GapPolicy, LogOptions, NanPolicy, Progress};
+use crate::log::{CachePolicy, Delimiter, LogOptions, Progress};
+use choices::{GapArg, NanArg};
 
 /// farma: nonparametric ARMA models of gyro drift, and where a simulator differs from the real sensor.
 #[derive(Parser, Debug)]
@@ -101,11 +103,11 @@ pub struct LogArgs {
     #[arg(long, value_name = "SEP")]
     pub delimiter: Option<String>,
     /// NaN, Inf or empty cells in a channel.
-    #[arg(long = "nan", value_enum, default_value_t = NanPolicy::Reject)]
-    pub nan: NanPolicy,
+    #[arg(long = "nan", value_enum, default_value_t = NanArg::Reject)]
+    pub nan: NanArg,
     /// Gaps or irregular sampling in the time column.
-    #[arg(long = "gaps", value_enum, default_value_t = GapPolicy::Reject)]
-    pub gaps: GapPolicy,
+    #[arg(long = "gaps", value_enum, default_value_t = GapArg::Reject)]
+    pub gaps: GapArg,
     /// Relative tolerance on the sampling interval before it counts as irregular.
     #[arg(long, default_value_t = 0.05, value_name = "FRACTION")]
     pub time_tol: f64,
@@ -130,8 +132,8 @@ impl LogArgs {
                 .as_deref()
                 .map(Delimiter::parse)
                 .transpose()?,
-            nan_policy: self.nan,
-            gap_policy: self.gaps,
+            nan_policy: self.nan.into(),
+            gap_policy: self.gaps.into(),
             time_tol: self.time_tol,
             columns: self.columns.clone(),
         })

@@ -7,13 +7,12 @@ use clap::Args;
 use serde_json::json;
 
 use super::LogArgs;
+use super::choices::{NonstationaryArg, ReplaceArg, SegmentStatArg};
 use crate::error::Result;
 use crate::jobs::prep::PrepJob;
 use crate::log::Progress;
 use crate::output::OutputSet;
-use crate::workflow::pauta::Replace;
-use crate::workflow::prep::{ChannelPrep, Nonstationary, PrepParams};
-use crate::workflow::stationarity::SegmentStat;
+use crate::workflow::prep::{ChannelPrep, PrepParams};
 
 /// The preparation flags (shared with `farma analyze`).
 #[derive(Args, Debug, Clone)]
@@ -22,20 +21,20 @@ pub struct PrepFlags {
     #[arg(long = "sigma", default_value_t = 3.0, value_name = "C")]
     pub sigma_c: f64,
     /// Replacement of rejected samples (the time base is kept).
-    #[arg(long, value_enum, default_value_t = Replace::Interpolate)]
-    pub replace: Replace,
+    #[arg(long, value_enum, default_value_t = ReplaceArg::Interpolate)]
+    pub replace: ReplaceArg,
     /// Segments of the reverse-arrangement test.
     #[arg(long, default_value_t = 20, value_name = "K")]
     pub segments: usize,
     /// Statistic of each segment in the reverse-arrangement test.
-    #[arg(long, value_enum, default_value_t = SegmentStat::Mean)]
-    pub segment_stat: SegmentStat,
+    #[arg(long, value_enum, default_value_t = SegmentStatArg::Mean)]
+    pub segment_stat: SegmentStatArg,
     /// Level of the stationarity test (rejected when p <= alpha).
     #[arg(long, default_value_t = crate::workflow::ALPHA)]
     pub alpha: f64,
     /// What to do when stationarity is rejected.
-    #[arg(long, value_enum, default_value_t = Nonstationary::Trend)]
-    pub nonstationary: Nonstationary,
+    #[arg(long, value_enum, default_value_t = NonstationaryArg::Trend)]
+    pub nonstationary: NonstationaryArg,
     /// Keep the mean (default: subtract it).
     #[arg(long)]
     pub keep_mean: bool,
@@ -45,11 +44,11 @@ impl PrepFlags {
     pub fn params(&self) -> PrepParams {
         PrepParams {
             sigma_c: self.sigma_c,
-            replace: self.replace,
+            replace: self.replace.into(),
             segments: self.segments,
-            segment_stat: self.segment_stat,
+            segment_stat: self.segment_stat.into(),
             alpha: self.alpha,
-            nonstationary: self.nonstationary,
+            nonstationary: self.nonstationary.into(),
             keep_mean: self.keep_mean,
             ..PrepParams::default()
         }

@@ -5,9 +5,10 @@
 use std::path::PathBuf;
 
 use super::LogArgs;
+use super::choices::FitPathArg;
 use crate::error::{Error, Result};
+use crate::estimator::FarmaParams;
 use crate::estimator::fit::MAX_GRID;
-use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::select::{SelectJob, select_json, select_text};
 use crate::log::Progress;
 use crate::model::Order;
@@ -25,8 +26,8 @@ pub struct SelectFlags {
     #[arg(long, default_value_t = 201, value_name = "N")]
     pub grid: usize,
     /// Computation of the local fits.
-    #[arg(long, value_enum, default_value_t = FitPath::Fast)]
-    pub method: FitPath,
+    #[arg(long, value_enum, default_value_t = FitPathArg::Fast)]
+    pub method: FitPathArg,
     /// Bootstrap replicates of the constancy test (0: no test).
     #[arg(long, default_value_t = 99, value_name = "B")]
     pub bootstrap: usize,
@@ -63,7 +64,7 @@ impl SelectFlags {
     pub fn farma(&self) -> FarmaParams {
         FarmaParams {
             grid_size: self.grid,
-            path: self.method,
+            path: self.method.into(),
             ..FarmaParams::default()
         }
     }

@@ -29,7 +29,7 @@ use crate::store::{
 pub const TIME_COLUMN_NAMES: [&str; 4] = ["time", "time_s", "t", "timestamp"];
 
 /// What to do with NaN, infinite or missing values in a channel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum NanPolicy {
     /// Fail with exit code 2, naming the column, the count and the first positions.
     #[default]
@@ -39,7 +39,7 @@ pub enum NanPolicy {
 }
 
 /// What to do when the time column shows gaps or irregular sampling.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum GapPolicy {
     /// Fail with exit code 2, listing the first irregular intervals.
     #[default]

@@ -13,7 +13,7 @@
 //! samples are rejected (0.27 % for a single pass).
 
 /// How rejected samples are replaced.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Replace {
     /// Linear interpolation between the nearest kept samples in time.
     Interpolate,

@@ -14,7 +14,7 @@ use super::pauta::{Replace, Replacement, pauta};
 use super::stationarity::{ReverseArrangement, SegmentStat, reverse_arrangement_series};
 
 /// What to do when the stationarity test rejects.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Nonstationary {
     /// Remove the least-squares linear trend.
     Trend,

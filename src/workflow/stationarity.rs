@@ -12,7 +12,7 @@
 use crate::stats::special::normal_two_sided_p;
 
 /// The per-segment statistic.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SegmentStat {
     Mean,
     MeanSquare,

@@ -5,7 +5,7 @@ use crate::error::Error;
 use crate::error::Result;
 
 /// How the alternation starts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Init {
     /// Linear ARMA(p,q) by conditional least squares; b by Gauss-Newton in each b-step.
     Arma,
@@ -14,7 +14,7 @@ pub enum Init {
 }
 
 /// Which computation gives the local fits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FitPath {
     /// One-pass exact moment tables (every bandwidth of the ladder at once).
     Fast,
