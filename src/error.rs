@@ -78,6 +78,12 @@ pub enum Error {
     #[error("{0}")]
     Usage(String),
 
+    /// A channel's values cannot be processed as asked: constant, non-finite, beyond
+    /// f64's reach, or a singular design. Raised by the numeric code, which does not
+    /// know the log; a job names the log and channel ([`crate::jobs::on_channel`]).
+    #[error("{0}")]
+    Data(String),
+
     /// The input could not be read (missing file, permission).
     #[error("cannot read {}: {source}", path.display())]
     InputIo {

@@ -189,7 +189,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     }
     // what does not depend on the fitted channel is checked once, not per channel
     check_fit2(store.n_samples(), z, &params).map_err(|e| match e {
-        Error::Usage(msg) => Error::column(&a.log, msg),
+        Error::Usage(msg) | Error::Data(msg) => Error::column(&a.log, msg),
         Error::TooShort { what, need, have } => Error::TooShort {
             what: format!("{}: {what}", a.log.display()),
             need,

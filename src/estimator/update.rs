@@ -429,17 +429,17 @@ pub fn update(
         .check()
         .and_then(|()| state.check_invertible())
         .and_then(|()| state.check_solvable())
-        .map_err(Error::Usage)?;
+        .map_err(Error::Data)?;
     if state.linear_start {
-        return Err(Error::Usage(
+        return Err(Error::Data(
             "its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead".into(),
         ));
     }
     if new.is_empty() {
-        return Err(Error::Usage("no new samples".into()));
+        return Err(Error::Data("no new samples".into()));
     }
     if new.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Usage(
+        return Err(Error::Data(
             "the channel holds NaN or infinite values".into(),
         ));
     }
@@ -450,7 +450,7 @@ pub fn update(
     let mut xs = st.x_tail.clone();
     xs.extend(new.iter().map(|v| v - st.mean));
     if let Some(i) = xs.iter().position(|v| !v.is_finite()) {
-        return Err(Error::Usage(format!(
+        return Err(Error::Data(format!(
             "new sample {} ({:e}) minus the model's mean {:e} is not a finite number: the new samples do not fit the model's scale",
             i - lag,
             new[i - lag],
@@ -663,7 +663,7 @@ pub fn update(
     st.e_tail = es[es.len() - lag..].to_vec();
     let first_t = st.n;
     st.n = st.n.checked_add(nn as u64).ok_or_else(|| {
-        Error::Usage(format!(
+        Error::Data(format!(
             "{nn} new samples after {} take the sample count past 2^64",
             st.n
         ))
@@ -700,7 +700,7 @@ pub fn update(
     }
     check_result(&st, state, new, &coef, sigma2, &es)?;
     let filled = super::fit::fill_failed(&mut coef, &st.grid)
-        .ok_or_else(|| Error::Usage("no grid point has a local fit after the update".into()))?;
+        .ok_or_else(|| Error::Data("no grid point has a local fit after the update".into()))?;
     let mut notes = Vec::new();
     let n_filled = filled.iter().filter(|v| **v).count();
     if n_filled > 0 {
@@ -788,7 +788,7 @@ fn check_result(
             (a.min(*v), b.max(*v))
         });
     let g = &before.grid;
-    Err(Error::Usage(format!(
+    Err(Error::Data(format!(
         "the update produced non-finite {what}: the new samples do not fit the model's scale (they span [{lo:e}, {hi:e}], the model's grid spans [{:e}, {:e}] with bandwidth {:e}, channel units); refit on the new log",
         g[0] + before.mean,
         g[g.len() - 1] + before.mean,

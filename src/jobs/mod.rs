@@ -27,12 +27,12 @@ use crate::error::{Error, Result};
 use crate::output::OutputSet;
 use crate::store::Store;
 
-/// An error of one channel's work on `log`, named with the channel: a usage error
-/// becomes an error of the log's channel, a too-short series says which log and
+/// An error of one channel's work on `log`, named with the channel: a usage or data
+/// error becomes an error of the log's channel, a too-short series says which log and
 /// channel; other errors (which name their file and column already) stay as they are.
 pub fn on_channel(log: &Path, channel: &str, e: Error) -> Error {
     match e {
-        Error::Usage(msg) => Error::Column {
+        Error::Usage(msg) | Error::Data(msg) => Error::Column {
             path: log.to_path_buf(),
             msg: format!("channel '{channel}': {msg}"),
         },

@@ -57,7 +57,7 @@ fn check(what: &str, n: usize, max_lag: usize) -> Result<()> {
 fn finish(sums: Vec<f64>, n: usize, what: &str) -> Result<Acf> {
     let c0 = sums[0] / n as f64;
     if c0.is_nan() || c0 <= 0.0 {
-        return Err(Error::Usage(format!(
+        return Err(Error::Data(format!(
             "{what}: the channel is constant; its autocorrelation is undefined"
         )));
     }

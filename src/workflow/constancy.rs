@@ -75,7 +75,7 @@ fn glr(x: &[f64], prm: &FarmaParams) -> Result<Glr> {
     let n = x.len();
     let start = p.max(q).max(d);
     let (ar, ma) = linear_start(x, p, q, start).ok_or_else(|| {
-        Error::Usage(format!(
+        Error::Data(format!(
             "constancy test: the linear ARMA({p},{q}) fit failed (singular design)"
         ))
     })?;
@@ -155,7 +155,7 @@ pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
         .collect();
     let ok: Vec<f64> = t_boot.iter().copied().filter(|v| v.is_finite()).collect();
     if ok.is_empty() {
-        return Err(Error::Usage(
+        return Err(Error::Data(
             "constancy test: no bootstrap replicate could be fitted".into(),
         ));
     }

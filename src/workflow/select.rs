@@ -117,44 +117,6 @@ pub fn order_name(o: (usize, usize, usize)) -> String {
     format!("FARMA({},{},{})", o.0, o.1, o.2)
 }
 
-/// Parses a grid of orders: `p,q,d;p,q,d;...` (each in the fit's range; repeats
-/// dropped).
-pub fn parse_orders(s: &str) -> Result<Vec<(usize, usize, usize)>> {
-    let mut out = Vec::new();
-    for item in s.split(';').map(str::trim).filter(|x| !x.is_empty()) {
-        let v: Vec<Option<usize>> = item.split(',').map(|x| x.trim().parse().ok()).collect();
-        match v.as_slice() {
-            // the fit's own rules (`FarmaParams::validate`), here to name --orders
-            [Some(p), Some(q), Some(d)] if *p == 0 || *d == 0 => {
-                return Err(Error::Usage(format!(
-                    "--orders: '{item}': p and d must be at least 1"
-                )));
-            }
-            [Some(p), Some(q), Some(d)] if *p > 6 || *q > 6 || *d > 1000 => {
-                return Err(Error::Usage(format!(
-                    "--orders: '{item}': p, q at most 6 and d at most 1000"
-                )));
-            }
-            // an order given twice is fitted once (its rows and F-tests are not
-            // repeated)
-            [Some(p), Some(q), Some(d)] => {
-                if !out.contains(&(*p, *q, *d)) {
-                    out.push((*p, *q, *d));
-                }
-            }
-            _ => {
-                return Err(Error::Usage(format!(
-                    "--orders: '{item}' is not p,q,d (orders separated by ';', e.g. '1,1,1;2,1,1')"
-                )));
-            }
-        }
-    }
-    if out.is_empty() {
-        return Err(Error::Usage("--orders: no order given".into()));
-    }
-    Ok(out)
-}
-
 /// Fits every order of `orders` to `x` (FARMA with `base` parameters, p,q,d replaced)
 /// and the ARMA baseline, in parallel; selects by AICc.
 pub fn select(
@@ -191,7 +153,7 @@ pub fn select(
             let start = p.max(q).max(d);
             let rows = n - start;
             let (arma_ar, arma_ma) = linear_start(&xc, p, q, start).ok_or_else(|| {
-                Error::Usage(format!(
+                Error::Data(format!(
                     "the linear ARMA({p},{q}) fit failed (singular design)"
                 ))
             })?;
@@ -261,7 +223,7 @@ pub fn select(
         .filter(|(_, r)| r.aicc.is_finite())
         .min_by(|a, b| a.1.aicc.total_cmp(&b.1.aicc))
         .map(|(i, _)| i)
-        .ok_or_else(|| Error::Usage("no order gave a finite AICc".into()))?;
+        .ok_or_else(|| Error::Data("no order gave a finite AICc".into()))?;
     let reason = explain(&rows, &ftests, selected);
     // the selected model's residuals, from its own f and b: the recursion the fit
     // ran, bit for bit (`fit`'s test `a_fit_returns_the_residuals_and_rss_of_its_own_f_and_b`)

@@ -186,7 +186,7 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
     for scale in [1e-40, 1e40] {
         let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
         match fit(&xs, &params) {
-            Err(farma::Error::Usage(msg)) => {
+            Err(farma::Error::Data(msg)) => {
                 assert!(msg.contains("other units"), "{scale:e}: {msg}")
             }
             Err(e) => panic!("{scale:e}: {e}"),
@@ -216,7 +216,7 @@ fn a_fit_in_other_units_is_the_same_fit_and_beyond_f64s_reach_is_refused() {
         let xs: Vec<f64> = x.iter().map(|v| v * scale).collect();
         for prm in [&params, &direct] {
             match fit(&xs, prm) {
-                Err(farma::Error::Usage(msg)) => assert!(
+                Err(farma::Error::Data(msg)) => assert!(
                     msg.contains("other units")
                         && msg.contains(&format!("scaled by about {by}"))
                         && !msg.contains("--method direct"),

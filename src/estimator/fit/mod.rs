@@ -502,17 +502,17 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         |(a, b, nan), (lo, hi, n)| (a.min(lo), b.max(hi), nan | n),
     );
     if nan || !xmin.is_finite() || !xmax.is_finite() {
-        return Err(Error::Usage(
+        return Err(Error::Data(
             "the channel holds NaN or infinite values".into(),
         ));
     }
     let range = xmax - xmin;
     if range.is_nan() || range <= 0.0 {
-        return Err(Error::Usage(
+        return Err(Error::Data(
             "the channel is constant: nothing to fit".into(),
         ));
     }
-    check_magnitude("the channel", xmin, xmax, prm.path).map_err(Error::Usage)?;
+    check_magnitude("the channel", xmin, xmax, prm.path).map_err(Error::Data)?;
     let qs = quantiles(
         |t| x[t - d],
         pp..n,
@@ -520,7 +520,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     );
     let (glo, ghi) = (qs[0], qs[1]);
     if ghi.is_nan() || ghi <= glo {
-        return Err(Error::Usage(format!(
+        return Err(Error::Data(format!(
             "the index values x_(t-{d}) take one value over the central quantiles ({glo:.6e}): no grid to fit on (the channel ranges over [{:.6e}, {:.6e}]: a channel quantised to a few levels, or an outlier so large that the other values are lost to rounding once the mean is taken out; `farma prep` removes outliers)",
             xmin + mean,
             xmax + mean
@@ -544,14 +544,14 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         Init::Arma => match linear_start_into(&x, p, q, pp, Some(&mut e_start)) {
             Some(abh) => abh,
             None => {
-                return Err(Error::Usage(
+                return Err(Error::Data(
                     "the linear ARMA start failed (singular design)".into(),
                 ));
             }
         },
         Init::Literal => match fit_arma(x_start, p, 0) {
             Some(m) => (m.ar, vec![0.0; q], false),
-            None => return Err(Error::Usage("the AR start failed (singular design)".into())),
+            None => return Err(Error::Data("the AR start failed (singular design)".into())),
         },
     };
     let mut coef = GridFit::new(g, p, f64::NAN);

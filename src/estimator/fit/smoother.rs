@@ -315,7 +315,7 @@ impl Smoother for LagSmoother<'_> {
             } else {
                 String::new()
             };
-            Error::Usage(format!(
+            Error::Data(format!(
                 "no grid point has a local fit at bandwidth {h:.6e}: every local system is empty or singular: {fixed}too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (a deterministic trend or sinusoid)"
             ))
         })

@@ -180,7 +180,7 @@ impl Smoother for Index2Smoother<'_> {
 
     fn fill(&self, coef: &mut Grid2Fit, h: (f64, f64)) -> Result<Vec<bool>> {
         fill_failed2(coef, self.grid, self.half).ok_or_else(|| {
-            Error::Usage(format!(
+            Error::Data(format!(
                 "no grid point has a local fit at bandwidths ({:.6e}, {:.6e}): every local system is empty or singular: bandwidths far from the index values' spread, too few distinct index values near each grid point (a quantised channel, or a spike that stretches the range; `farma prep` removes outliers), or regressors that are exactly dependent (an index channel that copies a lag of the channel, a deterministic trend)",
                 h.0, h.1
             ))
@@ -424,14 +424,14 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     }
     // the 2-D fit sums squares of the values and of their products with the index
     // offsets (z - c), as the direct path does
-    check_magnitude("the channel", x_lo, x_hi, FitPath::Direct).map_err(Error::Usage)?;
+    check_magnitude("the channel", x_lo, x_hi, FitPath::Direct).map_err(Error::Data)?;
     check_magnitude(
         "the index channel's spread (max - min)",
         0.0,
         range.1,
         FitPath::Direct,
     )
-    .map_err(Error::Usage)?;
+    .map_err(Error::Data)?;
     let half = (range.0 / 2.0, range.1 / 2.0);
     let q1 = quantile_pair((pp..n).map(|t| x[t - d]).collect(), prm.grid_quantiles);
     let q2 = quantile_pair((pp..n).map(|t| z[t - d2]).collect(), prm.grid_quantiles);
@@ -454,7 +454,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
 
     // 1. start: linear ARMA(p,q)
     let arma = fit_arma(&x, p, q)
-        .ok_or_else(|| Error::Usage("the linear ARMA start failed (singular design)".into()))?;
+        .ok_or_else(|| Error::Data("the linear ARMA start failed (singular design)".into()))?;
     let b = arma.ma;
     let mut coef = Grid2Fit::new(gl, p, (f64::NAN, f64::NAN));
     for g in 0..gl {

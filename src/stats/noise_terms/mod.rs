@@ -306,7 +306,7 @@ pub fn identify_curve(
         .collect();
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let Some((_, best)) = scored.first() else {
-        return Err(Error::Usage(format!(
+        return Err(Error::Data(format!(
             "{what}: no combination of the candidate noise terms fits the Allan variance"
         )));
     };
