@@ -1,6 +1,7 @@
 //! The 2-D index's smoother under the alternation ([`super::alternate`]), its fit
 //! ([`fit2`]: data checks, grid, linear start, the alternation, the returned model's
-//! trace and standard errors), its parameters and their checks.
+//! trace and standard errors; a [`Farma`] whose coefficients are on the 2-D grid, and
+//! a [`FitReport2`]), its parameters and their checks.
 //!
 //! - Bandwidths: GCV over a common scaled ladder h_j = 1.1^-j (range_1/2, range_2/2),
 //!   j = 0..20 (the paper's rule applied to each coordinate's range with one j), so
@@ -24,13 +25,14 @@ use super::grid2::{
     se_factors2,
 };
 use super::notes::{ma_edge_note, missing_se_note, stretched_ladder_note, undefined_trace_note};
-use super::params::{FarmaParams, FitPath, check_magnitude};
+use super::params::{FarmaParams, FitPath, Init, check_magnitude};
 use super::start::linear_se_factors;
 use super::{Alternation, BandwidthWords, Control, Ended, Iterate, Selection, Smoother, alternate};
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
-use crate::estimator::multivariate::{Fitted2, Gcv2Row};
 use crate::estimator::problem::PointStatus;
+use crate::model::report::{FitReport2, FitTimings, GcvRow};
+use crate::model::{Coef, Farma, Order, SecondIndex};
 
 /// The most grid points (G1 x G2) of a 2-D index. Every rung of the GCV ladders
 /// keeps its local fits (an inverse 3p x 3p system per point: 2.6 kB at p = 6) and
@@ -60,6 +62,8 @@ pub fn check_grid2((g1, g2): (usize, usize)) -> Result<()> {
 pub struct Farma2Params {
     /// p, q, d, tolerances, demeaning, grid quantiles (grid_size and bandwidth unused).
     pub base: FarmaParams,
+    /// The second index channel's name (the model records it).
+    pub index2: String,
     /// Lag of the second index channel.
     pub d2: usize,
     /// Grid points per coordinate (G1, G2).
@@ -149,7 +153,6 @@ impl<'a> Index2Smoother<'a> {
 impl Smoother for Index2Smoother<'_> {
     type H = (f64, f64);
     type Coef = Grid2Fit;
-    type Row = Gcv2Row;
     const WORDS: BandwidthWords = BandwidthWords {
         noun: "bandwidths",
         pronoun: "them",
@@ -163,9 +166,9 @@ impl Smoother for Index2Smoother<'_> {
     }
 
     fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self> {
-        let (rows, fit, best, extended, notes) = gcv_select2(&self.step(e, b), self.half);
+        let (rows, fit, h, extended, notes) = gcv_select2(&self.step(e, b), self.half);
         Selection {
-            h: rows[best].bandwidth,
+            h,
             fit,
             rows,
             extended,
@@ -249,10 +252,19 @@ impl Smoother for Index2Smoother<'_> {
     }
 }
 
-/// GCV over the common scaled ladder, extended while the minimum sits at an end.
-fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, bool, Vec<String>) {
+/// The chosen row's bandwidth pair.
+fn pair(r: &GcvRow) -> (f64, f64) {
+    (r.bandwidth, r.bandwidth2.expect("a row of a 2-D ladder"))
+}
+
+/// GCV over the common scaled ladder, extended while the minimum sits at an end: the
+/// table, the chosen rung's fit and bandwidths, whether the ladder was extended, notes.
+fn gcv_select2(
+    sm: &Step2,
+    half: (f64, f64),
+) -> (Vec<GcvRow>, Grid2Fit, (f64, f64), bool, Vec<String>) {
     let m = sm.prob.n_rows() as f64;
-    let mut rows: Vec<Gcv2Row> = Vec::new();
+    let mut rows: Vec<GcvRow> = Vec::new();
     let mut fits: Vec<Grid2Fit> = Vec::new();
     let mut notes = Vec::new();
     let mut extended = false;
@@ -267,17 +279,19 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
             let (f, rt) = sm.at(h);
             let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
             let row = match rt {
-                Some((rss, tr)) if tr < m => Gcv2Row {
+                Some((rss, tr)) if tr < m => GcvRow {
                     j,
-                    bandwidth: h,
+                    bandwidth: h.0,
+                    bandwidth2: Some(h.1),
                     rss,
                     trace: tr,
                     gcv: (rss / m) / (1.0 - tr / m).powi(2),
                     n_failed,
                 },
-                _ => Gcv2Row {
+                _ => GcvRow {
                     j,
-                    bandwidth: h,
+                    bandwidth: h.0,
+                    bandwidth2: Some(h.1),
                     rss: f64::NAN,
                     trace: f64::NAN,
                     gcv: f64::INFINITY,
@@ -334,8 +348,8 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
                         rows[i].j
                     ));
                 }
-                let f = fits.swap_remove(i);
-                return (rows, f, i, extended, notes);
+                let (f, h) = (fits.swap_remove(i), pair(&rows[i]));
+                return (rows, f, h, extended, notes);
             }
             None => {
                 notes.push(
@@ -347,8 +361,8 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
                     .min_by_key(|(_, r)| r.n_failed)
                     .map(|(i, _)| i)
                     .unwrap_or(0);
-                let f = fits.swap_remove(i);
-                return (rows, f, i, extended, notes);
+                let (f, h) = (fits.swap_remove(i), pair(&rows[i]));
+                return (rows, f, h, extended, notes);
             }
         }
     }
@@ -393,8 +407,9 @@ pub fn check_fit2(n: usize, z: &[f64], params: &Farma2Params) -> Result<()> {
     Ok(())
 }
 
-/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}).
-pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2> {
+/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}): the model, its grid
+/// centred in x (`grid_shift` 0) and in z's units, and the fit's report.
+pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, FitReport2)> {
     let prm = &params.base;
     let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
     let n = series.len();
@@ -523,11 +538,12 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let (filled, gcv_table, mut notes) = (alt.filled, alt.gcv_table, alt.notes);
     let (ladder_extended, iterations, converged) =
         (alt.ladder_extended, alt.iterations, alt.converged);
+    let (rss_history, returned_start) = (alt.rss_history, alt.returned_start);
     let m = (n - pp) as f64;
     let sigma2 = rss / m;
     // the returned model's trace, GCV (from its own RSS, as the 1-D fit's) and standard
     // errors
-    let (trace, factors, status, cond) = if alt.returned_start {
+    let (trace, factors, status, cond) = if returned_start {
         // the linear model with constant f_m (as the 1-D fit's)
         let factors = linear_se_factors(&x, p, pp).repeat(gl);
         (p as f64, factors, coef.status.clone(), coef.cond.clone())
@@ -561,29 +577,44 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
             "{n_filled} grid point(s) without a local fit were filled from the nearest point with one (see status)"
         ));
     }
-    Ok(Fitted2 {
-        p,
-        q,
-        d,
-        d2,
+    let model = Farma {
+        order: Order::new(p, q, d),
         mean,
-        grid,
-        coef,
-        se,
-        filled,
         b,
-        bandwidth: h,
-        rss,
         sigma2,
+        bandwidth: h.0,
+        coef: Coef {
+            grid: grid.g1,
+            grid_shift: 0.0,
+            f: coef.f.clone(),
+            se,
+            filled,
+            second: Some(SecondIndex {
+                channel: params.index2.clone(),
+                lag: d2,
+                grid: grid.g2,
+                bandwidth: h.1,
+            }),
+        },
+    };
+    let report = FitReport2 {
+        local: coef,
+        rss,
         trace,
         gcv,
         gcv_table,
         ladder_extended,
         iterations,
         converged,
+        rss_history,
+        init: Init::Arma,
+        path: FitPath::Direct,
         n,
         n_rows: n - pp,
         residuals: e,
+        linear_start: returned_start,
         notes,
-    })
+        timings: FitTimings::default(),
+    };
+    Ok((model, report))
 }
