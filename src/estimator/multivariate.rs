@@ -13,4 +13,5 @@ pub use super::fit::grid2::{
     Grid2, Grid2Fit, Index2, Vc2Problem, fill_failed2, fit_grid2, residuals2, rss_trace2,
     se_factors2,
 };
-pub use super::fit::smoother2::{Farma2Params, MAX_GRID2_POINTS, check_fit2, check_grid2, fit2};
+pub use super::fit::smoother2::fit2;
+pub use super::fit::{Farma2Params, MAX_GRID2_POINTS, check_fit2, check_grid2};

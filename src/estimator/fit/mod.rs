@@ -96,8 +96,8 @@ pub use notes::{
     stretched_ladder_note, undefined_trace_note,
 };
 pub use params::{
-    DIRECT_MAGNITUDE_LIMITS, FarmaParams, FitPath, Init, MAGNITUDE_LIMITS, MAX_GRID, ValidParams,
-    check_magnitude,
+    DIRECT_MAGNITUDE_LIMITS, Farma2Params, FarmaParams, FitPath, Init, MAGNITUDE_LIMITS, MAX_GRID,
+    MAX_GRID2_POINTS, ValidParams, check_fit2, check_grid2, check_magnitude,
 };
 use passes::rss_from;
 pub use passes::{FILTER_CHUNK, FILTER_LEAD, residuals, residuals_indexed};

@@ -458,7 +458,8 @@ fn quantiles_by_selection_equal_those_of_a_full_sort() {
 /// of least RSS with its own finite residuals, with a note for each, as the 1-D fit.
 #[test]
 fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
-    use super::smoother2::{Farma2Params, NAN_RESIDUALS_AT, fit2};
+    use super::params::Farma2Params;
+    use super::smoother2::{NAN_RESIDUALS_AT, fit2};
     // FARMA(1,1,1) whose f_1 follows a slow temperature-like channel
     let n = 3000;
     let a = uniform(n, 11);
@@ -526,7 +527,8 @@ fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
 /// `grid` axis and the model's agree with the fit's grid.
 #[test]
 fn a_2d_model_gives_the_residuals_of_its_fit() {
-    use super::smoother2::{Farma2Params, fit2};
+    use super::params::Farma2Params;
+    use super::smoother2::fit2;
     let n = 2000;
     let a = uniform(n, 5);
     let temp: Vec<f64> = (0..n)
