@@ -144,9 +144,9 @@ impl Farma {
     }
 
     /// Squared errors of the k-step predictions on the lag index of the last `holdout`
-    /// samples of `y` (centred), summed per horizon k = 1..=kmax (index k-1), and their counts. Every
-    /// target t of the hold-out is predicted from origin s = t - k, which may lie
-    /// before the hold-out (those data are observed, not fitted).
+    /// samples of `y` (centred), summed per horizon k = 1..=kmax (index k-1), and
+    /// their counts. Every target t of the hold-out is predicted from origin s = t - k,
+    /// which may lie before the hold-out (those data are observed, not fitted).
     pub fn kstep(&self, y: &[f64], holdout: usize, kmax: usize) -> (Vec<f64>, Vec<usize>) {
         let n = y.len();
         let (p, d, b) = (self.p(), self.d(), &self.b);

@@ -143,7 +143,7 @@ pub enum Report<'a> {
     Update(&'a UpdateReport),
 }
 
-/// The field `$f` of a fit's report, on either index.
+/// The field `$f` of a fit's report, on either index; `$update` for an update's.
 macro_rules! of_fit {
     ($r:expr, $f:ident, $update:expr) => {
         match $r {
