@@ -255,7 +255,7 @@ pub(super) fn range_of(v: &[f64]) -> (f64, f64) {
 
 /// The checks of a 2-D fit of `n` samples on the index channel `z` that do not depend
 /// on the fitted channel: the index lag, the grid and the bandwidths, the length, and
-/// the index channel (finite, not constant). [`fit2`] makes them; a run over several
+/// the index channel (finite, not constant). [`super::smoother2::fit2`] makes them; a run over several
 /// channels makes them once before, so that such a problem is said once, not once per
 /// channel.
 pub fn check_fit2(n: usize, z: &[f64], params: &Farma2Params) -> Result<()> {
