@@ -8,13 +8,14 @@ use serde_json::json;
 
 use super::fit::FitArgs;
 use crate::error::{Error, Result};
-use crate::estimator::multivariate::{
-    Farma2Params, Fitted2, check_fit2, check_grid2, coef_table2, fit2, gcv_table2, params_table2,
+use crate::estimator::multivariate::{Farma2Params, check_fit2, check_grid2, fit2};
+use crate::estimator::tables::{
+    ModelRow, ResidualRows, coef_table, gcv_table, params_table, stage_residuals,
 };
-use crate::estimator::tables::{ResidualRows, stage_residuals};
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::log::Progress;
-use crate::model::Order;
+use crate::model::report::FitReport2;
+use crate::model::{Farma, Order, Report};
 use crate::output::OutputSet;
 
 /// The second index channel of `--index`, or None for the 1-D index (`lag`).
@@ -170,6 +171,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
             demean: !a.no_demean,
             ..FarmaParams::default()
         },
+        index2: index2.clone(),
         d2,
         grid,
         bandwidth,
@@ -199,7 +201,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     })?;
     let t0 = Instant::now();
     let bar = progress.count_bar("channels fitted", names.len() as u64);
-    let fits: Vec<(String, Fitted2)> = crate::jobs::every_channel(
+    let fits: Vec<(String, (Farma, FitReport2))> = crate::jobs::every_channel(
         names
             .par_iter()
             .map(|n| {
@@ -208,7 +210,7 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                     fit2(x, z, &params).map_err(|e| crate::jobs::on_channel(&a.log, n, e))?;
                 // N values per channel: kept only for residuals.parquet (as `farma fit`)
                 if !a.residuals {
-                    m.residuals = Vec::new();
+                    m.1.residuals = Vec::new();
                 }
                 bar.inc(1);
                 Ok((n.clone(), m))
@@ -219,7 +221,10 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let mut out = OutputSet::new(&a.output)?;
-    let refs: Vec<(String, &Fitted2)> = fits.iter().map(|(n, m)| (n.clone(), m)).collect();
+    let refs: Vec<ModelRow> = fits
+        .iter()
+        .map(|(n, (m, r))| (n.clone(), m, Report::Fit2(r)))
+        .collect();
     let (size, mtime) = crate::log::source_identity(&a.log)?;
     let md = vec![
         ("order", format!("{p},{q},{d}")),
@@ -232,34 +237,35 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
         ("index2_lag", d2.to_string()),
     ];
     let coef_path = out.path("coef.parquet");
-    out.parquet("coef.parquet", &coef_table2(&refs)?, &md)?;
-    out.parquet("params.parquet", &params_table2(&refs, &index2)?, &md)?;
-    out.parquet("gcv.parquet", &gcv_table2(&refs)?, &md)?;
+    out.parquet("coef.parquet", &coef_table(&refs)?, &md)?;
+    out.parquet("params.parquet", &params_table(&refs)?, &md)?;
+    out.parquet("gcv.parquet", &gcv_table(&refs)?, &md)?;
     if a.residuals {
         // in_fit: false for the first max(p,q,d,d2) samples (the warm-up, as in 1-D)
         let rows: Vec<ResidualRows> = fits
             .iter()
-            .map(|(n, m)| ResidualRows::of_series(n, &m.residuals, m.n, m.n_rows))
+            .map(|(n, (_, r))| ResidualRows::of_fit(n, r))
             .collect();
         stage_residuals(&mut out, &rows, &md)?;
     }
     crate::jobs::commit_outputs(out, &crate::model::folder::FIT_OUTPUTS)?;
-    for (n, m) in &fits {
+    for (n, (m, r)) in &fits {
+        let second = m.second().expect("a 2-D index");
         eprintln!(
             "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",
             m.b,
             m.sigma2,
-            m.bandwidth.0,
-            m.bandwidth.1,
-            m.trace,
-            m.iterations,
-            if m.converged {
+            m.bandwidth,
+            second.bandwidth,
+            r.trace,
+            r.iterations,
+            if r.converged {
                 "converged"
             } else {
                 "NOT converged (raise --max-iter or --tol)"
             }
         );
-        for note in &m.notes {
+        for note in &r.notes {
             eprintln!("farma: note: {n}: {note}");
         }
         if a.json {
@@ -268,23 +274,23 @@ pub fn run(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 "order": [p, q, d],
                 "b": m.b,
                 "sigma2": m.sigma2,
-                "bandwidth": m.bandwidth.0,
-                "bandwidth2": m.bandwidth.1,
-                "rss": m.rss,
-                "trace": m.trace,
-                "gcv": m.gcv,
-                "iterations": m.iterations,
-                "converged": m.converged,
+                "bandwidth": m.bandwidth,
+                "bandwidth2": second.bandwidth,
+                "rss": r.rss,
+                "trace": r.trace,
+                "gcv": r.gcv,
+                "iterations": r.iterations,
+                "converged": r.converged,
                 "coef": coef_path.display().to_string(),
                 "mean": m.mean,
                 "init": "arma",
                 "method": "direct",
-                "ladder_extended": m.ladder_extended,
-                "n": m.n,
+                "ladder_extended": r.ladder_extended,
+                "n": r.n,
                 "index2": index2,
-                "d2": m.d2,
-                "grid": [m.grid.g1.len(), m.grid.g2.len()],
-                "notes": m.notes,
+                "d2": second.lag,
+                "grid": [m.coef.grid.len(), second.grid.len()],
+                "notes": r.notes,
             });
             outln!("{v}");
         }

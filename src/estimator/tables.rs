@@ -1,6 +1,7 @@
 //! Fitted models as tables (Parquet) and JSON: the coefficient functions, the
 //! parameters, the GCV table and the residuals, one row per channel and item, for the
-//! lag index and (the `...2` tables) the 2-D index.
+//! lag index and the 2-D index (whose tables add the second coordinate's columns:
+//! models of one table share their index).
 //! Column names are the contract of `shared/design/contracts.md` section 4.
 
 use std::sync::Arc;
@@ -12,8 +13,8 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use serde_json::{Value, json};
 
-use super::multivariate::Fitted2;
 use crate::error::Result;
+use crate::estimator::problem::{GridFit, PointStatus};
 use crate::model::{Farma, Report};
 use crate::output::{OutputSet, batch};
 
@@ -30,23 +31,79 @@ fn i(v: Vec<i64>) -> ArrayRef {
 /// One channel's model with the report of how it was made, as the tables take it.
 pub type ModelRow<'a> = (String, &'a Farma, Report<'a>);
 
+/// Whether the models are on a 2-D index (the tables' extra columns).
+fn on_2d_index(models: &[ModelRow]) -> bool {
+    let two_d = models.first().is_some_and(|(_, m, _)| m.second().is_some());
+    debug_assert!(models.iter().all(|(_, m, _)| m.second().is_some() == two_d));
+    two_d
+}
+
+/// The local fits' values coef.parquet writes: df/du (df/du_1 on a 2-D index), df/du_2
+/// on a 2-D index, supports, kernel masses, condition numbers, statuses.
+struct LocalColumns<'a> {
+    slope: &'a [f64],
+    slope2: Option<&'a [f64]>,
+    n_support: &'a [u64],
+    kernel_mass: &'a [f64],
+    cond: &'a [f64],
+    status: &'a [PointStatus],
+}
+
+impl<'a> LocalColumns<'a> {
+    fn of(r: &Report<'a>) -> Self {
+        let lag = |l: &'a GridFit| LocalColumns {
+            slope: &l.slope,
+            slope2: None,
+            n_support: &l.n_support,
+            kernel_mass: &l.kernel_mass,
+            cond: &l.cond,
+            status: &l.status,
+        };
+        match *r {
+            Report::Fit(r) => lag(&r.local),
+            Report::Update(r) => lag(&r.local),
+            Report::Fit2(r) => LocalColumns {
+                slope: &r.local.slope1,
+                slope2: Some(&r.local.slope2),
+                n_support: &r.local.n_support,
+                kernel_mass: &r.local.kernel_mass,
+                cond: &r.local.cond,
+                status: &r.local.status,
+            },
+        }
+    }
+}
+
 /// Coefficient functions: channel, m, grid, f, slope, se, n_support, kernel_mass,
 /// cond, status, filled. The grid is in the units of the channel (mean added back).
+/// On a 2-D index `grid` and `slope` are the lag coordinate's (df/du_1), and `grid2`
+/// (the second index value) and `slope2` (df/du_2) follow them.
 pub fn coef_table(models: &[ModelRow]) -> Result<RecordBatch> {
-    let (mut ch, mut m_, mut grid, mut fv, mut slope, mut se) =
-        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut ch, mut m_, mut grid, mut grid2, mut fv, mut slope, mut slope2, mut se) = (
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+        vec![],
+    );
     let (mut nsup, mut mass, mut cond, mut status, mut filled) =
         (vec![], vec![], vec![], vec![], vec![]);
     for (name, m, r) in models {
         let p = m.p();
-        let (c, local) = (&m.coef, r.local());
+        let (c, local) = (&m.coef, LocalColumns::of(r));
+        let n2 = c.n_grid() / c.grid.len();
         for g in 0..c.n_grid() {
             for k in 0..p {
                 ch.push(name.clone());
                 m_.push(k as i64 + 1);
-                grid.push(c.grid[g] + m.mean);
+                grid.push(c.grid[g / n2] + m.mean);
+                grid2.extend(c.second_grid(g));
                 fv.push(c.f[g * p + k]);
                 slope.push(local.slope[g * p + k]);
+                slope2.extend(local.slope2.map(|s| s[g * p + k]));
                 se.push(c.se[g * p + k]);
                 nsup.push(local.n_support[g]);
                 mass.push(local.kernel_mass[g]);
@@ -56,23 +113,30 @@ pub fn coef_table(models: &[ModelRow]) -> Result<RecordBatch> {
             }
         }
     }
-    batch(vec![
-        ("channel", s(ch)),
-        ("m", i(m_)),
-        ("grid", f(grid)),
-        ("f", f(fv)),
-        ("slope", f(slope)),
+    let two_d = on_2d_index(models);
+    let mut cols = vec![("channel", s(ch)), ("m", i(m_)), ("grid", f(grid))];
+    if two_d {
+        cols.push(("grid2", f(grid2)));
+    }
+    cols.extend([("f", f(fv)), ("slope", f(slope))]);
+    if two_d {
+        cols.push(("slope2", f(slope2)));
+    }
+    cols.extend([
         ("se", f(se)),
         ("n_support", Arc::new(UInt64Array::from(nsup))),
         ("kernel_mass", f(mass)),
         ("cond", f(cond)),
         ("status", s(status)),
-        ("filled", Arc::new(BooleanArray::from(filled))),
-    ])
+        ("filled", Arc::new(BooleanArray::from(filled)) as ArrayRef),
+    ]);
+    batch(cols)
 }
 
 /// One row per channel: order, b, sigma2, bandwidth, RSS, trace, GCV, iterations...;
-/// an update's rows add the forgetting factor and the count of new samples.
+/// an update's rows add the forgetting factor and the count of new samples; on a 2-D
+/// index `bandwidth` is h_1, and `bandwidth2`, `d2` and `index2` (the second index
+/// channel) follow the rest.
 pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
     let mut b = ListBuilder::new(Float64Builder::new());
     for (_, m, _) in models {
@@ -116,6 +180,17 @@ pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
         ("n", coli(&|_, r| r.n() as i64)),
         ("n_rows", coli(&|_, r| r.n_rows() as i64)),
     ];
+    if on_2d_index(models) {
+        let second = |m: &Farma| m.second().expect("a 2-D index").clone();
+        cols.extend([
+            ("bandwidth2", col(&|m, _| second(m).bandwidth)),
+            ("d2", coli(&|m, _| second(m).lag as i64)),
+            (
+                "index2",
+                s(models.iter().map(|(_, m, _)| second(m).channel).collect()),
+            ),
+        ]);
+    }
     if models
         .iter()
         .any(|(_, _, r)| matches!(r, Report::Update(_)))
@@ -125,7 +200,7 @@ pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
                 .iter()
                 .map(|(_, _, r)| match r {
                     Report::Update(u) => g(u),
-                    Report::Fit(_) => f64::NAN,
+                    Report::Fit(_) | Report::Fit2(_) => f64::NAN,
                 })
                 .collect()
         };
@@ -139,9 +214,12 @@ pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
     batch(cols)
 }
 
-/// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2), bandwidth, rss, trace, gcv, n_failed, chosen.
+/// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2), bandwidth, rss,
+/// trace, gcv, n_failed, chosen; on a 2-D index `bandwidth` is h_1 and `bandwidth2`
+/// follows it (h_j = 1.1^-j (range_1/2, range_2/2)).
 pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
-    let (mut ch, mut j, mut h, mut rss, mut tr, mut gcv, mut nf, mut chosen) = (
+    let (mut ch, mut j, mut h, mut h2, mut rss, mut tr, mut gcv, mut nf, mut chosen) = (
+        vec![],
         vec![],
         vec![],
         vec![],
@@ -156,23 +234,26 @@ pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
             ch.push(name.clone());
             j.push(r.j as i64);
             h.push(r.bandwidth);
+            h2.extend(r.bandwidth2);
             rss.push(r.rss);
             tr.push(r.trace);
             gcv.push(r.gcv);
             nf.push(r.n_failed as i64);
-            chosen.push(r.bandwidth == m.bandwidth);
+            chosen.push((r.bandwidth, r.bandwidth2) == m.bandwidths());
         }
     }
-    batch(vec![
-        ("channel", s(ch)),
-        ("j", i(j)),
-        ("bandwidth", f(h)),
+    let mut cols = vec![("channel", s(ch)), ("j", i(j)), ("bandwidth", f(h))];
+    if on_2d_index(models) {
+        cols.push(("bandwidth2", f(h2)));
+    }
+    cols.extend([
         ("rss", f(rss)),
         ("trace", f(tr)),
         ("gcv", f(gcv)),
         ("n_failed", i(nf)),
-        ("chosen", Arc::new(BooleanArray::from(chosen))),
-    ])
+        ("chosen", Arc::new(BooleanArray::from(chosen)) as ArrayRef),
+    ]);
+    batch(cols)
 }
 
 /// One channel's rows of residuals.parquet: its residuals, the sample index t of the
@@ -199,8 +280,8 @@ impl<'a> ResidualRows<'a> {
         }
     }
 
-    /// The rows of a 1-D fit ([`ResidualRows::of_series`]).
-    pub fn of_fit(channel: &'a str, r: &'a crate::model::FitReport) -> Self {
+    /// The rows of a fit ([`ResidualRows::of_series`]), on either index.
+    pub fn of_fit<L>(channel: &'a str, r: &'a crate::model::FitReport<L>) -> Self {
         Self::of_series(channel, &r.residuals, r.n, r.n_rows)
     }
 }
@@ -301,133 +382,6 @@ pub fn fit_json(name: &str, m: &Farma, r: Report, coef_path: &str) -> Value {
         v["n_new"] = u.w.len().into();
     }
     v
-}
-
-/// Coefficient functions on the 2-D grid: the columns of the 1-D coef.parquet plus
-/// `grid2` (the second index value) and `slope2` (df/du_2); `slope` is df/du_1.
-pub fn coef_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
-    let (mut ch, mut m_, mut g1, mut g2, mut fv) = (vec![], vec![], vec![], vec![], vec![]);
-    let (mut s1, mut s2, mut se, mut nsup, mut mass) = (vec![], vec![], vec![], vec![], vec![]);
-    let (mut cond, mut status, mut filled) = (vec![], vec![], vec![]);
-    for (name, m) in models {
-        let p = m.p;
-        for g in 0..m.grid.len() {
-            let (a, b) = m.grid.point(g);
-            for k in 0..p {
-                ch.push(name.clone());
-                m_.push(k as i64 + 1);
-                g1.push(a + m.mean);
-                g2.push(b);
-                fv.push(m.coef.f[g * p + k]);
-                s1.push(m.coef.slope1[g * p + k]);
-                s2.push(m.coef.slope2[g * p + k]);
-                se.push(m.se[g * p + k]);
-                nsup.push(m.coef.n_support[g]);
-                mass.push(m.coef.kernel_mass[g]);
-                cond.push(m.coef.cond[g]);
-                status.push(m.coef.status[g].as_str().to_string());
-                filled.push(m.filled[g]);
-            }
-        }
-    }
-    batch(vec![
-        ("channel", s(ch)),
-        ("m", i(m_)),
-        ("grid", f(g1)),
-        ("grid2", f(g2)),
-        ("f", f(fv)),
-        ("slope", f(s1)),
-        ("slope2", f(s2)),
-        ("se", f(se)),
-        ("n_support", Arc::new(UInt64Array::from(nsup))),
-        ("kernel_mass", f(mass)),
-        ("cond", f(cond)),
-        ("status", s(status)),
-        ("filled", Arc::new(BooleanArray::from(filled))),
-    ])
-}
-
-/// One row per channel: the columns of the 1-D params.parquet (`bandwidth` is h_1)
-/// plus `bandwidth2`, `d2` and `index2` (the second index channel).
-pub fn params_table2(models: &[(String, &Fitted2)], index2: &str) -> Result<RecordBatch> {
-    let mut b = ListBuilder::new(Float64Builder::new());
-    for (_, m) in models {
-        b.values().append_slice(&m.b);
-        b.append(true);
-    }
-    let col = |g: &dyn Fn(&Fitted2) -> f64| f(models.iter().map(|(_, m)| g(m)).collect());
-    let coli = |g: &dyn Fn(&Fitted2) -> i64| i(models.iter().map(|(_, m)| g(m)).collect());
-    let k = models.len();
-    batch(vec![
-        (
-            "channel",
-            s(models.iter().map(|(n, _)| n.clone()).collect()),
-        ),
-        ("p", coli(&|m| m.p as i64)),
-        ("q", coli(&|m| m.q as i64)),
-        ("d", coli(&|m| m.d as i64)),
-        ("b", Arc::new(b.finish())),
-        ("mean", col(&|m| m.mean)),
-        ("sigma2", col(&|m| m.sigma2)),
-        ("bandwidth", col(&|m| m.bandwidth.0)),
-        ("rss", col(&|m| m.rss)),
-        ("trace", col(&|m| m.trace)),
-        ("gcv", col(&|m| m.gcv)),
-        ("iterations", coli(&|m| m.iterations as i64)),
-        (
-            "converged",
-            Arc::new(BooleanArray::from(
-                models.iter().map(|(_, m)| m.converged).collect::<Vec<_>>(),
-            )),
-        ),
-        (
-            "ladder_extended",
-            Arc::new(BooleanArray::from(
-                models
-                    .iter()
-                    .map(|(_, m)| m.ladder_extended)
-                    .collect::<Vec<_>>(),
-            )),
-        ),
-        ("init", s(vec!["arma".to_string(); k])),
-        ("method", s(vec!["direct".to_string(); k])),
-        ("n", coli(&|m| m.n as i64)),
-        ("n_rows", coli(&|m| m.n_rows as i64)),
-        ("bandwidth2", col(&|m| m.bandwidth.1)),
-        ("d2", coli(&|m| m.d2 as i64)),
-        ("index2", s(vec![index2.to_string(); k])),
-    ])
-}
-
-/// The GCV ladder: the 1-D columns (`bandwidth` is h_1) plus `bandwidth2`.
-pub fn gcv_table2(models: &[(String, &Fitted2)]) -> Result<RecordBatch> {
-    let (mut ch, mut j, mut h1, mut h2, mut rss) = (vec![], vec![], vec![], vec![], vec![]);
-    let (mut tr, mut gcv, mut nf, mut chosen) = (vec![], vec![], vec![], vec![]);
-    for (name, m) in models {
-        for r in &m.gcv_table {
-            ch.push(name.clone());
-            // the rung, as the notes name it (h_j = 1.1^-j (range_1/2, range_2/2))
-            j.push(r.j as i64);
-            h1.push(r.bandwidth.0);
-            h2.push(r.bandwidth.1);
-            rss.push(r.rss);
-            tr.push(r.trace);
-            gcv.push(r.gcv);
-            nf.push(r.n_failed as i64);
-            chosen.push(r.bandwidth == m.bandwidth);
-        }
-    }
-    batch(vec![
-        ("channel", s(ch)),
-        ("j", i(j)),
-        ("bandwidth", f(h1)),
-        ("bandwidth2", f(h2)),
-        ("rss", f(rss)),
-        ("trace", f(tr)),
-        ("gcv", f(gcv)),
-        ("n_failed", i(nf)),
-        ("chosen", Arc::new(BooleanArray::from(chosen))),
-    ])
 }
 
 #[cfg(test)]

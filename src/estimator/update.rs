@@ -730,6 +730,7 @@ pub fn update(
             f: coef.f.clone(),
             se,
             filled,
+            second: None,
         },
     };
     let report = UpdateReport {

@@ -1,18 +1,21 @@
 //! The fitted FARMA(p,q,d) model, what fitting makes and every later verb reads:
-//! x_t - mean = y_t, y_t = sum_m f_m(y_{t-d}) y_{t-m} + e_t + sum_m b_m e_{t-m},
-//! e_t ~ (0, sigma^2).
+//! x_t - mean = y_t, y_t = sum_m f_m(U_t) y_{t-m} + e_t + sum_m b_m e_{t-m},
+//! e_t ~ (0, sigma^2), on the lag index U_t = y_{t-d} or on a 2-D index
+//! U_t = (y_{t-d}, z_{t-d2}) with another channel z of the log.
 //!
 //! - [`Farma`]: the order, the mean, b, sigma^2, the bandwidth and the coefficient
-//!   functions ([`coef`]); its residual recursion ([`Farma::residuals`]) and k-step
-//!   prediction ([`Farma::kstep`]) are the ones `check`, `analyze` and the simulator
-//!   use.
+//!   functions on their grid ([`coef`], which also names a 2-D index's channel z and
+//!   its delay d2); its residual recursion ([`Farma::residuals`], with z
+//!   [`Farma::residuals2`]) and, on the lag index, k-step prediction
+//!   ([`Farma::kstep`]) are the ones `check`, `analyze` and the simulator use (they
+//!   take the lag index alone).
 //! - [`order`]: FARMA(p,q,d), parsed and bounded once.
 //! - [`folder`]: the model folder on disk (`farma fit -o DIR`): its file names, and
 //!   reading a channel's model back.
 //!
 //! Residual recursion (zeros before the series): e_t = y_t - yhat_t,
-//! yhat_t = sum_{m <= min(p,t)} f_m(y_{t-d}) y_{t-m} + sum_{m <= min(q,t)} b_m e_{t-m},
-//! with y_{t-d} = 0 for t < d.
+//! yhat_t = sum_{m <= min(p,t)} f_m(U_t) y_{t-m} + sum_{m <= min(q,t)} b_m e_{t-m},
+//! with y_{t-d} = 0 for t < d and, on a 2-D index, z_{t-d2} = z_0 for t < d2.
 //!
 //! k-step prediction from origin s (data known up to s): the model is iterated with
 //! the unknown future innovations set to 0 and the predicted values standing in for
@@ -27,12 +30,13 @@ pub mod order;
 pub mod report;
 pub mod state;
 
-pub use coef::Coef;
+pub use coef::{Coef, SecondIndex};
 pub use order::Order;
 pub use report::{FitReport, Report, UpdateReport};
 pub use state::ChannelState;
 
-/// A fitted FARMA(p,q,d) model of one channel on the lag index x_{t-d}.
+/// A fitted FARMA(p,q,d) model of one channel on the lag index x_{t-d} or on a 2-D
+/// index (x_{t-d}, z_{t-d2}) (`coef.second`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Farma {
     pub order: Order,
@@ -42,9 +46,10 @@ pub struct Farma {
     pub b: Vec<f64>,
     /// Innovation variance RSS / (N - max(p,q,d)).
     pub sigma2: f64,
-    /// Bandwidth h of the local fits (index units); 0 for a linear model.
+    /// Bandwidth h of the local fits along the lag (channel units); 0 for a linear
+    /// model. A 2-D index's second bandwidth h_2 is its axis's (`coef.second`).
     pub bandwidth: f64,
-    /// f_1..f_p.
+    /// f_1..f_p on their grid.
     pub coef: Coef,
 }
 
@@ -74,20 +79,58 @@ impl Farma {
         self.order.d
     }
 
-    /// f_1..f_p at the centred index value `u` (x_{t-d} - mean) into `out` (length p).
+    /// The second coordinate of a 2-D index (None on the lag index).
+    pub fn second(&self) -> Option<&SecondIndex> {
+        self.coef.second.as_ref()
+    }
+
+    /// The bandwidths of the local fits as the GCV table records them: h, and h_2 on
+    /// a 2-D index.
+    pub fn bandwidths(&self) -> (f64, Option<f64>) {
+        (self.bandwidth, self.second().map(|s| s.bandwidth))
+    }
+
+    /// f_1..f_p on the lag index at the centred index value `u` (x_{t-d} - mean) into
+    /// `out` (length p).
     #[inline]
     pub fn f(&self, u: f64, out: &mut [f64]) {
         self.coef.eval(u, out)
     }
 
-    /// Residuals e_t of centred values `y` (x - mean) by the model's recursion (zeros
-    /// before the series; see the module documentation).
+    /// f_1..f_p on a 2-D index at the centred lag value `u1` (x_{t-d} - mean) and the
+    /// second channel's value `u2` (z_{t-d2}) into `out` (length p).
+    #[inline]
+    pub fn f2(&self, u1: f64, u2: f64, out: &mut [f64]) {
+        self.coef.eval2(u1, u2, out)
+    }
+
+    /// Residuals e_t of centred values `y` (x - mean) by the model's recursion on the
+    /// lag index (zeros before the series; see the module documentation).
     pub fn residuals(&self, y: &[f64]) -> Vec<f64> {
-        let (p, d, b) = (self.p(), self.d(), &self.b);
+        let d = self.d();
+        self.recursion(y, |t, f| self.f(if t >= d { y[t - d] } else { 0.0 }, f))
+    }
+
+    /// Residuals e_t of centred values `y` (x - mean) by the model's recursion on its
+    /// 2-D index with the second channel's values `z` (channel units, as long as `y`);
+    /// see the module documentation. The fit's own pass (`estimator::fit::grid2::
+    /// residuals2`) gives the same values.
+    pub fn residuals2(&self, y: &[f64], z: &[f64]) -> Vec<f64> {
+        let (d, d2) = (self.d(), self.second().expect("a 2-D index").lag);
+        assert_eq!(y.len(), z.len(), "the series and the index channel");
+        self.recursion(y, |t, f| {
+            let u1 = if t >= d { y[t - d] } else { 0.0 };
+            self.f2(u1, z[t.saturating_sub(d2)], f)
+        })
+    }
+
+    /// The residual recursion with f_1..f_p at t from `f_at(t, out)`.
+    fn recursion(&self, y: &[f64], mut f_at: impl FnMut(usize, &mut [f64])) -> Vec<f64> {
+        let (p, b) = (self.p(), &self.b);
         let mut f = vec![0.0; p];
         let mut e = vec![0.0; y.len()];
         for t in 0..y.len() {
-            self.f(if t >= d { y[t - d] } else { 0.0 }, &mut f);
+            f_at(t, &mut f);
             let mut s = y[t];
             for k in 0..p.min(t) {
                 s -= f[k] * y[t - k - 1];
@@ -102,10 +145,10 @@ impl Farma {
         e
     }
 
-    /// Squared errors of the k-step predictions of the last `holdout` samples of `y`
-    /// (centred), summed per horizon k = 1..=kmax (index k-1), and their counts. Every
-    /// target t of the hold-out is predicted from origin s = t - k, which may lie
-    /// before the hold-out (those data are observed, not fitted).
+    /// Squared errors of the k-step predictions on the lag index of the last `holdout`
+    /// samples of `y` (centred), summed per horizon k = 1..=kmax (index k-1), and
+    /// their counts. Every target t of the hold-out is predicted from origin s = t - k,
+    /// which may lie before the hold-out (those data are observed, not fitted).
     pub fn kstep(&self, y: &[f64], holdout: usize, kmax: usize) -> (Vec<f64>, Vec<usize>) {
         let n = y.len();
         let (p, d, b) = (self.p(), self.d(), &self.b);

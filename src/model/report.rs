@@ -2,7 +2,14 @@
 //! history, the local fits' diagnostics, notes, timings) or of an online update. The
 //! model itself is [`super::Farma`]; the tables and `--json` of `fit` and `update`
 //! read both.
+//!
+//! One [`FitReport`] for both indexes, generic over the local fits at the grid points
+//! alone: on the lag index a [`GridFit`] (the default), on a 2-D index a
+//! [`Grid2Fit`] (a slope per coordinate, 3p x 3p local systems). Those are the
+//! estimator's own working types, different in shape, and the fit of an index knows
+//! which it made; a GCV row records one bandwidth, or two ([`GcvRow::bandwidth2`]).
 
+use crate::estimator::multivariate::Grid2Fit;
 use crate::estimator::problem::GridFit;
 use crate::estimator::{FitPath, Init};
 
@@ -12,7 +19,11 @@ pub struct GcvRow {
     /// The rung: h_j = 1.1^-j range/2 (j = 0..20 the paper's ladder; below 0 and
     /// above 20 its extensions).
     pub j: i32,
+    /// h, or h_1 on a 2-D index.
     pub bandwidth: f64,
+    /// h_2 on a 2-D index (the rung scales both: h_j = 1.1^-j (range_1/2,
+    /// range_2/2)); None on the lag index.
+    pub bandwidth2: Option<f64>,
     pub rss: f64,
     pub trace: f64,
     /// (RSS/m) / (1 - tr/m)^2; infinite when some grid point has no fit.
@@ -57,12 +68,13 @@ pub struct FitTimings {
     pub total_s: f64,
 }
 
-/// The report of a fit: everything `farma fit` says besides the model.
+/// The report of a fit: everything `farma fit` says besides the model. `L` is the
+/// index's local fits (module documentation).
 #[derive(Clone, Debug)]
-pub struct FitReport {
+pub struct FitReport<L = GridFit> {
     /// The local fits at the chosen bandwidth: f (as in the model), slopes, supports,
     /// kernel masses, condition numbers and statuses per grid point.
-    pub local: GridFit,
+    pub local: L,
     pub rss: f64,
     /// Trace of the smoother at the chosen bandwidth (effective degrees of freedom);
     /// p when the fit returned its linear start (constant f_m).
@@ -92,9 +104,13 @@ pub struct FitReport {
     pub linear_start: bool,
     /// Messages for the user (ladder extensions, filled points).
     pub notes: Vec<String>,
-    /// Where the time went.
+    /// Where the time went (the lag index's fit; zeros on a 2-D index, whose fit
+    /// does not time its steps).
     pub timings: FitTimings,
 }
+
+/// The report of a fit on a 2-D index.
+pub type FitReport2 = FitReport<Grid2Fit>;
 
 /// The report of an online update (`farma update`): the recursion over the new
 /// samples; trace and GCV need the old data and are not known.
@@ -119,82 +135,76 @@ pub struct UpdateReport {
 }
 
 /// How a model was made, as the tables and `--json` of `fit`, `update` and `analyze`
-/// read it: a fit's report or an update's.
+/// read it: a fit's report (on the lag index or a 2-D index) or an update's.
 #[derive(Clone, Copy, Debug)]
 pub enum Report<'a> {
     Fit(&'a FitReport),
+    Fit2(&'a FitReport2),
     Update(&'a UpdateReport),
 }
 
-impl Report<'_> {
-    pub fn local(&self) -> &GridFit {
-        match self {
-            Report::Fit(r) => &r.local,
-            Report::Update(r) => &r.local,
+/// The field `$f` of a fit's report, on either index; `$update` for an update's.
+macro_rules! of_fit {
+    ($r:expr, $f:ident, $update:expr) => {
+        match $r {
+            Report::Fit(r) => r.$f,
+            Report::Fit2(r) => r.$f,
+            Report::Update(_) => $update,
         }
-    }
+    };
+}
 
+impl Report<'_> {
     pub fn rss(&self) -> f64 {
         match self {
             Report::Fit(r) => r.rss,
+            Report::Fit2(r) => r.rss,
             Report::Update(r) => r.rss,
         }
     }
 
     /// The smoother's trace; NaN after an update (it needs the old data).
     pub fn trace(&self) -> f64 {
-        match self {
-            Report::Fit(r) => r.trace,
-            Report::Update(_) => f64::NAN,
-        }
+        of_fit!(self, trace, f64::NAN)
     }
 
     /// GCV of the model; NaN after an update.
     pub fn gcv(&self) -> f64 {
-        match self {
-            Report::Fit(r) => r.gcv,
-            Report::Update(_) => f64::NAN,
-        }
+        of_fit!(self, gcv, f64::NAN)
     }
 
     /// The GCV table (none after an update: the bandwidth is held).
     pub fn gcv_table(&self) -> &[GcvRow] {
         match self {
             Report::Fit(r) => &r.gcv_table,
+            Report::Fit2(r) => &r.gcv_table,
             Report::Update(_) => &[],
         }
     }
 
     /// Alternations run (0 for an update).
     pub fn iterations(&self) -> usize {
-        match self {
-            Report::Fit(r) => r.iterations,
-            Report::Update(_) => 0,
-        }
+        of_fit!(self, iterations, 0)
     }
 
     /// Whether the alternation converged (an update's recursion always ends).
     pub fn converged(&self) -> bool {
-        match self {
-            Report::Fit(r) => r.converged,
-            Report::Update(_) => true,
-        }
+        of_fit!(self, converged, true)
     }
 
     pub fn ladder_extended(&self) -> bool {
-        match self {
-            Report::Fit(r) => r.ladder_extended,
-            Report::Update(_) => false,
-        }
+        of_fit!(self, ladder_extended, false)
     }
 
     /// How it started: `arma` or `literal` for a fit, `state` for an update.
     pub fn init_name(&self) -> &'static str {
         match self {
-            Report::Fit(r) => match r.init {
-                Init::Arma => "arma",
-                Init::Literal => "literal",
-            },
+            Report::Fit(FitReport { init, .. }) | Report::Fit2(FitReport { init, .. }) => {
+                match init {
+                    Init::Arma => "arma",
+                    Init::Literal => "literal",
+                }
+            }
             Report::Update(_) => "state",
         }
     }
@@ -202,10 +212,12 @@ impl Report<'_> {
     /// The computation: `fast` or `direct` for a fit, `rls` for an update.
     pub fn method_name(&self) -> &'static str {
         match self {
-            Report::Fit(r) => match r.path {
-                FitPath::Fast => "fast",
-                FitPath::Direct => "direct",
-            },
+            Report::Fit(FitReport { path, .. }) | Report::Fit2(FitReport { path, .. }) => {
+                match path {
+                    FitPath::Fast => "fast",
+                    FitPath::Direct => "direct",
+                }
+            }
             Report::Update(_) => "rls",
         }
     }
@@ -213,6 +225,7 @@ impl Report<'_> {
     pub fn n(&self) -> usize {
         match self {
             Report::Fit(r) => r.n,
+            Report::Fit2(r) => r.n,
             Report::Update(r) => r.n,
         }
     }
@@ -220,6 +233,7 @@ impl Report<'_> {
     pub fn n_rows(&self) -> usize {
         match self {
             Report::Fit(r) => r.n_rows,
+            Report::Fit2(r) => r.n_rows,
             Report::Update(r) => r.n_rows,
         }
     }
@@ -227,6 +241,7 @@ impl Report<'_> {
     pub fn notes(&self) -> &[String] {
         match self {
             Report::Fit(r) => &r.notes,
+            Report::Fit2(r) => &r.notes,
             Report::Update(r) => &r.notes,
         }
     }

@@ -205,6 +205,7 @@ fn two_d_fit_recovers_a_temperature_dependent_coefficient_and_1d_cannot() {
         &temp,
         &Farma2Params {
             base: base.clone(),
+            index2: "temp".into(),
             d2: 1,
             grid: (9, 9),
             bandwidth: None,
@@ -227,26 +228,30 @@ fn two_d_fit_recovers_a_temperature_dependent_coefficient_and_1d_cannot() {
     for i in 2..=6 {
         for j in 2..=6 {
             let g = i * 9 + j;
-            let (u, tt) = m2.grid.point(g);
+            let (u, tt) = (m2.0.coef.centred_grid(g), m2.0.coef.second_grid(g).unwrap());
             let truth = 0.5 + 0.3 * (tt - 25.0).tanh();
-            err2 = err2.max((m2.coef.f[g] - truth).abs());
+            err2 = err2.max((m2.0.coef.f[g] - truth).abs());
             m1.1.local.eval(&m1.0.coef.grid, u, &mut f1);
             err1 = err1.max((f1[0] - truth).abs());
         }
     }
     eprintln!(
         "2-D: h = {:?}, max error {err2:.3}, sigma2 {:.4}; 1-D: h = {:.3}, max error {err1:.3}, sigma2 {:.4}; notes {:?}",
-        m2.bandwidth, m2.sigma2, m1.0.bandwidth, m1.0.sigma2, m2.notes
+        m2.0.bandwidths(),
+        m2.0.sigma2,
+        m1.0.bandwidth,
+        m1.0.sigma2,
+        m2.1.notes
     );
     assert!(err2 < 0.1, "2-D fit misses f_1(u, T) by {err2}");
     assert!(err1 > 0.2, "the 1-D fit cannot see temperature ({err1})");
-    assert!(m2.sigma2 < m1.0.sigma2 * 0.97);
+    assert!(m2.0.sigma2 < m1.0.sigma2 * 0.97);
     // the slope in temperature is positive at T = 25 (0.3 tanh' = 0.3)
     let centre = 4 * 9 + 4;
     assert!(
-        (m2.coef.slope2[centre] - 0.3).abs() < 0.15,
+        (m2.1.local.slope2[centre] - 0.3).abs() < 0.15,
         "{}",
-        m2.coef.slope2[centre]
+        m2.1.local.slope2[centre]
     );
 }
 
@@ -275,13 +280,14 @@ fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
                 d: 1,
                 ..FarmaParams::default()
             },
+            index2: "z".into(),
             d2: 1,
             grid: (7, 7),
             bandwidth: None,
         },
     )
     .unwrap();
-    let rows = &m.gcv_table;
+    let rows = &m.1.gcv_table;
     let best = rows
         .iter()
         .enumerate()
@@ -293,18 +299,23 @@ fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
         "best j {} of {:?}; notes {:?}",
         rows[best].j,
         rows.iter().map(|r| r.j).collect::<Vec<_>>(),
-        m.notes
+        m.1.notes
     );
     assert_eq!(best, 0, "the widest rung is chosen");
     assert!(rows[0].j < 0, "the ladder was extended upwards");
     assert!(
-        m.notes
+        m.1.notes
             .iter()
             .any(|s| s.contains("the end of the ladder's extensions")),
         "{:?}",
-        m.notes
+        m.1.notes
     );
-    let table = farma::estimator::multivariate::gcv_table2(&[("x".to_string(), &m)]).unwrap();
+    let table = farma::estimator::tables::gcv_table(&[(
+        "x".to_string(),
+        &m.0,
+        farma::model::Report::Fit2(&m.1),
+    )])
+    .unwrap();
     let j = table
         .column_by_name("j")
         .unwrap()
@@ -346,6 +357,7 @@ fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
                     max_iter,
                     ..FarmaParams::default()
                 },
+                index2: "z".into(),
                 d2: 1,
                 grid: (9, 9),
                 bandwidth: None,
@@ -355,9 +367,10 @@ fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
     };
     // with room to settle again: converged, the re-selection named with its alternation
     let full = run(50);
-    eprintln!("{} alternations: {:?}", full.iterations, full.notes);
-    assert!(full.converged);
+    eprintln!("{} alternations: {:?}", full.1.iterations, full.1.notes);
+    assert!(full.1.converged);
     let settled_at = full
+        .1
         .notes
         .iter()
         .find_map(|s| {
@@ -369,41 +382,41 @@ fn a_2d_bandwidth_reselection_is_described_truthfully_converged_or_not() {
                 .filter(|_| s.contains("GCV at those residuals chose"))
         })
         .expect("a bandwidth re-selection in this fit");
-    assert!(settled_at + 1 < full.iterations);
-    assert!(!full.notes.iter().any(|s| s.contains("NOT converged")));
+    assert!(settled_at + 1 < full.1.iterations);
+    assert!(!full.1.notes.iter().any(|s| s.contains("NOT converged")));
     // --max-iter ends it after the re-selection, before it settles again
     let cut = run(settled_at + 2);
-    eprintln!("{:?}", cut.notes);
-    assert!(!cut.converged);
+    eprintln!("{:?}", cut.1.notes);
+    assert!(!cut.1.converged);
     assert!(
-        !cut.notes.iter().any(|s| s.contains("after convergence")),
+        !cut.1.notes.iter().any(|s| s.contains("after convergence")),
         "{:?}",
-        cut.notes
+        cut.1.notes
     );
     assert!(
-        cut.notes.iter().any(|s| s.starts_with(
+        cut.1.notes.iter().any(|s| s.starts_with(
             "NOT converged: after 1 bandwidth re-selection(s) the alternation did not settle again within --max-iter"
         )),
         "{:?}",
-        cut.notes
+        cut.1.notes
     );
     // --max-iter ends it at the alternation that settled: the model stays at the
     // bandwidths it settled at, and says so
     let at = run(settled_at);
-    assert!(!at.converged);
+    assert!(!at.1.converged);
     assert!(
-        at.notes
+        at.1.notes
             .iter()
             .any(|s| s.contains("ends the alternation here: NOT converged")),
         "{:?}",
-        at.notes
+        at.1.notes
     );
-    assert_ne!(at.bandwidth, cut.bandwidth);
-    let chosen = at
-        .gcv_table
-        .iter()
-        .filter(|r| r.bandwidth == at.bandwidth)
-        .count();
+    assert_ne!(at.0.bandwidths(), cut.0.bandwidths());
+    let chosen =
+        at.1.gcv_table
+            .iter()
+            .filter(|r| (r.bandwidth, r.bandwidth2) == at.0.bandwidths())
+            .count();
     assert_eq!(chosen, 1, "gcv.parquet's chosen row is the model's pair");
 }
 
@@ -422,30 +435,31 @@ fn a_spike_in_the_index_channel_is_named_as_stretching_its_ladder() {
             d: 1,
             ..FarmaParams::default()
         },
+        index2: "temp".into(),
         d2: 1,
         grid: (7, 7),
         bandwidth: None,
     };
     let clean = fit2(&x, &temp, &params).unwrap();
     assert!(
-        !clean.notes.iter().any(|n| n.contains("outlier")),
+        !clean.1.notes.iter().any(|n| n.contains("outlier")),
         "{:?}",
-        clean.notes
+        clean.1.notes
     );
     temp[2000] = 1000.0;
     let m = fit2(&x, &temp, &params).unwrap();
-    let note = m
-        .notes
-        .iter()
-        .find(|n| n.contains("the index channel's values"))
-        .unwrap_or_else(|| panic!("no note: {:?}", m.notes));
+    let note =
+        m.1.notes
+            .iter()
+            .find(|n| n.contains("the index channel's values"))
+            .unwrap_or_else(|| panic!("no note: {:?}", m.1.notes));
     assert!(
         note.contains("to 1.000000e3") && note.contains("stretches the bandwidth ladder"),
         "{note}"
     );
     assert!(
-        !m.notes.iter().any(|n| n.contains("x_(t-1)")),
+        !m.1.notes.iter().any(|n| n.contains("x_(t-1)")),
         "{:?}",
-        m.notes
+        m.1.notes
     );
 }

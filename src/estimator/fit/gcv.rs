@@ -218,6 +218,7 @@ pub(super) fn gcv_select(
                     Some((rss, tr)) if *tr < m => GcvRow {
                         j,
                         bandwidth: h,
+                        bandwidth2: None,
                         rss: *rss,
                         trace: *tr,
                         gcv: (rss / m) / (1.0 - tr / m).powi(2),
@@ -226,6 +227,7 @@ pub(super) fn gcv_select(
                     _ => GcvRow {
                         j,
                         bandwidth: h,
+                        bandwidth2: None,
                         rss: f64::NAN,
                         trace: f64::NAN,
                         gcv: f64::INFINITY,

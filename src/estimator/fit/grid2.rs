@@ -28,6 +28,7 @@ use crate::estimator::kernel::biweight;
 use crate::estimator::linalg::spd_solve_inverse;
 use crate::estimator::moments::sandwich_diag;
 use crate::estimator::problem::PointStatus;
+use crate::model::coef::{bilinear_corners, interp_rows2};
 
 /// The regression data with a 2-D index (borrowed).
 #[derive(Clone, Copy, Debug)]
@@ -93,32 +94,11 @@ impl Grid2 {
     }
 
     /// The grid points whose bilinear weights at (u1, u2) may be non-zero, with the
-    /// weights (constant beyond the grid in each coordinate).
+    /// weights (constant beyond the grid in each coordinate): the model's
+    /// interpolation ([`bilinear_corners`]).
     #[inline]
     pub fn corners(&self, u1: f64, u2: f64) -> [(usize, f64); 4] {
-        let (i0, i1, a) = axis(&self.g1, u1);
-        let (j0, j1, c) = axis(&self.g2, u2);
-        let n2 = self.g2.len();
-        [
-            (i0 * n2 + j0, (1.0 - a) * (1.0 - c)),
-            (i1 * n2 + j0, a * (1.0 - c)),
-            (i0 * n2 + j1, (1.0 - a) * c),
-            (i1 * n2 + j1, a * c),
-        ]
-    }
-}
-
-/// Cell of `u` on an ascending axis: (left, right, weight of right).
-#[inline]
-fn axis(g: &[f64], u: f64) -> (usize, usize, f64) {
-    let n = g.len();
-    if u <= g[0] {
-        (0, 0, 0.0)
-    } else if u >= g[n - 1] {
-        (n - 1, n - 1, 0.0)
-    } else {
-        let k = g.partition_point(|v| *v <= u) - 1;
-        (k, k + 1, (u - g[k]) / (g[k + 1] - g[k]))
+        bilinear_corners(&self.g1, &self.g2, u1, u2)
     }
 }
 
@@ -189,18 +169,11 @@ impl Grid2Fit {
         }
     }
 
-    /// f at (u1, u2): bilinear between grid points, constant beyond (all points set).
+    /// f at (u1, u2): bilinear between grid points, constant beyond (all points set):
+    /// the model's interpolation ([`interp_rows2`]).
     #[inline]
     pub fn eval(&self, grid: &Grid2, u1: f64, u2: f64, out: &mut [f64]) {
-        let p = self.p;
-        out.iter_mut().for_each(|v| *v = 0.0);
-        for (g, w) in grid.corners(u1, u2) {
-            if w != 0.0 {
-                for m in 0..p {
-                    out[m] += w * self.f[g * p + m];
-                }
-            }
-        }
+        interp_rows2(&grid.g1, &grid.g2, &self.f, u1, u2, out)
     }
 }
 

@@ -53,9 +53,11 @@
 //! b-step and the residual recursion; the loop holds what does not: the order of the
 //! steps, the rules that stop it, the bandwidth re-selections, the iterate of least
 //! RSS and the notes on them. A trait, not an enum: the two indexes differ in their
-//! types (a bandwidth is h or (h_1, h_2); the local fits and a GCV row differ), which
-//! an enum would have to unify at every use, and each keeps caches of its own; a third
-//! index is a third implementation, with no match to extend.
+//! types (a bandwidth is h or (h_1, h_2); the local fits differ), which an enum would
+//! have to unify at every use, and each keeps caches of its own; a third index is a
+//! third implementation, with no match to extend. Both end in the one model type,
+//! [`Farma`], and a [`FitReport`] over their local fits (GCV rows hold one bandwidth
+//! or two).
 //!
 //! This file is over 600 lines because it also holds [`fit`], the lag index's entry
 //! (data checks, grid, linear start, the loop, then the returned model's trace and
@@ -94,8 +96,8 @@ pub use notes::{
     stretched_ladder_note, undefined_trace_note,
 };
 pub use params::{
-    DIRECT_MAGNITUDE_LIMITS, FarmaParams, FitPath, Init, MAGNITUDE_LIMITS, MAX_GRID, ValidParams,
-    check_magnitude,
+    DIRECT_MAGNITUDE_LIMITS, Farma2Params, FarmaParams, FitPath, Init, MAGNITUDE_LIMITS, MAX_GRID,
+    MAX_GRID2_POINTS, ValidParams, check_fit2, check_grid2, check_magnitude,
 };
 use passes::rss_from;
 pub use passes::{FILTER_CHUNK, FILTER_LEAD, residuals, residuals_indexed};
@@ -145,7 +147,7 @@ pub(super) struct BandwidthWords {
 /// GCV's choice over a smoother's ladder.
 pub(super) struct Selection<S: Smoother + ?Sized> {
     /// The ladder's table.
-    pub(super) rows: Vec<S::Row>,
+    pub(super) rows: Vec<GcvRow>,
     /// The local fits at the chosen bandwidth.
     pub(super) fit: S::Coef,
     pub(super) h: S::H,
@@ -161,8 +163,6 @@ pub(super) trait Smoother {
     type H: Copy + PartialEq;
     /// The local fits at the grid points.
     type Coef: Clone;
-    /// A row of the GCV table.
-    type Row;
     const WORDS: BandwidthWords;
     /// Whether the model keeps the GCV table of a re-check that `--max-iter` leaves no
     /// alternation to act on (else the table of the bandwidth it settled at).
@@ -235,7 +235,7 @@ pub(super) struct Alternation<S: Smoother + ?Sized> {
     pub(super) filled: Vec<bool>,
     /// RSS after the start and after each alternation.
     pub(super) rss_history: Vec<f64>,
-    pub(super) gcv_table: Vec<S::Row>,
+    pub(super) gcv_table: Vec<GcvRow>,
     pub(super) ladder_extended: bool,
     pub(super) notes: Vec<String>,
     pub(super) iterations: usize,
@@ -669,6 +669,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
             f: coef.f.clone(),
             se,
             filled,
+            second: None,
         },
     };
     let report = FitReport {

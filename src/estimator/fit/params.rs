@@ -1,5 +1,6 @@
-//! The parameters of a fit, checked once ([`FarmaParams::validate`]), and the magnitudes
-//! of the values each path can take.
+//! The parameters of a fit, checked once ([`FarmaParams::validate`]; on a 2-D index
+//! [`Farma2Params`], [`check_fit2`]), and the magnitudes of the values each path can
+//! take.
 
 use crate::error::Error;
 use crate::error::Result;
@@ -205,4 +206,88 @@ pub fn check_magnitude(
         "{what} {verb} {mag:.3e} in magnitude{after}: {why}; express it in other units (scaled by about 1e{}){spike}{direct}",
         -mag.log10().round() as i64
     ))
+}
+
+/// The most grid points (G1 x G2) of a 2-D index. Every rung of the GCV ladders
+/// keeps its local fits (an inverse 3p x 3p system per point: 2.6 kB at p = 6) and
+/// gathers every point's support, so memory and time grow with G1 x G2: 200 x 200
+/// is about 100 MB per rung at p = 6, and 100,000 x 100,000 would have the allocator
+/// abort the process.
+pub const MAX_GRID2_POINTS: usize = 40_000;
+
+/// `--index-grid N1,N2`: at least 3 points per coordinate and at most
+/// [`MAX_GRID2_POINTS`] in all (a usage error, before any work).
+pub fn check_grid2((g1, g2): (usize, usize)) -> Result<()> {
+    if g1 < 3 || g2 < 3 {
+        return Err(Error::Usage(format!(
+            "--index-grid: at least 3 points per coordinate (got {g1},{g2})"
+        )));
+    }
+    match g1.checked_mul(g2) {
+        Some(g) if g <= MAX_GRID2_POINTS => Ok(()),
+        _ => Err(Error::Usage(format!(
+            "--index-grid {g1},{g2}: at most {MAX_GRID2_POINTS} grid points in all (G1 x G2, e.g. 200,200; the default 21,21 has 441): every rung of the GCV ladders keeps a local fit per point and gathers its support, so memory and time grow with G1 x G2"
+        ))),
+    }
+}
+
+/// Parameters of a fit with a 2-D index.
+#[derive(Clone, Debug)]
+pub struct Farma2Params {
+    /// p, q, d, tolerances, demeaning, grid quantiles (grid_size and bandwidth unused).
+    pub base: FarmaParams,
+    /// The second index channel's name (the model records it).
+    pub index2: String,
+    /// Lag of the second index channel.
+    pub d2: usize,
+    /// Grid points per coordinate (G1, G2).
+    pub grid: (usize, usize),
+    /// A fixed bandwidth pair instead of GCV.
+    pub bandwidth: Option<(f64, f64)>,
+}
+
+pub(super) fn range_of(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(*x), b.max(*x))
+        })
+}
+
+/// The checks of a 2-D fit of `n` samples on the index channel `z` that do not depend
+/// on the fitted channel: the index lag, the grid and the bandwidths, the length, and
+/// the index channel (finite, not constant). [`super::smoother2::fit2`] makes them; a run over several
+/// channels makes them once before, so that such a problem is said once, not once per
+/// channel.
+pub fn check_fit2(n: usize, z: &[f64], params: &Farma2Params) -> Result<()> {
+    let prm = &params.base;
+    let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
+    let bad = |m: String| Err(Error::Usage(m));
+    if d2 > 1000 {
+        return bad(format!("--index-lag: at most 1000 (got {d2})"));
+    }
+    check_grid2(params.grid)?;
+    if let Some((a, b)) = params.bandwidth
+        && !(a.is_finite() && a > 0.0 && b.is_finite() && b > 0.0)
+    {
+        return bad(format!(
+            "--bandwidth: ({a}, {b}) is not a pair of positive numbers"
+        ));
+    }
+    let pp = p.max(q).max(d).max(d2);
+    let need = (20 * (3 * p + q) + pp + 1).max(100);
+    if n < need {
+        return Err(Error::TooShort {
+            what: format!("FARMA({p},{q},{d}) fit with a 2-D index"),
+            need: need as u64,
+            have: n as u64,
+        });
+    }
+    if z.iter().any(|v| !v.is_finite()) {
+        return bad("the index channel holds NaN or infinite values".into());
+    }
+    let (z_lo, z_hi) = range_of(z);
+    if z_hi - z_lo <= 0.0 {
+        return bad("the index channel is constant: it cannot index anything".into());
+    }
+    Ok(())
 }

@@ -24,7 +24,6 @@ use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
 use crate::estimator::problem::VcProblem;
-use crate::model::report::GcvRow;
 
 /// Fills failed grid points by linear interpolation between the nearest Ok points
 /// (constant beyond the outermost). Returns which were filled; None if none is Ok.
@@ -266,7 +265,6 @@ impl<'a> LagSmoother<'a> {
 impl Smoother for LagSmoother<'_> {
     type H = f64;
     type Coef = GridFit;
-    type Row = GcvRow;
     const WORDS: BandwidthWords = BandwidthWords {
         noun: "bandwidth",
         pronoun: "it",

@@ -1,6 +1,8 @@
 //! The 2-D index's smoother under the alternation ([`super::alternate`]), its fit
 //! ([`fit2`]: data checks, grid, linear start, the alternation, the returned model's
-//! trace and standard errors), its parameters and their checks.
+//! trace and standard errors; a [`Farma`] whose coefficients are on the 2-D grid, and
+//! a [`FitReport2`]); its parameters and their checks are in `params.rs`
+//! ([`Farma2Params`], [`check_fit2`]).
 //!
 //! - Bandwidths: GCV over a common scaled ladder h_j = 1.1^-j (range_1/2, range_2/2),
 //!   j = 0..20 (the paper's rule applied to each coordinate's range with one j), so
@@ -24,56 +26,14 @@ use super::grid2::{
     se_factors2,
 };
 use super::notes::{ma_edge_note, missing_se_note, stretched_ladder_note, undefined_trace_note};
-use super::params::{FarmaParams, FitPath, check_magnitude};
+use super::params::{Farma2Params, FitPath, Init, check_fit2, check_magnitude, range_of};
 use super::start::linear_se_factors;
 use super::{Alternation, BandwidthWords, Control, Ended, Iterate, Selection, Smoother, alternate};
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
-use crate::estimator::multivariate::{Fitted2, Gcv2Row};
 use crate::estimator::problem::PointStatus;
-
-/// The most grid points (G1 x G2) of a 2-D index. Every rung of the GCV ladders
-/// keeps its local fits (an inverse 3p x 3p system per point: 2.6 kB at p = 6) and
-/// gathers every point's support, so memory and time grow with G1 x G2: 200 x 200
-/// is about 100 MB per rung at p = 6, and 100,000 x 100,000 would have the allocator
-/// abort the process.
-pub const MAX_GRID2_POINTS: usize = 40_000;
-
-/// `--index-grid N1,N2`: at least 3 points per coordinate and at most
-/// [`MAX_GRID2_POINTS`] in all (a usage error, before any work).
-pub fn check_grid2((g1, g2): (usize, usize)) -> Result<()> {
-    if g1 < 3 || g2 < 3 {
-        return Err(Error::Usage(format!(
-            "--index-grid: at least 3 points per coordinate (got {g1},{g2})"
-        )));
-    }
-    match g1.checked_mul(g2) {
-        Some(g) if g <= MAX_GRID2_POINTS => Ok(()),
-        _ => Err(Error::Usage(format!(
-            "--index-grid {g1},{g2}: at most {MAX_GRID2_POINTS} grid points in all (G1 x G2, e.g. 200,200; the default 21,21 has 441): every rung of the GCV ladders keeps a local fit per point and gathers its support, so memory and time grow with G1 x G2"
-        ))),
-    }
-}
-
-/// Parameters of a fit with a 2-D index.
-#[derive(Clone, Debug)]
-pub struct Farma2Params {
-    /// p, q, d, tolerances, demeaning, grid quantiles (grid_size and bandwidth unused).
-    pub base: FarmaParams,
-    /// Lag of the second index channel.
-    pub d2: usize,
-    /// Grid points per coordinate (G1, G2).
-    pub grid: (usize, usize),
-    /// A fixed bandwidth pair instead of GCV.
-    pub bandwidth: Option<(f64, f64)>,
-}
-
-fn range_of(v: &[f64]) -> (f64, f64) {
-    v.iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(*x), b.max(*x))
-        })
-}
+use crate::model::report::{FitReport2, FitTimings, GcvRow};
+use crate::model::{Coef, Farma, Order, SecondIndex};
 
 fn quantile_pair(mut v: Vec<f64>, (lo, hi): (f64, f64)) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
@@ -149,7 +109,6 @@ impl<'a> Index2Smoother<'a> {
 impl Smoother for Index2Smoother<'_> {
     type H = (f64, f64);
     type Coef = Grid2Fit;
-    type Row = Gcv2Row;
     const WORDS: BandwidthWords = BandwidthWords {
         noun: "bandwidths",
         pronoun: "them",
@@ -163,9 +122,9 @@ impl Smoother for Index2Smoother<'_> {
     }
 
     fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self> {
-        let (rows, fit, best, extended, notes) = gcv_select2(&self.step(e, b), self.half);
+        let (rows, fit, h, extended, notes) = gcv_select2(&self.step(e, b), self.half);
         Selection {
-            h: rows[best].bandwidth,
+            h,
             fit,
             rows,
             extended,
@@ -249,10 +208,19 @@ impl Smoother for Index2Smoother<'_> {
     }
 }
 
-/// GCV over the common scaled ladder, extended while the minimum sits at an end.
-fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, bool, Vec<String>) {
+/// The chosen row's bandwidth pair.
+fn pair(r: &GcvRow) -> (f64, f64) {
+    (r.bandwidth, r.bandwidth2.expect("a row of a 2-D ladder"))
+}
+
+/// GCV over the common scaled ladder, extended while the minimum sits at an end: the
+/// table, the chosen rung's fit and bandwidths, whether the ladder was extended, notes.
+fn gcv_select2(
+    sm: &Step2,
+    half: (f64, f64),
+) -> (Vec<GcvRow>, Grid2Fit, (f64, f64), bool, Vec<String>) {
     let m = sm.prob.n_rows() as f64;
-    let mut rows: Vec<Gcv2Row> = Vec::new();
+    let mut rows: Vec<GcvRow> = Vec::new();
     let mut fits: Vec<Grid2Fit> = Vec::new();
     let mut notes = Vec::new();
     let mut extended = false;
@@ -267,17 +235,19 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
             let (f, rt) = sm.at(h);
             let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
             let row = match rt {
-                Some((rss, tr)) if tr < m => Gcv2Row {
+                Some((rss, tr)) if tr < m => GcvRow {
                     j,
-                    bandwidth: h,
+                    bandwidth: h.0,
+                    bandwidth2: Some(h.1),
                     rss,
                     trace: tr,
                     gcv: (rss / m) / (1.0 - tr / m).powi(2),
                     n_failed,
                 },
-                _ => Gcv2Row {
+                _ => GcvRow {
                     j,
-                    bandwidth: h,
+                    bandwidth: h.0,
+                    bandwidth2: Some(h.1),
                     rss: f64::NAN,
                     trace: f64::NAN,
                     gcv: f64::INFINITY,
@@ -334,8 +304,8 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
                         rows[i].j
                     ));
                 }
-                let f = fits.swap_remove(i);
-                return (rows, f, i, extended, notes);
+                let (f, h) = (fits.swap_remove(i), pair(&rows[i]));
+                return (rows, f, h, extended, notes);
             }
             None => {
                 notes.push(
@@ -347,54 +317,16 @@ fn gcv_select2(sm: &Step2, half: (f64, f64)) -> (Vec<Gcv2Row>, Grid2Fit, usize, 
                     .min_by_key(|(_, r)| r.n_failed)
                     .map(|(i, _)| i)
                     .unwrap_or(0);
-                let f = fits.swap_remove(i);
-                return (rows, f, i, extended, notes);
+                let (f, h) = (fits.swap_remove(i), pair(&rows[i]));
+                return (rows, f, h, extended, notes);
             }
         }
     }
 }
 
-/// The checks of a 2-D fit of `n` samples on the index channel `z` that do not depend
-/// on the fitted channel: the index lag, the grid and the bandwidths, the length, and
-/// the index channel (finite, not constant). [`fit2`] makes them; a run over several
-/// channels makes them once before, so that such a problem is said once, not once per
-/// channel.
-pub fn check_fit2(n: usize, z: &[f64], params: &Farma2Params) -> Result<()> {
-    let prm = &params.base;
-    let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
-    let bad = |m: String| Err(Error::Usage(m));
-    if d2 > 1000 {
-        return bad(format!("--index-lag: at most 1000 (got {d2})"));
-    }
-    check_grid2(params.grid)?;
-    if let Some((a, b)) = params.bandwidth
-        && !(a.is_finite() && a > 0.0 && b.is_finite() && b > 0.0)
-    {
-        return bad(format!(
-            "--bandwidth: ({a}, {b}) is not a pair of positive numbers"
-        ));
-    }
-    let pp = p.max(q).max(d).max(d2);
-    let need = (20 * (3 * p + q) + pp + 1).max(100);
-    if n < need {
-        return Err(Error::TooShort {
-            what: format!("FARMA({p},{q},{d}) fit with a 2-D index"),
-            need: need as u64,
-            have: n as u64,
-        });
-    }
-    if z.iter().any(|v| !v.is_finite()) {
-        return bad("the index channel holds NaN or infinite values".into());
-    }
-    let (z_lo, z_hi) = range_of(z);
-    if z_hi - z_lo <= 0.0 {
-        return bad("the index channel is constant: it cannot index anything".into());
-    }
-    Ok(())
-}
-
-/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}).
-pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2> {
+/// Fits a FARMA model whose f_m depend on (x_{t-d}, z_{t-d2}): the model, its grid
+/// centred in x (`grid_shift` 0) and in z's units, and the fit's report.
+pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, FitReport2)> {
     let prm = &params.base;
     let (p, q, d, d2) = (prm.p, prm.q, prm.d, params.d2);
     let n = series.len();
@@ -523,11 +455,12 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
     let (filled, gcv_table, mut notes) = (alt.filled, alt.gcv_table, alt.notes);
     let (ladder_extended, iterations, converged) =
         (alt.ladder_extended, alt.iterations, alt.converged);
+    let (rss_history, returned_start) = (alt.rss_history, alt.returned_start);
     let m = (n - pp) as f64;
     let sigma2 = rss / m;
     // the returned model's trace, GCV (from its own RSS, as the 1-D fit's) and standard
     // errors
-    let (trace, factors, status, cond) = if alt.returned_start {
+    let (trace, factors, status, cond) = if returned_start {
         // the linear model with constant f_m (as the 1-D fit's)
         let factors = linear_se_factors(&x, p, pp).repeat(gl);
         (p as f64, factors, coef.status.clone(), coef.cond.clone())
@@ -561,29 +494,44 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<Fitted2>
             "{n_filled} grid point(s) without a local fit were filled from the nearest point with one (see status)"
         ));
     }
-    Ok(Fitted2 {
-        p,
-        q,
-        d,
-        d2,
+    let model = Farma {
+        order: Order::new(p, q, d),
         mean,
-        grid,
-        coef,
-        se,
-        filled,
         b,
-        bandwidth: h,
-        rss,
         sigma2,
+        bandwidth: h.0,
+        coef: Coef {
+            grid: grid.g1,
+            grid_shift: 0.0,
+            f: coef.f.clone(),
+            se,
+            filled,
+            second: Some(SecondIndex {
+                channel: params.index2.clone(),
+                lag: d2,
+                grid: grid.g2,
+                bandwidth: h.1,
+            }),
+        },
+    };
+    let report = FitReport2 {
+        local: coef,
+        rss,
         trace,
         gcv,
         gcv_table,
         ladder_extended,
         iterations,
         converged,
+        rss_history,
+        init: Init::Arma,
+        path: FitPath::Direct,
         n,
         n_rows: n - pp,
         residuals: e,
+        linear_start: returned_start,
         notes,
-    })
+        timings: FitTimings::default(),
+    };
+    Ok((model, report))
 }

@@ -458,7 +458,8 @@ fn quantiles_by_selection_equal_those_of_a_full_sort() {
 /// of least RSS with its own finite residuals, with a note for each, as the 1-D fit.
 #[test]
 fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
-    use super::smoother2::{Farma2Params, NAN_RESIDUALS_AT, fit2};
+    use super::params::Farma2Params;
+    use super::smoother2::{NAN_RESIDUALS_AT, fit2};
     // FARMA(1,1,1) whose f_1 follows a slow temperature-like channel
     let n = 3000;
     let a = uniform(n, 11);
@@ -478,6 +479,7 @@ fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
             max_iter,
             ..Default::default()
         },
+        index2: "temp".into(),
         d2: 1,
         grid: (7, 7),
         bandwidth: None,
@@ -485,35 +487,98 @@ fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
     // the first two iterates (the start and alternation 1) and their least-RSS one
     let one = fit2(&x, &temp, &params(1)).unwrap();
     let clean = fit2(&x, &temp, &params(20)).unwrap();
-    assert!(clean.iterations > 2, "{}", clean.iterations);
+    assert!(clean.1.iterations > 2, "{}", clean.1.iterations);
     NAN_RESIDUALS_AT.set(Some(2));
     let m = fit2(&x, &temp, &params(20));
     NAN_RESIDUALS_AT.set(None);
-    let m = m.unwrap();
-    assert_eq!(m.iterations, 2, "it stops at the non-finite residuals");
-    assert!(!m.converged);
+    let (m, r) = m.unwrap();
+    assert_eq!(r.iterations, 2, "it stops at the non-finite residuals");
+    assert!(!r.converged);
     assert!(
-        m.notes
+        r.notes
             .iter()
             .any(|s| s.starts_with("alternation 2: the residuals are not finite (RSS NaN)")),
         "{:?}",
-        m.notes
+        r.notes
     );
     assert!(
-        m.notes
+        r.notes
             .iter()
             .any(|s| s.starts_with("the alternation ended above its")),
         "{:?}",
-        m.notes
+        r.notes
     );
-    assert!(m.rss.is_finite() && m.residuals.iter().all(|v| v.is_finite()));
+    assert!(r.rss.is_finite() && r.residuals.iter().all(|v| v.is_finite()));
     assert!(m.coef.f.iter().all(|v| v.is_finite()));
     // the iterate of least RSS of the two before (a fit of one alternation returns
     // it): its RSS, b and f, bit for bit
-    assert_eq!(m.rss.to_bits(), one.rss.to_bits());
-    assert_eq!(m.b, one.b);
-    assert_eq!(m.coef.f, one.coef.f);
+    assert_eq!(r.rss.to_bits(), one.1.rss.to_bits());
+    assert_eq!(m.b, one.0.b);
+    assert_eq!(m.coef.f, one.0.coef.f);
     let pp = 1;
-    let rss: f64 = m.residuals[pp..].iter().map(|v| v * v).sum();
-    assert_eq!(rss.to_bits(), m.rss.to_bits());
+    let rss: f64 = r.residuals[pp..].iter().map(|v| v * v).sum();
+    assert_eq!(rss.to_bits(), r.rss.to_bits());
+}
+
+/// The model a 2-D fit returns gives, by its own plain residual recursion with the
+/// index channel ([`Farma::residuals2`]), the residuals of the fit's pass
+/// (`grid2::residuals2`), bit for bit: f on the 2-D grid, its second index (channel,
+/// delay d2 = 2, both bandwidths) and b are what the fit used. The table functions'
+/// `grid` axis and the model's agree with the fit's grid.
+#[test]
+fn a_2d_model_gives_the_residuals_of_its_fit() {
+    use super::params::Farma2Params;
+    use super::smoother2::fit2;
+    let n = 2000;
+    let a = uniform(n, 5);
+    let temp: Vec<f64> = (0..n)
+        .map(|t| 20.0 + 4.0 * (t as f64 / 300.0).sin())
+        .collect();
+    let mut x = vec![3.0; n];
+    for t in 2..n {
+        let f = 0.4 + 0.3 * (temp[t - 2] - 20.0).tanh();
+        x[t] = 3.0 + f * (x[t - 1] - 3.0) - 0.1 * (x[t - 2] - 3.0) + a[t] + 0.3 * a[t - 1];
+    }
+    let params = Farma2Params {
+        base: FarmaParams {
+            p: 2,
+            q: 1,
+            d: 1,
+            ..Default::default()
+        },
+        index2: "temp".into(),
+        d2: 2,
+        grid: (6, 5),
+        bandwidth: None,
+    };
+    let (m, r) = fit2(&x, &temp, &params).unwrap();
+    let second = m.second().expect("a 2-D index");
+    assert_eq!((second.channel.as_str(), second.lag), ("temp", 2));
+    assert_eq!(
+        (m.coef.grid.len(), second.grid.len(), m.coef.n_grid()),
+        (6, 5, 30)
+    );
+    assert_eq!(
+        r.gcv_table
+            .iter()
+            .filter(|g| (g.bandwidth, g.bandwidth2) == m.bandwidths())
+            .count(),
+        1
+    );
+    let y: Vec<f64> = x.iter().map(|v| v - m.mean).collect();
+    let e = m.residuals2(&y, &temp);
+    assert_eq!(e.len(), r.residuals.len());
+    for (t, (a, b)) in e.iter().zip(&r.residuals).enumerate() {
+        assert_eq!(a.to_bits(), b.to_bits(), "t = {t}: {a} vs {b}");
+    }
+    // f on the model's grid is the local fit's there (filled points included)
+    let mut f = [0.0; 2];
+    for g in 0..m.coef.n_grid() {
+        m.f2(
+            m.coef.centred_grid(g),
+            m.coef.second_grid(g).unwrap(),
+            &mut f,
+        );
+        assert_eq!(f, [r.local.f[2 * g], r.local.f[2 * g + 1]]);
+    }
 }

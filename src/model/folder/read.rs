@@ -183,6 +183,7 @@ impl ModelDir {
                     f,
                     se,
                     filled,
+                    second: None,
                 },
             },
         ))
