@@ -5,13 +5,16 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use serde_json::json;
 
 use super::LogArgs;
 use super::choices::{FitPathArg, InitArg};
 use crate::error::{Error, Result};
+use crate::estimator::multivariate::{Farma2Params, check_grid2};
 use crate::estimator::tables::fit_json;
-use crate::estimator::{FarmaParams, FitPath};
+use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
+use crate::jobs::fit2::Fit2Job;
 use crate::log::Progress;
 use crate::model::{Order, Report};
 use crate::output::OutputSet;
@@ -99,8 +102,8 @@ fn reject_index2_options(a: &FitArgs) -> Result<()> {
 }
 
 pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
-    if let Some(second) = super::fit_index2::second_index(a.index.as_deref())? {
-        return super::fit_index2::run(a, second, progress);
+    if let Some(second) = second_index(a.index.as_deref())? {
+        return run_index2(a, second, progress);
     }
     let Order { p, q, d } = Order::parse_flag(&a.order)?;
     reject_index2_options(&a)?;
@@ -156,6 +159,151 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
         "farma: {} channel(s) fitted in {:.2} s; tables in {}",
         done.fits.len(),
         done.secs,
+        a.output.display()
+    );
+    Ok(())
+}
+
+/// The second index channel of `--index`, or None for the 1-D index (`lag`).
+pub fn second_index(spec: Option<&str>) -> Result<Option<String>> {
+    let Some(spec) = spec else { return Ok(None) };
+    let parts: Vec<&str> = spec.split(',').map(str::trim).collect();
+    match parts.as_slice() {
+        ["lag"] => Ok(None),
+        ["lag", c] if !c.is_empty() => Ok(Some(c.to_string())),
+        _ => Err(Error::Usage(format!(
+            "--index: '{spec}' is not 'lag' or 'lag,CHANNEL' (e.g. lag,temp_c)"
+        ))),
+    }
+}
+
+fn parse_pair(s: &str) -> Result<(usize, usize)> {
+    let v: Vec<&str> = s.split(',').map(str::trim).collect();
+    let bad = || Error::Usage(format!("--index-grid: '{s}' is not N1,N2 (e.g. 21,21)"));
+    if v.len() != 2 {
+        return Err(bad());
+    }
+    Ok((
+        v[0].parse().map_err(|_| bad())?,
+        v[1].parse().map_err(|_| bad())?,
+    ))
+}
+
+/// `farma fit --index lag,CHANNEL`: the arguments of a 2-D fit checked and turned
+/// into a [`Fit2Job`]; its result printed.
+fn run_index2(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
+    let Order { p, q, d } = Order::parse_flag(&a.order)?;
+    OutputSet::check(&a.output)?;
+    if a.save_state {
+        return Err(Error::Usage(
+            "--save-state: online updates (farma update) support the 1-D index only; drop --save-state or the second --index channel".into(),
+        ));
+    }
+    if let Some(g) = a.grid {
+        return Err(Error::Usage(format!(
+            "--grid {g}: the grid of a 1-D index; a 2-D index has a G1 x G2 grid, --index-grid N1,N2 (default 21,21)"
+        )));
+    }
+    if a.init == InitArg::Literal {
+        return Err(Error::Usage(
+            "--init literal: a 2-D index starts from the linear ARMA only".into(),
+        ));
+    }
+    // a 2-D index has the direct path only (KD-tree gather): an explicit --method
+    // fast is not what runs, and says so (--method direct is what runs anyway)
+    if a.method == Some(FitPathArg::Fast) {
+        eprintln!(
+            "farma: warning: --method fast: a 2-D index has no moment tables (a window in two variables is no union of 1-D intervals); the direct path fits it (a KD-tree gather per grid point), as --method direct would"
+        );
+    }
+    let bandwidth = match (a.bandwidth, a.bandwidth2) {
+        (None, None) => None,
+        (Some(h1), Some(h2)) => Some((h1, h2)),
+        _ => {
+            return Err(Error::Usage(
+                "with a 2-D index give both --bandwidth H1 and --bandwidth2 H2, or neither (GCV)"
+                    .into(),
+            ));
+        }
+    };
+    let grid = parse_pair(a.index_grid.as_deref().unwrap_or("21,21"))?;
+    check_grid2(grid)?;
+    let d2 = a.index_lag.unwrap_or(d);
+    let store = a.log_args.open(&a.log, progress)?;
+    let job = Fit2Job {
+        log: a.log.clone(),
+        output: a.output.clone(),
+        channel: a.channel.clone(),
+        params: Farma2Params {
+            base: FarmaParams {
+                p,
+                q,
+                d,
+                init: Init::Arma,
+                path: FitPath::Direct,
+                max_iter: a.max_iter,
+                tol: a.tol,
+                demean: !a.no_demean,
+                ..FarmaParams::default()
+            },
+            index2: index2.clone(),
+            d2,
+            grid,
+            bandwidth,
+        },
+        residuals: a.residuals,
+    };
+    let done = job.run(&store, progress)?;
+    let (fits, coef_path, secs) = (&done.fits, &done.coef_path, done.secs);
+    for (n, (m, r)) in fits {
+        let second = m.second().expect("a 2-D index");
+        eprintln!(
+            "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",
+            m.b,
+            m.sigma2,
+            m.bandwidth,
+            second.bandwidth,
+            r.trace,
+            r.iterations,
+            if r.converged {
+                "converged"
+            } else {
+                "NOT converged (raise --max-iter or --tol)"
+            }
+        );
+        for note in &r.notes {
+            eprintln!("farma: note: {n}: {note}");
+        }
+        if a.json {
+            let v = json!({
+                "channel": n,
+                "order": [p, q, d],
+                "b": m.b,
+                "sigma2": m.sigma2,
+                "bandwidth": m.bandwidth,
+                "bandwidth2": second.bandwidth,
+                "rss": r.rss,
+                "trace": r.trace,
+                "gcv": r.gcv,
+                "iterations": r.iterations,
+                "converged": r.converged,
+                "coef": coef_path.display().to_string(),
+                "mean": m.mean,
+                "init": "arma",
+                "method": "direct",
+                "ladder_extended": r.ladder_extended,
+                "n": r.n,
+                "index2": index2,
+                "d2": second.lag,
+                "grid": [m.coef.grid.len(), second.grid.len()],
+                "notes": r.notes,
+            });
+            outln!("{v}");
+        }
+    }
+    eprintln!(
+        "farma: {} channel(s) fitted on a 2-D index in {secs:.2} s; tables in {}",
+        fits.len(),
         a.output.display()
     );
     Ok(())

@@ -28,7 +28,6 @@ mod analyze;
 mod check;
 mod choices;
 mod fit;
-mod fit_index2;
 mod gap;
 mod info;
 mod ingest;

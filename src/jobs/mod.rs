@@ -5,7 +5,8 @@
 //! `cli/` build a job from their arguments and print its result as text or JSON;
 //! a batch of many logs runs the same jobs.
 //!
-//! - [`fit`]: FARMA fits (`farma fit`), with the update state;
+//! - [`fit`]: FARMA fits (`farma fit`), with the update state; [`fit2`]: fits on a 2-D
+//!   index (`farma fit --index lag,CHANNEL`);
 //! - [`update`]: online updates of a model folder over a new log (`farma update`);
 //! - [`check`]: a saved model checked on a log (`farma check`);
 //! - [`prep`]: the paper's preparation of channels (`farma prep`);
@@ -15,6 +16,7 @@
 pub mod analyze;
 pub mod check;
 pub mod fit;
+pub mod fit2;
 pub mod prep;
 pub mod select;
 pub mod update;
