@@ -11,11 +11,11 @@ use super::LogArgs;
 use super::choices::{FitPathArg, InitArg};
 use crate::error::{Error, Result};
 use crate::estimator::multivariate::{Farma2Params, check_grid2};
-use crate::estimator::tables::fit_json;
 use crate::estimator::{FarmaParams, FitPath, Init};
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::jobs::fit2::Fit2Job;
 use crate::log::Progress;
+use crate::model::folder::tables::fit_json;
 use crate::model::{Order, Report};
 use crate::output::OutputSet;
 

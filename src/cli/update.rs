@@ -8,10 +8,10 @@ use clap::Args;
 
 use super::LogArgs;
 use crate::error::{Error, Result};
-use crate::estimator::tables::fit_json;
 use crate::jobs::update::UpdateJob;
 use crate::log::Progress;
 use crate::model::Report;
+use crate::model::folder::tables::fit_json;
 use crate::output::OutputSet;
 
 #[derive(Args, Debug)]

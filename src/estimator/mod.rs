@@ -24,7 +24,6 @@ pub mod linalg;
 pub mod moments;
 pub mod multivariate;
 pub mod problem;
-pub mod tables;
 pub mod update;
 
 pub use fit::{

@@ -7,7 +7,7 @@
 //! [`crate::model::report::FitReport2`]. The local fits are in
 //! `estimator/fit/grid2.rs`, the smoother under the alternation and the fit ([`fit2`])
 //! in `estimator/fit/smoother2.rs`, the tables those of the lag index
-//! ([`super::tables`], with the 2-D index's columns); all re-exported here.
+//! ([`crate::model::folder::tables`], with the 2-D index's columns); all re-exported here.
 
 pub use super::fit::grid2::{
     Grid2, Grid2Fit, Index2, Vc2Problem, fill_failed2, fit_grid2, residuals2, rss_trace2,

@@ -10,9 +10,9 @@ use rayon::prelude::*;
 
 use super::select::{SelectJob, select_text};
 use crate::error::Result;
-use crate::estimator::tables::{ModelRow, coef_table, gcv_table, params_table};
 use crate::log::Progress;
 use crate::model::Report;
+use crate::model::folder::tables::{ModelRow, coef_table, gcv_table, params_table};
 use crate::output::OutputSet;
 use crate::store::Store;
 use crate::workflow::analyze::{AnalyzeParams, ChannelAnalysis, analyze_channel};

@@ -7,13 +7,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::estimator::tables::{
-    ModelRow, ResidualRows, coef_table, gcv_table, params_table, stage_residuals,
-};
 use crate::estimator::update::state_from_fit;
 use crate::estimator::{FarmaParams, FitPath, fit};
 use crate::log::Progress;
 use crate::model::folder::state_file::{state_metadata, state_table};
+use crate::model::folder::tables::{
+    ModelRow, ResidualRows, coef_table, gcv_table, params_table, stage_residuals,
+};
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, PARAMS_FILE, STATE_FILE};
 use crate::model::state::LastTime;
 use crate::model::{ChannelState, Farma, FitReport, Report};

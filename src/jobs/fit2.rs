@@ -10,10 +10,10 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::estimator::multivariate::{Farma2Params, check_fit2, fit2};
-use crate::estimator::tables::{
+use crate::log::Progress;
+use crate::model::folder::tables::{
     ModelRow, ResidualRows, coef_table, gcv_table, params_table, stage_residuals,
 };
-use crate::log::Progress;
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, PARAMS_FILE};
 use crate::model::report::FitReport2;
 use crate::model::{Farma, Report};

@@ -8,10 +8,10 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::estimator::tables::{ModelRow, ResidualRows, stage_residuals};
-use crate::estimator::tables::{coef_table, gcv_table, params_table};
 use crate::estimator::update::update;
 use crate::model::folder::state_file::{Metadata, read_state, state_metadata, state_table};
+use crate::model::folder::tables::{ModelRow, ResidualRows, stage_residuals};
+use crate::model::folder::tables::{coef_table, gcv_table, params_table};
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, ModelDir, PARAMS_FILE, STATE_FILE};
 use crate::model::state::{ChannelState, LastTime};
 use crate::model::{Farma, Report, UpdateReport};

@@ -310,7 +310,7 @@ fn a_2d_ladder_ending_at_its_widest_extension_says_so_and_names_its_rungs() {
         "{:?}",
         m.1.notes
     );
-    let table = farma::estimator::tables::gcv_table(&[(
+    let table = farma::model::folder::tables::gcv_table(&[(
         "x".to_string(),
         &m.0,
         farma::model::Report::Fit2(&m.1),

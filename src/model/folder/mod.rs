@@ -11,9 +11,13 @@
 //!
 //! The columns are documented in the README ("farma fit"). A fit with a 2-D index
 //! records `index` and `index2` in the metadata of its params.parquet.
+//!
+//! [`tables`] builds the tables (and the `--json` object of a model), [`state_file`]
+//! writes and reads state.parquet, and [`ModelDir`] reads a channel's model back.
 
 mod read;
 pub mod state_file;
+pub mod tables;
 
 use std::path::{Path, PathBuf};
 
