@@ -78,6 +78,13 @@ pub enum Error {
     #[error("{0}")]
     Usage(String),
 
+    /// Units of a batch failed (each error printed and kept in the manifest); the
+    /// others ran.
+    #[error(
+        "{failed} of {of} unit(s) failed (listed above; the manifest's error column holds each)"
+    )]
+    BatchFailed { failed: usize, of: usize },
+
     /// A channel's values cannot be processed as asked: constant, non-finite, beyond
     /// f64's reach, or a singular design. Raised by the numeric code, which does not
     /// know the log; a job names the log and channel ([`crate::jobs::on_channel`]).

@@ -17,6 +17,7 @@
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
 //! - [`error`]: the error enum and exit codes.
 
+pub mod batch;
 pub mod cli;
 pub mod diagnosis;
 pub mod error;

@@ -25,6 +25,7 @@ macro_rules! outln {
 mod acf;
 mod adev;
 mod analyze;
+mod batch;
 mod check;
 mod choices;
 mod fit;
@@ -83,6 +84,8 @@ pub enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Check a fitted model on a log: residual whiteness, hold-out prediction vs ARMA, polynomial f_m.
     Check(check::CheckArgs),
+    /// Run a job file's tasks over many logs into one partitioned Parquet dataset (resumable, shardable).
+    Batch(batch::BatchArgs),
     /// Simulate a gyro log from a simulation spec (TOML).
     Simulate(simulate::SimulateArgs),
     /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
@@ -217,6 +220,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Prep(a) => prep::run(a, &progress),
         Command::Select(a) => select::run(a, &progress),
         Command::Analyze(a) => analyze::run(a, &progress),
+        Command::Batch(a) => batch::run(a, &progress),
         Command::Check(a) => check::run(a, &progress),
         Command::Simulate(a) => simulate::run(a, &progress),
         Command::Gap(a) => gap::run(a, &progress),

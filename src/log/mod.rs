@@ -120,6 +120,12 @@ impl Progress {
         Progress { enabled: false }
     }
 
+    /// Whether bars are drawn (stderr a terminal, not quiet): otherwise a long job
+    /// prints plain lines.
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+
     pub(crate) fn bar(&self, msg: &'static str, len: u64) -> ProgressBar {
         self.styled(
             msg,

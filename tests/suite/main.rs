@@ -7,6 +7,7 @@ mod common;
 
 mod adev;
 mod bad_input;
+mod batch;
 mod estimator_multivariate;
 mod estimator_paths;
 mod estimator_recovery;

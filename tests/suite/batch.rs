@@ -1,0 +1,205 @@
+//! `farma batch`: the nightly example job, resume, redo on a changed log or changed
+//! options, failure isolation, and shards writing one dataset.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::{farma, fixture, stderr, stdout};
+
+/// Every file under `root` (relative path) with its bytes, but the manifest (its
+/// times differ between runs) and the staging folder.
+fn dataset(root: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(root).unwrap().to_string_lossy().to_string();
+            if rel.starts_with("_manifest")
+                || rel == "manifest.parquet"
+                || rel.starts_with(".staging")
+            {
+                continue;
+            }
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn json_of(o: &std::process::Output) -> serde_json::Value {
+    serde_json::from_str(stdout(o).trim()).unwrap_or_else(|e| panic!("{e}: {}", stdout(o)))
+}
+
+fn job(dir: &Path, body: &str) -> PathBuf {
+    let p = dir.join("job.toml");
+    std::fs::write(&p, body).unwrap();
+    p
+}
+
+/// The bundled nightly job: the good logs' units are done, the bad log's fail with
+/// the reader's error (exit 2, named on stderr and in the manifest); every table is a
+/// hive partition `task=..`/`log_id=..`; a rerun skips the done units and changes no
+/// file; `--status` counts them.
+#[test]
+fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("out");
+    let nightly = fixture("jobs/nightly.toml");
+    let (j, r) = (nightly.to_str().unwrap(), root.to_str().unwrap());
+    let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let s = json_of(&o);
+    assert_eq!(
+        (
+            s["units"].as_u64(),
+            s["done"].as_u64(),
+            s["failed"].as_u64()
+        ),
+        (Some(6), Some(4), Some(2)),
+        "{s}"
+    );
+    let err = stderr(&o);
+    assert!(
+        err.contains("nan_time.fit") && err.contains("nan_time.select-quick"),
+        "{err}"
+    );
+    let files = dataset(&root);
+    let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+    for t in ["coef", "params", "gcv"] {
+        assert_eq!(
+            names
+                .iter()
+                .filter(|n| n.starts_with(&format!("{t}/task=fit/log_id=multiaxis-")))
+                .count(),
+            2,
+            "{names:?}"
+        );
+    }
+    assert_eq!(
+        names
+            .iter()
+            .filter(|n| n.starts_with("select/task=select-quick/"))
+            .count(),
+        2
+    );
+    assert!(root.join("manifest.parquet").is_file());
+    assert_eq!(
+        std::fs::read_dir(root.join("_manifest")).unwrap().count(),
+        6
+    );
+
+    let again = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    let s = json_of(&again);
+    assert_eq!(
+        (
+            s["done"].as_u64(),
+            s["skipped"].as_u64(),
+            s["failed"].as_u64()
+        ),
+        (Some(0), Some(4), Some(2)),
+        "{s}"
+    );
+    assert_eq!(dataset(&root), files, "a rerun changed the dataset");
+
+    let st = farma(&["batch", j, "-o", r, "--status"], dir.path());
+    assert_eq!(st.status.code(), Some(0), "{}", stderr(&st));
+    assert!(
+        stdout(&st).contains("4 done, 2 failed, 0 skipped, 0 not run"),
+        "{}",
+        stdout(&st)
+    );
+}
+
+/// A log that changed and a task whose options changed are redone; the others are
+/// skipped.
+#[test]
+fn a_changed_log_or_changed_options_are_redone() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    std::fs::write(logs.join("a.csv"), &csv).unwrap();
+    std::fs::write(logs.join("b.csv"), &csv).unwrap();
+    let body = |grid: u32| {
+        format!(
+            "output = \"out\"\n[[inputs]]\npaths = [\"logs/\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = {grid}\n"
+        )
+    };
+    let j = job(dir.path(), &body(31));
+    let jj = j.to_str().unwrap();
+    let o = farma(&["batch", jj, "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(2));
+    // a.csv loses its last line
+    let cut = &csv[..csv.trim_end().rfind('\n').unwrap() + 1];
+    std::fs::write(logs.join("a.csv"), cut).unwrap();
+    let o = farma(&["batch", jj, "--json"], dir.path());
+    let s = json_of(&o);
+    assert_eq!(
+        (s["done"].as_u64(), s["skipped"].as_u64()),
+        (Some(1), Some(1)),
+        "{s}"
+    );
+    // another grid: both redone
+    job(dir.path(), &body(41));
+    let o = farma(&["batch", jj, "--json"], dir.path());
+    let s = json_of(&o);
+    assert_eq!(
+        (s["done"].as_u64(), s["skipped"].as_u64()),
+        (Some(2), Some(0)),
+        "{s}"
+    );
+}
+
+/// Two shards into one root give the same dataset as one process, and each unit is
+/// run by exactly one shard.
+#[test]
+fn two_shards_write_the_single_run_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    for k in 0..4 {
+        // different logs: the last k lines dropped
+        let mut end = csv.len();
+        for _ in 0..k {
+            end = csv[..end - 1].rfind('\n').unwrap() + 1;
+        }
+        std::fs::write(logs.join(format!("log{k}.csv")), &csv[..end]).unwrap();
+    }
+    let j = job(
+        dir.path(),
+        "[[inputs]]\npaths = [\"logs/*.csv\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = 31\n[[tasks]]\nkind = \"prep\"\n",
+    );
+    let jj = j.to_str().unwrap();
+    let one = dir.path().join("one");
+    let o = farma(&["batch", jj, "-o", one.to_str().unwrap()], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let two = dir.path().join("two");
+    let t = two.to_str().unwrap();
+    let mut units = 0;
+    for s in ["1/2", "2/2"] {
+        let o = farma(&["batch", jj, "-o", t, "--shard", s, "--json"], dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let v = json_of(&o);
+        assert_eq!(v["done"], v["units"], "{v}");
+        units += v["units"].as_u64().unwrap();
+    }
+    assert_eq!(units, 8);
+    assert_eq!(dataset(&two), dataset(&one));
+    let st = farma(&["batch", jj, "-o", t, "--status", "--json"], dir.path());
+    let v = json_of(&st);
+    assert_eq!(
+        (v["done"].as_u64(), v["pending"].as_u64()),
+        (Some(8), Some(0)),
+        "{v}"
+    );
+    // a bad shard is a usage error
+    let o = farma(&["batch", jj, "-o", t, "--shard", "3/2"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+}
