@@ -203,3 +203,88 @@ fn two_shards_write_the_single_run_dataset() {
     let o = farma(&["batch", jj, "-o", t, "--shard", "3/2"], dir.path());
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// The Slurm array script, run with bash as four array tasks at once (no scheduler),
+/// and the Kubernetes Indexed Job's variables: the shards write the single run's
+/// dataset into one root.
+#[test]
+fn the_slurm_script_and_the_indexed_job_variables_run_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    for k in 0..3 {
+        let mut end = csv.len();
+        for _ in 0..k {
+            end = csv[..end - 1].rfind('\n').unwrap() + 1;
+        }
+        std::fs::write(logs.join(format!("log{k}.csv")), &csv[..end]).unwrap();
+    }
+    let j = job(
+        dir.path(),
+        "[[inputs]]\npaths = [\"logs/\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = 31\n[[tasks]]\nkind = \"prep\"\n",
+    );
+    let one = dir.path().join("one");
+    let o = farma(
+        &["batch", j.to_str().unwrap(), "-o", one.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let script = crate::common::root().join("examples/slurm/nightly.sbatch");
+    let array = dir.path().join("array");
+    let children: Vec<_> = (0..4)
+        .map(|i| {
+            std::process::Command::new("bash")
+                .arg(&script)
+                .env("FARMA", env!("CARGO_BIN_EXE_farma"))
+                .env("JOB", &j)
+                .env("OUT", &array)
+                .env("FARMA_CACHE_DIR", dir.path())
+                .env("SLURM_ARRAY_TASK_ID", (10 + i).to_string())
+                .env("SLURM_ARRAY_TASK_MIN", "10")
+                .env("SLURM_ARRAY_TASK_COUNT", "4")
+                .env("SLURM_CPUS_PER_TASK", "1")
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .expect("bash")
+        })
+        .collect();
+    let children: Vec<_> = children
+        .into_iter()
+        .map(|c| c.wait_with_output().unwrap())
+        .collect();
+    for c in &children {
+        assert_eq!(c.status.code(), Some(0), "{}", stderr(c));
+    }
+    assert_eq!(dataset(&array), dataset(&one));
+    let indexed = dir.path().join("indexed");
+    for i in 0..3 {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_farma"))
+            .args([
+                "batch",
+                j.to_str().unwrap(),
+                "-o",
+                indexed.to_str().unwrap(),
+            ])
+            .env("FARMA_CACHE_DIR", dir.path())
+            .env("JOB_COMPLETION_INDEX", i.to_string())
+            .env("FARMA_SHARD_COUNT", "3")
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    }
+    assert_eq!(dataset(&indexed), dataset(&one));
+    let st = farma(
+        &[
+            "batch",
+            j.to_str().unwrap(),
+            "-o",
+            indexed.to_str().unwrap(),
+            "--status",
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(json_of(&st)["done"].as_u64(), Some(6));
+}
