@@ -14,12 +14,14 @@
 //! temperature = ["temp*", "*_degc"]       # the default
 //!
 //! [[tasks]]
-//! kind = "fit"                            # fit | analyze | select | prep
+//! kind = "fit"                            # adev | fit | analyze | select | prep
 //! name = "fit211"                         # optional, default the kind; unique
 //! order = "2,1,1"
 //! ```
 //!
-//! Task options (each optional, the command's default otherwise): `fit`: `order`,
+//! Task options (each optional, the command's default otherwise): `adev`:
+//! `fit_tau_min` (the octave Allan deviation with one-sigma intervals and the noise
+//! terms, as `farma adev` gives them); `fit`: `order`,
 //! `grid`, `bandwidth`, `method` (fast, direct), `max_iter`, `tol`, `residuals`;
 //! `select`: `orders`, `grid`, `method`, `bootstrap`, `seed`; `analyze`: those of
 //! `select` and `holdout_s`, `maxlag`, `max_degree`; `prep`: none (the defaults of
@@ -68,6 +70,7 @@ pub struct Roles {
 /// What a task runs on each log.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum TaskKind {
+    Adev,
     Fit,
     Analyze,
     Select,
@@ -77,6 +80,7 @@ pub enum TaskKind {
 impl TaskKind {
     pub fn as_str(&self) -> &'static str {
         match self {
+            TaskKind::Adev => "adev",
             TaskKind::Fit => "fit",
             TaskKind::Analyze => "analyze",
             TaskKind::Select => "select",
@@ -124,6 +128,7 @@ struct RawRoles {
 /// The keys each task kind takes (besides `kind` and `name`).
 fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
     match kind {
+        TaskKind::Adev => &["fit_tau_min"],
         TaskKind::Fit => &[
             "order",
             "grid",
@@ -203,18 +208,19 @@ impl JobFile {
         let mut tasks: Vec<Task> = Vec::new();
         for (i, t) in raw.tasks.into_iter().enumerate() {
             let kind = match t.get("kind").and_then(|v| v.as_str()) {
+                Some("adev") => TaskKind::Adev,
                 Some("fit") => TaskKind::Fit,
                 Some("analyze") => TaskKind::Analyze,
                 Some("select") => TaskKind::Select,
                 Some("prep") => TaskKind::Prep,
                 Some(k) => {
                     return Err(bad(format!(
-                        "tasks[{i}].kind = '{k}': not one of fit, analyze, select, prep"
+                        "tasks[{i}].kind = '{k}': not one of adev, fit, analyze, select, prep"
                     )));
                 }
                 None => {
                     return Err(bad(format!(
-                        "tasks[{i}]: no kind (fit, analyze, select, prep)"
+                        "tasks[{i}]: no kind (adev, fit, analyze, select, prep)"
                     )));
                 }
             };

@@ -36,12 +36,14 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
+use crate::jobs::adev::AdevJob;
 use crate::jobs::analyze::AnalyzeJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::jobs::prep::PrepJob;
 use crate::jobs::select::SelectJob;
 use crate::log::{CachePolicy, LogOptions, Progress};
 use crate::model::Order;
+use crate::stats::adev::{CiOptions, Kind, ONE_SIGMA, TauGrid};
 use crate::workflow::prep::PrepParams;
 use crate::workflow::select::PAPER_ORDERS;
 use jobfile::{JobFile, Task, TaskKind, opt_bool, opt_f64, opt_str, opt_usize};
@@ -315,6 +317,22 @@ fn run_task(
         })
     };
     match task.kind {
+        TaskKind::Adev => {
+            let job = AdevJob {
+                log: log.to_path_buf(),
+                channels,
+                kinds: vec![Kind::Adev],
+                grid: TauGrid::Octave,
+                ci: CiOptions {
+                    confidence: ONE_SIGMA,
+                    alpha: 0,
+                },
+                fit_tau_min: opt_f64(task, "fit_tau_min")?,
+            };
+            let segment = crate::jobs::longest_segment(store, log);
+            let done = job.run(store, segment)?;
+            job.write(out, store, &done)
+        }
         TaskKind::Fit => {
             let o = Order::parse_flag(opt_str(task, "order")?.unwrap_or("2,1,1"))?;
             let job = FitJob {

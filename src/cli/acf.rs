@@ -38,7 +38,7 @@ pub fn run(a: AcfArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate_hz = store.sample_rate_hz();
-    let (start, len) = super::adev::longest_segment(&store, &a.log);
+    let (start, len) = crate::jobs::longest_segment(&store, &a.log);
     let max_lag = a.max_lag.unwrap_or_else(|| default_max_lag(len));
     let mut results: Vec<(String, Acf)> = Vec::new();
     for name in &names {

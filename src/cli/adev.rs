@@ -2,20 +2,17 @@
 //! Hadamard) of channels, with confidence intervals; text, JSON Lines or Parquet.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
-use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray};
 use clap::{Args, ValueEnum};
 use serde_json::{Map, Value, json};
 
 use super::LogArgs;
 use crate::error::{Error, Result};
+use crate::jobs::adev::{AdevJob, ChannelAdev, allan_table};
 use crate::log::Progress;
-use crate::output::{batch, write_parquet, write_text};
-use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid, curves, phase};
-use crate::stats::noise_terms::{
-    AvarPoint, Identification, Options, identify_from, octave_avar, to_spec,
-};
+use crate::output::{write_parquet, write_text};
+use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid};
+use crate::stats::noise_terms::{Identification, to_spec};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum KindArg {
@@ -137,44 +134,37 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate_hz = store.sample_rate_hz();
-    let (start, len) = longest_segment(&store, &a.log);
-    let mut results: Vec<(String, Vec<Curve>)> = Vec::new();
-    let mut idents: Vec<(String, Result<Identification>, f64)> = Vec::new();
-    for name in &names {
-        let y = &store.column(name)?[start..start + len];
-        let what = format!("{}: channel '{name}'", a.log.display());
-        let c = curves(&what, y, rate_hz, &kinds, grid, ci)?;
-        // The identification fits the octave AVAR: reuse the curve when it is one.
-        let octave: Vec<AvarPoint> = match c.iter().find(|c| c.kind == Kind::Adev) {
-            Some(c) if grid == TauGrid::Octave => c
-                .points
-                .iter()
-                .map(|p| AvarPoint {
-                    m: p.m,
-                    tau_s: p.tau_s,
-                    avar: p.dev * p.dev,
-                })
-                .collect(),
-            _ => octave_avar(y, rate_hz),
-        };
-        let opts = Options {
-            tau_min_s: a.fit_tau_min,
-            ..Options::default()
-        };
-        let id = identify_from(&what, y, rate_hz, &octave, &opts);
-        if let Err(e) = &id {
+    let (start, len) = crate::jobs::longest_segment(&store, &a.log);
+    let job = AdevJob {
+        log: a.log.clone(),
+        channels: names,
+        kinds,
+        grid,
+        ci,
+        fit_tau_min: a.fit_tau_min,
+    };
+    let done = job.run(&store, (start, len))?;
+    for r in &done {
+        if let Err(e) = &r.terms {
             if a.spec_out.is_some() {
                 return Err(Error::Usage(format!("--spec-out: {e}")));
             }
             eprintln!("farma: warning: no noise terms: {e}");
         }
-        idents.push((name.clone(), id, phase::mean(y)));
-        results.push((name.clone(), c));
     }
+    let results: Vec<(&str, &[Curve])> = done
+        .iter()
+        .map(|r| (r.channel.as_str(), r.curves.as_slice()))
+        .collect();
     if let Some(path) = &a.spec_out {
-        let chans: Vec<(String, &Identification, f64)> = idents
+        let chans: Vec<(String, &Identification, f64)> = done
             .iter()
-            .filter_map(|(n, id, mean)| id.as_ref().ok().map(|id| (n.clone(), id, *mean)))
+            .filter_map(|r| {
+                r.terms
+                    .as_ref()
+                    .ok()
+                    .map(|id| (r.channel.clone(), id, r.mean))
+            })
             .collect();
         let spec = to_spec(rate_hz, &chans);
         let text = format!(
@@ -186,7 +176,17 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
     }
 
     if let Some(out) = &a.output {
-        write_table(out, &results, &a, rate_hz)?;
+        write_parquet(
+            out,
+            &allan_table(&done)?,
+            &[
+                ("log", a.log.display().to_string()),
+                ("sample_rate_hz", rate_hz.to_string()),
+                ("confidence", a.confidence.to_string()),
+                ("alpha", a.alpha.to_string()),
+                ("farma.command", "adev".to_string()),
+            ],
+        )?;
     }
     let n = len;
     if a.json {
@@ -199,7 +199,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             o.insert("taus".into(), json!(grid_name(grid)));
             o.insert("confidence".into(), json!(a.confidence));
             o.insert("alpha".into(), json!(a.alpha));
-            for c in cs {
+            for c in cs.iter() {
                 let k = c.kind.name();
                 let col = |f: &dyn Fn(&crate::stats::adev::Point) -> Value| -> Value {
                     Value::Array(c.points.iter().map(f).collect())
@@ -217,7 +217,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             if let Some(out) = &a.output {
                 o.insert("output".into(), json!(out.display().to_string()));
             }
-            let id = idents.iter().find(|(n, _, _)| n == name).map(|x| &x.1);
+            let id = done.iter().find(|r| r.channel == *name).map(|r| &r.terms);
             match id {
                 Some(Ok(id)) => {
                     o.insert("terms".into(), terms_json(id));
@@ -249,7 +249,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
         a.alpha
     );
     for (name, cs) in &results {
-        for c in cs {
+        for c in cs.iter() {
             outln!();
             outln!(
                 "{:<16} {:<5} {:>14} {:>10} {:>14} {:>14} {:>14} {:>12}",
@@ -277,7 +277,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             }
         }
     }
-    print_terms(&idents)?;
+    print_terms(&done)?;
     Ok(())
 }
 
@@ -317,7 +317,7 @@ fn terms_fit_json(id: &Identification) -> Value {
     })
 }
 
-fn print_terms(idents: &[(String, Result<Identification>, f64)]) -> Result<()> {
+fn print_terms(done: &[ChannelAdev]) -> Result<()> {
     outln!();
     outln!(
         "noise terms (IEEE Std 952) fitted to the octave Allan variance; uncertainty: one standard uncertainty; u = the channel's unit"
@@ -331,8 +331,9 @@ fn print_terms(idents: &[(String, Result<Identification>, f64)]) -> Result<()> {
         "unc",
         "unit"
     );
-    for (name, id, _) in idents {
-        let Ok(id) = id else {
+    for r in done {
+        let name = &r.channel;
+        let Ok(id) = &r.terms else {
             outln!("{name:<16} (none: the log is too short)");
             continue;
         };
@@ -369,83 +370,9 @@ fn print_terms(idents: &[(String, Result<Identification>, f64)]) -> Result<()> {
     Ok(())
 }
 
-/// Averages must not straddle a gap: the rows (start, len) of the longest uniform
-/// segment (the whole log when it has one), with a warning on stderr when there are
-/// several. Shared by `adev`, `psd` and `acf`.
-pub(super) fn longest_segment(
-    store: &crate::store::Store,
-    log: &std::path::Path,
-) -> (usize, usize) {
-    let segments = &store.meta().segments;
-    match segments.iter().max_by_key(|s| s.len) {
-        Some(s) if segments.len() > 1 => {
-            eprintln!(
-                "farma: warning: {}: {} segments (gaps); using the longest, rows {}..{}",
-                log.display(),
-                segments.len(),
-                s.start,
-                s.start + s.len
-            );
-            (s.start as usize, s.len as usize)
-        }
-        _ => (0, store.n_samples()),
-    }
-}
-
 fn grid_name(g: TauGrid) -> String {
     match g {
         TauGrid::Octave => "octave".into(),
         TauGrid::Dense { per_decade } => format!("dense ({per_decade} per decade)"),
     }
-}
-
-fn write_table(
-    out: &std::path::Path,
-    results: &[(String, Vec<Curve>)],
-    a: &AdevArgs,
-    rate_hz: f64,
-) -> Result<()> {
-    let mut channel = Vec::new();
-    let mut kind = Vec::new();
-    let (mut m, mut n_terms) = (Vec::new(), Vec::new());
-    let (mut tau, mut dev, mut lo, mut hi, mut edf) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for (name, cs) in results {
-        for c in cs {
-            for p in &c.points {
-                channel.push(name.as_str());
-                kind.push(c.kind.name());
-                m.push(p.m as i64);
-                n_terms.push(p.n_terms as i64);
-                tau.push(p.tau_s);
-                dev.push(p.dev);
-                lo.push(p.lo);
-                hi.push(p.hi);
-                edf.push(p.edf);
-            }
-        }
-    }
-    let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
-    let b = batch(vec![
-        ("channel", Arc::new(StringArray::from(channel)) as ArrayRef),
-        ("kind", Arc::new(StringArray::from(kind)) as ArrayRef),
-        ("tau_s", f(tau)),
-        ("m", Arc::new(Int64Array::from(m)) as ArrayRef),
-        ("dev", f(dev)),
-        ("dev_lo", f(lo)),
-        ("dev_hi", f(hi)),
-        ("edf", f(edf)),
-        ("n_terms", Arc::new(Int64Array::from(n_terms)) as ArrayRef),
-    ])?;
-    write_parquet(
-        out,
-        &b,
-        &[
-            ("log", a.log.display().to_string()),
-            ("sample_rate_hz", rate_hz.to_string()),
-            ("confidence", a.confidence.to_string()),
-            ("alpha", a.alpha.to_string()),
-            ("farma.command", "adev".to_string()),
-        ],
-    )
 }

@@ -67,7 +67,7 @@ pub fn run(a: PsdArgs, progress: &Progress) -> Result<()> {
     let store = a.log_args.open(&a.log, progress)?;
     let names = store.select_channels(&a.channel)?;
     let rate_hz = store.sample_rate_hz();
-    let (start, len) = super::adev::longest_segment(&store, &a.log);
+    let (start, len) = crate::jobs::longest_segment(&store, &a.log);
     let detrend = match a.detrend {
         DetrendArg::Constant => Detrend::Constant,
         DetrendArg::None => Detrend::None,

@@ -5,6 +5,7 @@
 //! `cli/` build a job from their arguments and print its result as text or JSON;
 //! a batch of many logs runs the same jobs.
 //!
+//! - [`adev`]: Allan deviation curves and noise terms (`farma adev`);
 //! - [`fit`]: FARMA fits (`farma fit`), with the update state; [`fit2`]: fits on a 2-D
 //!   index (`farma fit --index lag,CHANNEL`);
 //! - [`update`]: online updates of a model folder over a new log (`farma update`);
@@ -13,6 +14,7 @@
 //! - [`select`]: the order table, F-tests and constancy test (`farma select`);
 //! - [`analyze`]: the whole workflow (`farma analyze`).
 
+pub mod adev;
 pub mod analyze;
 pub mod check;
 pub mod fit;
@@ -126,5 +128,25 @@ pub fn warn_gaps(store: &Store, log: &Path) {
             log.display(),
             segments.len()
         );
+    }
+}
+
+/// Averages must not straddle a gap: the rows (start, len) of the longest uniform
+/// segment (the whole log when it has one), with a warning on stderr when there are
+/// several. Shared by `adev`, `psd` and `acf`.
+pub fn longest_segment(store: &crate::store::Store, log: &std::path::Path) -> (usize, usize) {
+    let segments = &store.meta().segments;
+    match segments.iter().max_by_key(|s| s.len) {
+        Some(s) if segments.len() > 1 => {
+            eprintln!(
+                "farma: warning: {}: {} segments (gaps); using the longest, rows {}..{}",
+                log.display(),
+                segments.len(),
+                s.start,
+                s.start + s.len
+            );
+            (s.start as usize, s.len as usize)
+        }
+        _ => (0, store.n_samples()),
     }
 }

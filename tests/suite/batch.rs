@@ -60,14 +60,16 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             s["done"].as_u64(),
             s["failed"].as_u64()
         ),
-        (Some(6), Some(4), Some(2)),
+        (Some(9), Some(6), Some(3)),
         "{s}"
     );
     let err = stderr(&o);
-    assert!(
-        err.contains("nan_time.fit") && err.contains("nan_time.select-quick"),
-        "{err}"
-    );
+    for t in ["fit", "select-quick", "adev"] {
+        assert!(
+            err.contains(&format!("farma: error: nan_time.{t}: ")),
+            "{err}"
+        );
+    }
     let files = dataset(&root);
     let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
     for t in ["coef", "params", "gcv"] {
@@ -87,10 +89,18 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             .count(),
         2
     );
+    for t in ["allan", "noise_terms"] {
+        let prefix = format!("{t}/task=adev/log_id=multiaxis-");
+        assert_eq!(
+            names.iter().filter(|n| n.starts_with(&prefix)).count(),
+            2,
+            "{names:?}"
+        );
+    }
     assert!(root.join("manifest.parquet").is_file());
     assert_eq!(
         std::fs::read_dir(root.join("_manifest")).unwrap().count(),
-        6
+        9
     );
 
     let again = farma(&["batch", j, "-o", r, "--json"], dir.path());
@@ -101,7 +111,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             s["skipped"].as_u64(),
             s["failed"].as_u64()
         ),
-        (Some(0), Some(4), Some(2)),
+        (Some(0), Some(6), Some(3)),
         "{s}"
     );
     assert_eq!(dataset(&root), files, "a rerun changed the dataset");
@@ -109,7 +119,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
     let st = farma(&["batch", j, "-o", r, "--status"], dir.path());
     assert_eq!(st.status.code(), Some(0), "{}", stderr(&st));
     assert!(
-        stdout(&st).contains("4 done, 2 failed, 0 skipped, 0 not run"),
+        stdout(&st).contains("6 done, 3 failed, 0 skipped, 0 not run"),
         "{}",
         stdout(&st)
     );

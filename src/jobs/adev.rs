@@ -1,0 +1,175 @@
+//! The Allan-deviation job (`farma adev`, the batch task `adev`): every selected
+//! channel's deviation curves with their confidence intervals
+//! ([`crate::stats::adev`]) on the log's longest uniform segment, and the IEEE Std 952
+//! noise terms fitted to the octave Allan variance ([`crate::stats::noise_terms`]);
+//! as a folder, `allan.parquet` and `noise_terms.parquet`.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray};
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::output::{OutputSet, batch};
+use crate::stats::adev::{CiOptions, Curve, Kind, TauGrid, curves, phase};
+use crate::stats::noise_terms::{AvarPoint, Identification, Options, identify_from, octave_avar};
+use crate::store::Store;
+
+/// The files an Allan-deviation folder holds.
+pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet"];
+
+/// Deviation curves and noise terms of channels of one log.
+#[derive(Clone, Debug)]
+pub struct AdevJob {
+    pub log: PathBuf,
+    pub channels: Vec<String>,
+    pub kinds: Vec<Kind>,
+    pub grid: TauGrid,
+    pub ci: CiOptions,
+    /// Fit the noise terms to taus >= this only (seconds).
+    pub fit_tau_min: Option<f64>,
+}
+
+/// One channel's curves and noise terms.
+#[derive(Debug)]
+pub struct ChannelAdev {
+    pub channel: String,
+    pub curves: Vec<Curve>,
+    /// The noise terms, or why none could be fitted.
+    pub terms: Result<Identification>,
+    /// The channel's mean over the segment (the spec's bias when written as one).
+    pub mean: f64,
+}
+
+impl AdevJob {
+    /// The curves and terms of every channel, in parallel, on the rows `(start, len)`
+    /// (the longest uniform segment); every channel whose curves fail is named at once.
+    pub fn run(&self, store: &Store, (start, len): (usize, usize)) -> Result<Vec<ChannelAdev>> {
+        let rate_hz = store.sample_rate_hz();
+        super::every_channel(
+            self.channels
+                .par_iter()
+                .map(|name| {
+                    let y = &store.column(name)?[start..start + len];
+                    let what = format!("{}: channel '{name}'", self.log.display());
+                    let c = curves(&what, y, rate_hz, &self.kinds, self.grid, self.ci)?;
+                    // the identification fits the octave AVAR: the curve's when it is one
+                    let octave: Vec<AvarPoint> = match c.iter().find(|c| c.kind == Kind::Adev) {
+                        Some(c) if self.grid == TauGrid::Octave => c
+                            .points
+                            .iter()
+                            .map(|p| AvarPoint {
+                                m: p.m,
+                                tau_s: p.tau_s,
+                                avar: p.dev * p.dev,
+                            })
+                            .collect(),
+                        _ => octave_avar(y, rate_hz),
+                    };
+                    let opts = Options {
+                        tau_min_s: self.fit_tau_min,
+                        ..Options::default()
+                    };
+                    let terms = identify_from(&what, y, rate_hz, &octave, &opts);
+                    Ok(ChannelAdev {
+                        channel: name.clone(),
+                        curves: c,
+                        terms,
+                        mean: phase::mean(y),
+                    })
+                })
+                .collect(),
+            "leave the failing ones out of --channel",
+        )
+    }
+
+    /// Writes `allan.parquet` and `noise_terms.parquet` into the folder `dir`.
+    pub fn write(&self, dir: &Path, store: &Store, done: &[ChannelAdev]) -> Result<()> {
+        let mut set = OutputSet::new(dir)?;
+        let md = super::source_metadata(&self.log, store)?;
+        set.parquet("allan.parquet", &allan_table(done)?, &md)?;
+        set.parquet("noise_terms.parquet", &noise_terms_table(done)?, &md)?;
+        super::commit_outputs(set, ADEV_OUTPUTS)
+    }
+}
+
+/// The curves: channel, kind, tau_s, m, dev, dev_lo, dev_hi, edf, n_terms (one row per
+/// channel, kind and tau).
+pub fn allan_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
+    let mut channel = Vec::new();
+    let mut kind = Vec::new();
+    let (mut m, mut n_terms) = (Vec::new(), Vec::new());
+    let (mut tau, mut dev, mut lo, mut hi, mut edf) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in done {
+        for c in &r.curves {
+            for p in &c.points {
+                channel.push(r.channel.as_str());
+                kind.push(c.kind.name());
+                m.push(p.m as i64);
+                n_terms.push(p.n_terms as i64);
+                tau.push(p.tau_s);
+                dev.push(p.dev);
+                lo.push(p.lo);
+                hi.push(p.hi);
+                edf.push(p.edf);
+            }
+        }
+    }
+    let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
+    batch(vec![
+        ("channel", Arc::new(StringArray::from(channel)) as ArrayRef),
+        ("kind", Arc::new(StringArray::from(kind)) as ArrayRef),
+        ("tau_s", f(tau)),
+        ("m", Arc::new(Int64Array::from(m)) as ArrayRef),
+        ("dev", f(dev)),
+        ("dev_lo", f(lo)),
+        ("dev_hi", f(hi)),
+        ("edf", f(edf)),
+        ("n_terms", Arc::new(Int64Array::from(n_terms)) as ArrayRef),
+    ])
+}
+
+/// The noise terms: one row per channel and identified term: channel, term
+/// (quantization, white_noise, bias_instability, rate_random_walk, rate_ramp,
+/// gauss_markov), coef (q, n, b, k, r, sigma), value, unc (one standard uncertainty),
+/// unit (u the channel's unit), corr_time_s and corr_time_s_unc (Gauss-Markov; NaN
+/// otherwise), and the fit's n_taus, deviance and dispersion. A channel whose terms
+/// could not be fitted has no row.
+pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
+    let (mut channel, mut term, mut coef, mut unit) = (vec![], vec![], vec![], vec![]);
+    let (mut value, mut unc, mut ct, mut ct_unc) = (vec![], vec![], vec![], vec![]);
+    let (mut n_taus, mut deviance, mut dispersion) = (vec![], vec![], vec![]);
+    for r in done {
+        let Ok(id) = &r.terms else { continue };
+        for t in &id.terms {
+            channel.push(r.channel.clone());
+            term.push(t.term.kind_name());
+            coef.push(t.term.coef_name());
+            unit.push(t.term.coef_unit());
+            value.push(t.coef.value);
+            unc.push(t.coef.unc);
+            ct.push(t.corr_time_s.map_or(f64::NAN, |c| c.value));
+            ct_unc.push(t.corr_time_s.map_or(f64::NAN, |c| c.unc));
+            n_taus.push(id.points.len() as i64);
+            deviance.push(id.deviance);
+            dispersion.push(id.dispersion);
+        }
+    }
+    let s = |v: Vec<&str>| Arc::new(StringArray::from(v)) as ArrayRef;
+    let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
+    batch(vec![
+        ("channel", Arc::new(StringArray::from(channel)) as ArrayRef),
+        ("term", s(term)),
+        ("coef", s(coef)),
+        ("value", f(value)),
+        ("unc", f(unc)),
+        ("unit", s(unit)),
+        ("corr_time_s", f(ct)),
+        ("corr_time_s_unc", f(ct_unc)),
+        ("n_taus", Arc::new(Int64Array::from(n_taus)) as ArrayRef),
+        ("deviance", f(deviance)),
+        ("dispersion", f(dispersion)),
+    ])
+}
