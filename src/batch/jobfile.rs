@@ -8,6 +8,7 @@
 //! [[inputs]]                              # files, globs (* ? [..]) or folders
 //! paths = ["logs/*.parquet", "stand3/"]   # relative to the job file's folder
 //! channels = ["gyro_x", "gyro_y"]         # optional; default: the gyro role
+//! optional = false                        # true: skip paths that name no file
 //!
 //! [roles]                                 # optional; channel-name patterns
 //! gyro = ["gyro*", "*_dps", "*_rad_s"]    # the default
@@ -58,6 +59,9 @@ pub struct Input {
     pub paths: Vec<PathBuf>,
     /// The channels of its logs; `None`: the gyro role.
     pub channels: Option<Vec<String>>,
+    /// A path that names no file is skipped with a warning instead of an error (logs
+    /// that are present on some machines only).
+    pub optional: bool,
 }
 
 /// Channel-name patterns per role.
@@ -116,6 +120,8 @@ struct RawJob {
 struct RawInput {
     paths: Vec<String>,
     channels: Option<Vec<String>>,
+    #[serde(default)]
+    optional: bool,
 }
 
 #[derive(Deserialize)]
@@ -191,6 +197,7 @@ impl JobFile {
             inputs.push(Input {
                 paths: inp.paths.iter().map(|p| resolve(p)).collect(),
                 channels: inp.channels,
+                optional: inp.optional,
             });
         }
         let roles = match raw.roles {

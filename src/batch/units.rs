@@ -43,7 +43,15 @@ pub fn plan(job: &JobFile) -> Result<(Vec<Log>, Vec<Unit>)> {
     let mut found: BTreeMap<PathBuf, Option<Vec<String>>> = BTreeMap::new();
     for inp in &job.inputs {
         for p in &inp.paths {
-            for f in expand(p, &job.path)? {
+            let files = match expand(p, &job.path) {
+                Ok(f) => f,
+                Err(e) if inp.optional => {
+                    eprintln!("farma: warning: {e} (an optional input: skipped)");
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            for f in files {
                 found.entry(f).or_insert_with(|| inp.channels.clone());
             }
         }
