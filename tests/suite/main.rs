@@ -21,6 +21,7 @@ mod noise_terms;
 mod psd_acf;
 mod simulate;
 mod spec;
+mod store_checksums;
 mod update_cli;
 mod workflow_cli;
 mod workflow_golden;
