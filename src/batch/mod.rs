@@ -23,7 +23,9 @@
 //! no longer writes removed). A run killed at any moment loses at most the units in
 //! flight: no file in the dataset is ever partial (each is renamed into place whole).
 //! Units are run longest log first, in parallel over the machine's threads; a failing
-//! unit records its error in the manifest and the others go on.
+//! unit records its error in the manifest and the others go on. Every store a unit
+//! reads is verified against its per-column checksums first ([`crate::store`]): a
+//! damaged ingested store fails its units, naming the column.
 
 pub mod jobfile;
 pub mod manifest;
@@ -181,6 +183,10 @@ impl BatchRun {
                 &self.cache,
                 &Progress::hidden(),
             )?;
+            // every store a batch reads is checked against its column checksums (a
+            // cached conversion was checked when reused; an ingested store named as an
+            // input is refused here, naming the damaged column)
+            store.verify()?;
             let channels: Vec<String> = match &log.channels {
                 Some(c) => c.clone(),
                 None => store

@@ -6,7 +6,11 @@
 //! give a new entry. Size and mtime alone miss an edit that keeps both (`cp -p`, `rsync
 //! -t`, `touch -r` after an edit of the same length): such a copy writes into the file
 //! (a new ctime, which no one can set back) or replaces it (a new inode). Entries are
-//! written atomically, so concurrent jobs never read half a store.
+//! written to a unique temporary file in the cache folder and renamed into place, so
+//! concurrent jobs never read half a store and two that convert one log at the same
+//! moment both end with a whole one. An entry used again is first checked against its
+//! column checksums ([`crate::store::Store::verify`], in [`super::open_log`]); a damaged
+//! one is converted again.
 
 use std::path::{Path, PathBuf};
 

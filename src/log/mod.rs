@@ -569,7 +569,10 @@ pub enum CachePolicy {
     Off,
 }
 
-/// Opens any log as a store: a farma store directly; anything else through the cache.
+/// Opens any log as a store: a farma store directly (not verified: see
+/// [`Store::verify`]); anything else through the cache, whose entry is verified against
+/// its checksums when it is reused and converted again, with a note on stderr, when it
+/// is damaged, truncated, unreadable or has none.
 pub fn open_log(
     path: &Path,
     opts: &LogOptions,
@@ -586,12 +589,21 @@ pub fn open_log(
     }
     match cache::store_path(path, opts, cache)? {
         Some(cached) => {
-            if cached.exists()
-                && let Ok(s) = Store::open(&cached)
-            {
-                return Ok(s.with_label(path));
-            }
+            let damaged = if cached.exists() {
+                match Store::open(&cached).and_then(|s| s.verify().map(|()| s)) {
+                    Ok(s) => return Ok(s.with_label(path)),
+                    Err(e) => Some(e),
+                }
+            } else {
+                None
+            };
             convert(path, &cached, opts, progress, NanCheck::OnRead)?;
+            if let Some(e) = damaged {
+                eprintln!(
+                    "farma: note: the cached conversion of {} was damaged or unreadable ({e}); reconverted",
+                    path.display()
+                );
+            }
             Ok(Store::open(&cached)?.with_label(path))
         }
         None => {

@@ -6,9 +6,13 @@ use serde::{Deserialize, Serialize};
 pub const META_KEY: &str = "farma.meta";
 /// Schema-metadata key holding the sample rate in Hz (plain number, for any Arrow tool).
 pub const RATE_KEY: &str = "sample_rate_hz";
+/// Schema-metadata key holding the checksum of every column: a JSON object from column
+/// name to the XXH64 hash (seed 0) of the column's values, its `8 * rows` little-endian
+/// bytes without the padding, as 16 lowercase hex digits.
+pub const CHECKSUM_KEY: &str = "farma.xxh64";
 /// Version of the store layout and metadata; bumped when either changes (2: the
-/// `nonfinite` list).
-pub const STORE_FORMAT_VERSION: u32 = 2;
+/// `nonfinite` list; 3: the per-column checksums under [`CHECKSUM_KEY`]).
+pub const STORE_FORMAT_VERSION: u32 = 3;
 
 /// A run of rows sampled uniformly at the store's rate.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

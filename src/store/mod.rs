@@ -8,14 +8,18 @@
 //!
 //! The file's schema metadata carries `sample_rate_hz` (readable by any Arrow tool) and
 //! `farma.meta`, the JSON of [`StoreMeta`]: time base, segments, what ingest repaired
-//! and where the data came from.
+//! and where the data came from; and [`CHECKSUM_KEY`] (`farma.xxh64`), a checksum of
+//! every column: a JSON object from column name to the XXH64 hash (seed 0) of the
+//! column's values (its `8 * rows` bytes, without padding), 16 lowercase hex digits.
+//! [`Store::verify`] checks them; opening a store does not.
 
 mod meta;
 mod reader;
 mod writer;
 
 pub use meta::{
-    META_KEY, NonFiniteColumn, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment, StoreMeta,
+    CHECKSUM_KEY, META_KEY, NonFiniteColumn, RATE_KEY, Repair, STORE_FORMAT_VERSION, Segment,
+    StoreMeta,
 };
 pub use reader::Store;
 pub use writer::{StoreWriter, output_permissions};

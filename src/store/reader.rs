@@ -1,5 +1,6 @@
 //! Opens a store without reading it: maps the file, decodes footer and batch metadata,
-//! and hands out channels as `&[f64]` borrowed from the map.
+//! and hands out channels as `&[f64]` borrowed from the map; checks the columns against
+//! their recorded checksums on request ([`Store::verify`]).
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -9,8 +10,10 @@ use arrow_array::{Array, Float64Array, RecordBatch};
 use arrow_buffer::Buffer;
 use arrow_schema::DataType;
 use memmap2::Mmap;
+use rayon::prelude::*;
 
-use super::meta::{META_KEY, NonFiniteColumn, StoreMeta};
+use super::meta::{CHECKSUM_KEY, META_KEY, NonFiniteColumn, StoreMeta};
+use super::writer::column_checksum;
 use crate::error::{Error, Result};
 
 /// A memory-mapped store. Cheap to open; channel slices borrow the map.
@@ -20,6 +23,9 @@ pub struct Store {
     label: PathBuf,
     batch: RecordBatch,
     meta: StoreMeta,
+    /// The checksum recorded for each column (see [`CHECKSUM_KEY`]), in file order;
+    /// None for a store written before format version 3.
+    checksums: Option<Vec<u64>>,
 }
 
 impl std::fmt::Debug for Store {
@@ -73,6 +79,10 @@ impl Store {
         {
             return Err(bad("a column is not Float64"));
         }
+        let checksums = match schema.metadata().get(CHECKSUM_KEY) {
+            None => None,
+            Some(json) => Some(parse_checksums(json, &schema).map_err(|m| bad(&m))?),
+        };
         let blocks = footer
             .recordBatches()
             .ok_or_else(|| bad("no record batches"))?;
@@ -107,7 +117,73 @@ impl Store {
             label: path.to_path_buf(),
             batch,
             meta,
+            checksums,
         })
+    }
+
+    /// Checks every column's values against the checksum the writer recorded (XXH64
+    /// under [`CHECKSUM_KEY`]), reading the whole file once, the columns in parallel.
+    /// A column whose bytes changed is an [`Error::Column`] naming the store file and
+    /// the column; a store without checksums (written before format version 3) is an
+    /// [`Error::Format`]. Opening a store does not verify it; the cache of converted
+    /// logs does, and so can any caller that must not compute on damaged data.
+    pub fn verify(&self) -> Result<()> {
+        let names: Vec<&str> = self.column_names();
+        self.verify_columns(&names)
+    }
+
+    /// [`Store::verify`] for the named columns only (channels or the time column).
+    pub fn verify_columns(&self, names: &[&str]) -> Result<()> {
+        let Some(sums) = &self.checksums else {
+            return Err(Error::format(
+                &self.path,
+                format!(
+                    "no column checksums ({CHECKSUM_KEY}): written by a farma older than store format 3; convert the log again"
+                ),
+            ));
+        };
+        let schema = self.batch.schema_ref();
+        let idx: Vec<usize> = names
+            .iter()
+            .map(|name| {
+                schema.index_of(name).map_err(|_| {
+                    Error::column(
+                        &self.path,
+                        format!(
+                            "no column '{name}'; columns are: {}",
+                            self.column_names().join(", ")
+                        ),
+                    )
+                })
+            })
+            .collect::<Result<_>>()?;
+        let bad: Vec<(usize, u64)> = idx
+            .into_par_iter()
+            .filter_map(|i| {
+                let values = self
+                    .batch
+                    .column(i)
+                    .as_any()
+                    .downcast_ref::<Float64Array>()?;
+                let got = column_checksum(values.values());
+                (got != sums[i]).then_some((i, got))
+            })
+            .collect();
+        let Some(&(i, got)) = bad.iter().min_by_key(|(i, _)| *i) else {
+            return Ok(());
+        };
+        let others = match bad.len() {
+            1 => String::new(),
+            k => format!(" ({} more column(s) damaged too)", k - 1),
+        };
+        Err(Error::column(
+            &self.path,
+            format!(
+                "column '{}': damaged: its values do not match the checksum the store records (xxh64 {:016x}, computed {got:016x}){others}; convert the log again",
+                schema.field(i).name(),
+                sums[i]
+            ),
+        ))
     }
 
     /// The file this store was opened from.
@@ -296,4 +372,25 @@ impl Store {
         }
         Ok(out)
     }
+}
+
+/// The checksums under [`CHECKSUM_KEY`], one per field of `schema` in its order.
+fn parse_checksums(json: &str, schema: &arrow_schema::Schema) -> Result<Vec<u64>, String> {
+    let map: std::collections::HashMap<String, String> =
+        serde_json::from_str(json).map_err(|e| format!("{CHECKSUM_KEY}: {e}"))?;
+    schema
+        .fields()
+        .iter()
+        .map(|f| {
+            let hex = map
+                .get(f.name())
+                .ok_or_else(|| format!("{CHECKSUM_KEY}: no checksum for column '{}'", f.name()))?;
+            u64::from_str_radix(hex, 16).map_err(|_| {
+                format!(
+                    "{CHECKSUM_KEY}: column '{}': '{hex}' is not a hex checksum",
+                    f.name()
+                )
+            })
+        })
+        .collect()
 }

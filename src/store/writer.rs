@@ -11,7 +11,13 @@
 //! | body: column 0 values, padded to 64, column 1, ... | end-of-stream marker
 //! | footer (schema with full metadata, one record block) | footer length | `ARROW1`.
 //! The footer is written last, so metadata that is known only after the values
-//! (segments, repairs) goes there; readers of the file format use the footer's schema.
+//! (segments, repairs, the columns' checksums) goes there; readers of the file format
+//! use the footer's schema.
+//!
+//! Checksums: [`StoreWriter::finish`] hashes each column's values (its `8 * rows`
+//! bytes, not the padding) with XXH64, seed 0, in one pass over the map, the columns in
+//! parallel, and records them under [`CHECKSUM_KEY`] as a JSON object from column name
+//! to 16 lowercase hex digits; [`super::Store::verify`] checks them.
 
 use std::collections::HashMap;
 use std::io::{Seek, SeekFrom, Write};
@@ -21,8 +27,9 @@ use arrow_ipc::writer::{DictionaryTracker, IpcDataGenerator, IpcWriteOptions};
 use arrow_schema::{DataType, Field, Schema};
 use flatbuffers::FlatBufferBuilder;
 use memmap2::MmapMut;
+use rayon::prelude::*;
 
-use super::meta::{META_KEY, RATE_KEY, StoreMeta};
+use super::meta::{CHECKSUM_KEY, META_KEY, RATE_KEY, StoreMeta};
 use crate::error::{Error, Result};
 
 const ALIGN: usize = 64;
@@ -138,11 +145,16 @@ impl StoreWriter {
         unsafe { std::slice::from_raw_parts(bytes.as_ptr() as *const f64, self.n_rows) }
     }
 
-    /// Writes the footer with `meta`, and renames the file onto the target.
+    /// Writes the footer with `meta` and the columns' checksums, and renames the file
+    /// onto the target.
     ///
     /// The data is not fsync'ed: a killed process loses nothing (the page cache holds
     /// it and the rename is atomic), only a machine crash could.
     pub fn finish(self, meta: &StoreMeta) -> Result<()> {
+        let checksums: Vec<u64> = (0..self.names.len())
+            .into_par_iter()
+            .map(|i| column_checksum(self.column(i)))
+            .collect();
         let StoreWriter {
             target,
             tmp,
@@ -157,7 +169,7 @@ impl StoreWriter {
         map.flush_async().map_err(map_err)?;
         drop(map);
 
-        let schema = schema_for(&names, Some(meta));
+        let schema = schema_for(&names, Some((meta, &checksums)));
         let mut fbb = FlatBufferBuilder::new();
         let body_len = (col_stride * names.len()) as i64;
         let blocks = [arrow_ipc::Block::new(
@@ -211,16 +223,38 @@ pub fn output_permissions() -> std::fs::Permissions {
     }
 }
 
+/// The XXH64 hash (seed 0) of a column's values as little-endian bytes: the checksum
+/// recorded under [`CHECKSUM_KEY`].
+pub(super) fn column_checksum(values: &[f64]) -> u64 {
+    // SAFETY: any f64 is 8 initialised bytes; the byte slice borrows `values`. Stores
+    // are little-endian (Arrow IPC), as are the machines farma runs on.
+    let bytes = unsafe {
+        std::slice::from_raw_parts(values.as_ptr() as *const u8, std::mem::size_of_val(values))
+    };
+    twox_hash::XxHash64::oneshot(0, bytes)
+}
+
+/// The JSON recorded under [`CHECKSUM_KEY`]: column name to 16 lowercase hex digits.
+fn checksum_json(names: &[String], checksums: &[u64]) -> String {
+    let map: serde_json::Map<String, serde_json::Value> = names
+        .iter()
+        .zip(checksums)
+        .map(|(n, h)| (n.clone(), serde_json::Value::String(format!("{h:016x}"))))
+        .collect();
+    serde_json::Value::Object(map).to_string()
+}
+
 /// The store's schema: one non-nullable Float64 field per column, and, when given,
-/// the metadata keys [`RATE_KEY`] and [`META_KEY`].
-fn schema_for(names: &[String], meta: Option<&StoreMeta>) -> Schema {
+/// the metadata keys [`RATE_KEY`], [`META_KEY`] and [`CHECKSUM_KEY`].
+fn schema_for(names: &[String], meta: Option<(&StoreMeta, &[u64])>) -> Schema {
     let fields: Vec<Field> = names
         .iter()
         .map(|n| Field::new(n, DataType::Float64, false))
         .collect();
     let mut md = HashMap::new();
-    if let Some(meta) = meta {
+    if let Some((meta, checksums)) = meta {
         md.insert(RATE_KEY.to_string(), format!("{}", meta.sample_rate_hz));
+        md.insert(CHECKSUM_KEY.to_string(), checksum_json(names, checksums));
         md.insert(
             META_KEY.to_string(),
             serde_json::to_string(meta).expect("StoreMeta serializes"),

@@ -301,3 +301,70 @@ fn the_slurm_script_and_the_indexed_job_variables_run_shards() {
     );
     assert_eq!(json_of(&st)["done"].as_u64(), Some(6));
 }
+
+/// An ingested store with damaged bytes named as a batch input fails its units,
+/// naming the column; the other logs' units are done.
+#[test]
+fn a_damaged_ingested_store_fails_its_units_naming_the_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    let store = logs.join("stand.arrow");
+    let o = farma(
+        &[
+            "ingest",
+            fixture("multiaxis.csv").to_str().unwrap(),
+            "-o",
+            store.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    std::fs::copy(fixture("multiaxis.csv"), logs.join("good.csv")).unwrap();
+    let j = job(
+        dir.path(),
+        "[[inputs]]\npaths = [\"logs/\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = 31\n",
+    );
+    let jj = j.to_str().unwrap();
+    let o = farma(
+        &[
+            "batch",
+            jj,
+            "-o",
+            dir.path().join("ok").to_str().unwrap(),
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(2));
+    // flip 64 bytes in the middle of the store (inside a column's values)
+    let mut bytes = std::fs::read(&store).unwrap();
+    let mid = bytes.len() / 2;
+    for b in &mut bytes[mid..mid + 64] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&store, bytes).unwrap();
+    let o = farma(
+        &[
+            "batch",
+            jj,
+            "-o",
+            dir.path().join("bad").to_str().unwrap(),
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let s = json_of(&o);
+    assert_eq!(
+        (s["done"].as_u64(), s["failed"].as_u64()),
+        (Some(1), Some(1)),
+        "{s}"
+    );
+    let err = s["failures"][0]["error"].as_str().unwrap().to_string();
+    assert!(
+        err.contains("stand.arrow") && err.contains("column '"),
+        "{err}"
+    );
+}

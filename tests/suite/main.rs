@@ -22,6 +22,7 @@ mod noise_terms;
 mod psd_acf;
 mod simulate;
 mod spec;
+mod store_checksums;
 mod update_cli;
 mod workflow_cli;
 mod workflow_golden;
