@@ -26,6 +26,7 @@ mod acf;
 mod adev;
 mod analyze;
 mod batch;
+mod cache;
 mod check;
 mod choices;
 mod fit;
@@ -86,6 +87,8 @@ pub enum Command {
     Check(check::CheckArgs),
     /// Run a job file's tasks over many logs into one partitioned Parquet dataset (resumable, shardable).
     Batch(batch::BatchArgs),
+    /// The converted stores kept between runs: list them, or prune the least recently used.
+    Cache(cache::CacheArgs),
     /// Simulate a gyro log from a simulation spec (TOML).
     Simulate(simulate::SimulateArgs),
     /// Where a simulation spec differs from a real log, which effect it misses, how far the gap shrinks.
@@ -221,6 +224,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Select(a) => select::run(a, &progress),
         Command::Analyze(a) => analyze::run(a, &progress),
         Command::Batch(a) => batch::run(a, &progress),
+        Command::Cache(a) => cache::run(a),
         Command::Check(a) => check::run(a, &progress),
         Command::Simulate(a) => simulate::run(a, &progress),
         Command::Gap(a) => gap::run(a, &progress),

@@ -7,7 +7,7 @@
 //! user never has to ingest by hand. The input contract is section 1 of
 //! `shared/design/contracts.md`.
 
-mod cache;
+pub mod cache;
 mod columnar;
 pub mod csv;
 mod repair;
@@ -591,13 +591,27 @@ pub fn open_log(
         Some(cached) => {
             let damaged = if cached.exists() {
                 match Store::open(&cached).and_then(|s| s.verify().map(|()| s)) {
-                    Ok(s) => return Ok(s.with_label(path)),
+                    Ok(s) => {
+                        cache::touch(&cached);
+                        return Ok(s.with_label(path));
+                    }
                     Err(e) => Some(e),
                 }
             } else {
                 None
             };
+            let limit = cache::limit_bytes()?;
             convert(path, &cached, opts, progress, NanCheck::OnRead)?;
+            if let Some(dir) = cached.parent() {
+                for e in cache::prune(dir, limit, Some(&cached))? {
+                    eprintln!(
+                        "farma: note: removed the least recently used cached store {} ({:.1} MB) to keep the cache under {:.1} GB (FARMA_CACHE_LIMIT_GB)",
+                        e.path.display(),
+                        e.bytes as f64 / 1e6,
+                        limit as f64 / 1e9
+                    );
+                }
+            }
             if let Some(e) = damaged {
                 eprintln!(
                     "farma: note: the cached conversion of {} was damaged or unreadable ({e}); reconverted",

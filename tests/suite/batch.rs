@@ -368,3 +368,68 @@ fn a_damaged_ingested_store_fails_its_units_naming_the_column() {
         "{err}"
     );
 }
+
+/// The cache stays under FARMA_CACHE_LIMIT_GB (least recently used stores removed,
+/// with a note; the one in use kept), and `farma cache list` / `prune` show and trim it.
+#[test]
+fn the_cache_keeps_under_its_limit_and_lists_and_prunes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    let run = |args: &[&str], limit: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_farma"))
+            .args(args)
+            .env("FARMA_CACHE_DIR", &cache)
+            .env("FARMA_CACHE_LIMIT_GB", limit)
+            .output()
+            .unwrap()
+    };
+    // each store of the fixture is about 160 kB: a 0.0003 GB (300 kB) limit holds one
+    let mut logs = Vec::new();
+    for k in 0..3 {
+        let p = dir.path().join(format!("log{k}.csv"));
+        std::fs::write(&p, &csv).unwrap();
+        let o = run(&["info", p.to_str().unwrap()], "0.0003");
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        if k > 0 {
+            assert!(
+                stderr(&o).contains("removed the least recently used cached store"),
+                "{}",
+                stderr(&o)
+            );
+        }
+        logs.push(p);
+    }
+    let o = run(&["cache", "list", "--json"], "0.0003");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = json_of(&o);
+    let entries = v["entries"].as_array().unwrap();
+    assert_eq!(entries.len(), 1, "{v}");
+    assert!(
+        entries[0]["path"].as_str().unwrap().contains("log2-"),
+        "{v}"
+    );
+    // a generous limit keeps everything; prune --all empties the cache
+    for p in &logs[..2] {
+        assert_eq!(
+            run(&["info", p.to_str().unwrap()], "20").status.code(),
+            Some(0)
+        );
+    }
+    let v = json_of(&run(&["cache", "list", "--json"], "20"));
+    assert_eq!(v["entries"].as_array().unwrap().len(), 3, "{v}");
+    let v = json_of(&run(
+        &["cache", "prune", "--max-gb", "0.0003", "--json"],
+        "20",
+    ));
+    assert_eq!(v["removed"].as_u64(), Some(2), "{v}");
+    let v = json_of(&run(&["cache", "prune", "--all", "--json"], "20"));
+    assert_eq!(v["removed"].as_u64(), Some(1), "{v}");
+    let o = run(&["info", logs[0].to_str().unwrap()], "nonsense");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("FARMA_CACHE_LIMIT_GB"),
+        "{}",
+        stderr(&o)
+    );
+}
