@@ -9,6 +9,7 @@
 //! paths = ["logs/*.parquet", "stand3/"]   # relative to the job file's folder
 //! channels = ["gyro_x", "gyro_y"]         # optional; default: the gyro role
 //! optional = false                        # true: skip paths that name no file
+//! gyro = ["rate_*"]                       # optional; these logs' gyro patterns
 //!
 //! [roles]                                 # optional; channel-name patterns
 //! gyro = ["gyro*", "*_dps", "*_rad_s"]    # the default
@@ -62,6 +63,8 @@ pub struct Input {
     /// A path that names no file is skipped with a warning instead of an error (logs
     /// that are present on some machines only).
     pub optional: bool,
+    /// The gyro role's patterns for these logs, overriding `[roles] gyro`.
+    pub gyro: Option<Vec<String>>,
 }
 
 /// Channel-name patterns per role.
@@ -122,6 +125,7 @@ struct RawInput {
     channels: Option<Vec<String>>,
     #[serde(default)]
     optional: bool,
+    gyro: Option<Vec<String>>,
 }
 
 #[derive(Deserialize)]
@@ -198,6 +202,7 @@ impl JobFile {
                 paths: inp.paths.iter().map(|p| resolve(p)).collect(),
                 channels: inp.channels,
                 optional: inp.optional,
+                gyro: inp.gyro,
             });
         }
         let roles = match raw.roles {
@@ -300,6 +305,17 @@ impl Roles {
     /// Whether `channel` has the gyro role (a pattern matches, case-insensitive).
     pub fn is_gyro(&self, channel: &str) -> bool {
         self.gyro.iter().any(|p| name_matches(p, channel))
+    }
+
+    /// The roles of an input's logs: its own gyro patterns, if it has them.
+    pub fn for_input(&self, gyro: &Option<Vec<String>>) -> Roles {
+        match gyro {
+            Some(g) => Roles {
+                gyro: g.clone(),
+                temperature: self.temperature.clone(),
+            },
+            None => self.clone(),
+        }
     }
 
     /// Whether `channel` has the temperature role.

@@ -141,7 +141,7 @@ impl BatchRun {
     /// Runs one unit unless it is done and unchanged; writes its manifest row.
     fn run_unit(&self, u: &Unit, log: &Log, task: &Task, prev: Option<&Row>) -> Result<Ran> {
         let started = unix_now();
-        let opts = units::options_hash(task, &log.channels);
+        let opts = units::options_hash(task, log, &self.job.roles);
         let mut row = Row {
             unit: u.key.clone(),
             log_id: log.id.clone(),
@@ -187,19 +187,20 @@ impl BatchRun {
             // cached conversion was checked when reused; an ingested store named as an
             // input is refused here, naming the damaged column)
             store.verify()?;
+            let roles = self.job.roles.for_input(&log.gyro);
             let channels: Vec<String> = match &log.channels {
                 Some(c) => c.clone(),
                 None => store
                     .channel_names()
                     .into_iter()
-                    .filter(|c| self.job.roles.is_gyro(c))
+                    .filter(|c| roles.is_gyro(c))
                     .map(str::to_string)
                     .collect(),
             };
             if channels.is_empty() {
                 return Ok(Ran::Skipped(format!(
                     "no channel of the gyro role ({}) among {}; name the channels in the input",
-                    self.job.roles.gyro.join(", "),
+                    roles.gyro.join(", "),
                     store.channel_names().join(", ")
                 )));
             }

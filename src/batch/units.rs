@@ -23,6 +23,8 @@ pub struct Log {
     pub id: String,
     /// The channels the inputs name for it (`None`: the gyro role).
     pub channels: Option<Vec<String>>,
+    /// Its input's gyro patterns, overriding the job's (`None`: the job's).
+    pub gyro: Option<Vec<String>>,
 }
 
 /// One unit of work: a task on a log.
@@ -40,7 +42,8 @@ pub struct Unit {
 /// job file's order). A pattern that matches nothing, or a path that does not exist, is
 /// an error naming it.
 pub fn plan(job: &JobFile) -> Result<(Vec<Log>, Vec<Unit>)> {
-    let mut found: BTreeMap<PathBuf, Option<Vec<String>>> = BTreeMap::new();
+    type Choice = (Option<Vec<String>>, Option<Vec<String>>);
+    let mut found: BTreeMap<PathBuf, Choice> = BTreeMap::new();
     for inp in &job.inputs {
         for p in &inp.paths {
             let files = match expand(p, &job.path) {
@@ -52,11 +55,13 @@ pub fn plan(job: &JobFile) -> Result<(Vec<Log>, Vec<Unit>)> {
                 Err(e) => return Err(e),
             };
             for f in files {
-                found.entry(f).or_insert_with(|| inp.channels.clone());
+                found
+                    .entry(f)
+                    .or_insert_with(|| (inp.channels.clone(), inp.gyro.clone()));
             }
         }
     }
-    let stems: Vec<(PathBuf, String, Option<Vec<String>>)> = found
+    let stems: Vec<(PathBuf, String, Choice)> = found
         .into_iter()
         .map(|(p, c)| {
             let stem = p
@@ -77,7 +82,7 @@ pub fn plan(job: &JobFile) -> Result<(Vec<Log>, Vec<Unit>)> {
         })
         .collect();
     let mut logs = Vec::new();
-    for (p, id, channels) in &stems {
+    for (p, id, (channels, gyro)) in &stems {
         let shared = stems.iter().filter(|o| o.1 == *id).count() > 1;
         let id = if shared {
             format!("{id}-{:08x}", hash64(p.to_string_lossy().as_bytes()) >> 32)
@@ -88,6 +93,7 @@ pub fn plan(job: &JobFile) -> Result<(Vec<Log>, Vec<Unit>)> {
             path: p.clone(),
             id,
             channels: channels.clone(),
+            gyro: gyro.clone(),
         });
     }
     let mut units = Vec::new();
@@ -194,14 +200,16 @@ pub fn fingerprint(path: &Path) -> Result<Fingerprint> {
     })
 }
 
-/// The hash of a task's kind and options and of the log's channel list (16 hex
-/// digits): what a rerun compares to know the unit's options unchanged.
-pub fn options_hash(task: &Task, channels: &Option<Vec<String>>) -> String {
+/// The hash of a task's kind and options, of the log's channel list and gyro patterns
+/// and of the farma version (16 hex digits): what a rerun compares to know the unit's
+/// options unchanged.
+pub fn options_hash(task: &Task, log: &Log, roles: &super::jobfile::Roles) -> String {
     let text = format!(
-        "{}\n{}\n{:?}\n{}",
+        "{}\n{}\n{:?}\n{:?}\n{}",
         task.kind.as_str(),
         task.options,
-        channels,
+        log.channels,
+        roles.for_input(&log.gyro).gyro,
         env!("CARGO_PKG_VERSION")
     );
     format!("{:016x}", hash64(text.as_bytes()))

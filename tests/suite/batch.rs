@@ -433,3 +433,30 @@ fn the_cache_keeps_under_its_limit_and_lists_and_prunes() {
         stderr(&o)
     );
 }
+
+/// An input's own gyro patterns override the job's: a log with no channel of the role
+/// is skipped (with the reason in the manifest), another input's logs run.
+#[test]
+fn an_input_overrides_the_gyro_role() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(fixture("multiaxis.csv"), dir.path().join("a.csv")).unwrap();
+    std::fs::copy(fixture("multiaxis.csv"), dir.path().join("b.csv")).unwrap();
+    let j = job(
+        dir.path(),
+        "output = \"out\"\n[[inputs]]\npaths = [\"a.csv\"]\ngyro = [\"rate_*\"]\n[[inputs]]\npaths = [\"b.csv\"]\ngyro = [\"gyro_x\"]\n[[tasks]]\nkind = \"adev\"\n",
+    );
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let s = json_of(&o);
+    assert_eq!(
+        (s["done"].as_u64(), s["skipped"].as_u64()),
+        (Some(1), Some(1)),
+        "{s}"
+    );
+    let st = farma(&["batch", j.to_str().unwrap(), "--status"], dir.path());
+    assert!(
+        stdout(&st).contains("1 done, 0 failed, 1 skipped"),
+        "{}",
+        stdout(&st)
+    );
+}
