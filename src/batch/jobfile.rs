@@ -16,14 +16,15 @@
 //! temperature = ["temp*", "*_degc"]       # the default
 //!
 //! [[tasks]]
-//! kind = "fit"                            # adev | fit | analyze | select | prep
+//! kind = "fit"                            # adev | psd | fit | analyze | select | prep
 //! name = "fit211"                         # optional, default the kind; unique
 //! order = "2,1,1"
 //! ```
 //!
 //! Task options (each optional, the command's default otherwise): `adev`:
 //! `fit_tau_min` (the octave Allan deviation with one-sigma intervals and the noise
-//! terms, as `farma adev` gives them); `fit`: `order`,
+//! terms, as `farma adev` gives them); `psd`: `segment` (samples), `detrend`
+//! (constant, none), `bands_per_decade` (0, the default: every bin); `fit`: `order`,
 //! `grid`, `bandwidth`, `method` (fast, direct), `max_iter`, `tol`, `residuals`;
 //! `select`: `orders`, `grid`, `method`, `bootstrap`, `seed`; `analyze`: those of
 //! `select` and `holdout_s`, `maxlag`, `max_degree`; `prep`: none (the defaults of
@@ -78,6 +79,7 @@ pub struct Roles {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum TaskKind {
     Adev,
+    Psd,
     Fit,
     Analyze,
     Select,
@@ -88,6 +90,7 @@ impl TaskKind {
     pub fn as_str(&self) -> &'static str {
         match self {
             TaskKind::Adev => "adev",
+            TaskKind::Psd => "psd",
             TaskKind::Fit => "fit",
             TaskKind::Analyze => "analyze",
             TaskKind::Select => "select",
@@ -139,6 +142,7 @@ struct RawRoles {
 fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
     match kind {
         TaskKind::Adev => &["fit_tau_min"],
+        TaskKind::Psd => &["segment", "detrend", "bands_per_decade"],
         TaskKind::Fit => &[
             "order",
             "grid",
@@ -221,18 +225,19 @@ impl JobFile {
         for (i, t) in raw.tasks.into_iter().enumerate() {
             let kind = match t.get("kind").and_then(|v| v.as_str()) {
                 Some("adev") => TaskKind::Adev,
+                Some("psd") => TaskKind::Psd,
                 Some("fit") => TaskKind::Fit,
                 Some("analyze") => TaskKind::Analyze,
                 Some("select") => TaskKind::Select,
                 Some("prep") => TaskKind::Prep,
                 Some(k) => {
                     return Err(bad(format!(
-                        "tasks[{i}].kind = '{k}': not one of adev, fit, analyze, select, prep"
+                        "tasks[{i}].kind = '{k}': not one of adev, psd, fit, analyze, select, prep"
                     )));
                 }
                 None => {
                     return Err(bad(format!(
-                        "tasks[{i}]: no kind (adev, fit, analyze, select, prep)"
+                        "tasks[{i}]: no kind (adev, psd, fit, analyze, select, prep)"
                     )));
                 }
             };

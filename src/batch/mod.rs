@@ -42,10 +42,12 @@ use crate::jobs::adev::AdevJob;
 use crate::jobs::analyze::AnalyzeJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::jobs::prep::PrepJob;
+use crate::jobs::psd::PsdJob;
 use crate::jobs::select::SelectJob;
 use crate::log::{CachePolicy, LogOptions, Progress};
 use crate::model::Order;
 use crate::stats::adev::{CiOptions, Kind, ONE_SIGMA, TauGrid};
+use crate::stats::psd::Detrend;
 use crate::workflow::prep::PrepParams;
 use crate::workflow::select::PAPER_ORDERS;
 use jobfile::{JobFile, Task, TaskKind, opt_bool, opt_f64, opt_str, opt_usize};
@@ -335,6 +337,35 @@ fn run_task(
                     alpha: 0,
                 },
                 fit_tau_min: opt_f64(task, "fit_tau_min")?,
+            };
+            let segment = crate::jobs::longest_segment(store, log);
+            let done = job.run(store, segment)?;
+            job.write(out, store, &done)
+        }
+        TaskKind::Psd => {
+            let detrend = match opt_str(task, "detrend")? {
+                None | Some("constant") => Detrend::Constant,
+                Some("none") => Detrend::None,
+                Some(d) => {
+                    return Err(Error::Usage(format!(
+                        "task '{}': detrend = '{d}' is not constant or none",
+                        task.name
+                    )));
+                }
+            };
+            let segment_len = opt_usize(task, "segment")?;
+            if segment_len.is_some_and(|s| s < 2) {
+                return Err(Error::Usage(format!(
+                    "task '{}': segment must be at least 2 samples",
+                    task.name
+                )));
+            }
+            let job = PsdJob {
+                log: log.to_path_buf(),
+                channels,
+                segment_len,
+                detrend,
+                bands_per_decade: opt_usize(task, "bands_per_decade")?.unwrap_or(0),
             };
             let segment = crate::jobs::longest_segment(store, log);
             let done = job.run(store, segment)?;

@@ -11,6 +11,7 @@
 //! - [`update`]: online updates of a model folder over a new log (`farma update`);
 //! - [`check`]: a saved model checked on a log (`farma check`);
 //! - [`prep`]: the paper's preparation of channels (`farma prep`);
+//! - [`psd`]: Welch power spectral densities (`farma psd`);
 //! - [`select`]: the order table, F-tests and constancy test (`farma select`);
 //! - [`analyze`]: the whole workflow (`farma analyze`).
 
@@ -20,6 +21,7 @@ pub mod check;
 pub mod fit;
 pub mod fit2;
 pub mod prep;
+pub mod psd;
 pub mod select;
 pub mod update;
 

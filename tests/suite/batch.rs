@@ -53,7 +53,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
     let (j, r) = (nightly.to_str().unwrap(), root.to_str().unwrap());
     // the real ADIS16405 run 1 is an optional input: there where ../shared is
     let real = crate::common::realdata("imudata-adis16405/adis_16405_imu1.parquet").is_some();
-    let done = if real { 9 } else { 6 };
+    let done = if real { 12 } else { 8 };
     let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let s = json_of(&o);
@@ -63,11 +63,11 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             s["done"].as_u64(),
             s["failed"].as_u64()
         ),
-        (Some(done + 3), Some(done), Some(3)),
+        (Some(done + 4), Some(done), Some(4)),
         "{s}"
     );
     let err = stderr(&o);
-    for t in ["fit", "select-quick", "adev"] {
+    for t in ["fit", "select-quick", "adev", "psd"] {
         assert!(
             err.contains(&format!("farma: error: nan_time.{t}: ")),
             "{err}"
@@ -92,8 +92,8 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             .count(),
         2
     );
-    for t in ["allan", "noise_terms"] {
-        let prefix = format!("{t}/task=adev/log_id=multiaxis-");
+    for (t, task) in [("allan", "adev"), ("noise_terms", "adev"), ("psd", "psd")] {
+        let prefix = format!("{t}/task={task}/log_id=multiaxis-");
         assert_eq!(
             names.iter().filter(|n| n.starts_with(&prefix)).count(),
             2,
@@ -103,7 +103,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
     assert!(root.join("manifest.parquet").is_file());
     assert_eq!(
         std::fs::read_dir(root.join("_manifest")).unwrap().count() as u64,
-        done + 3
+        done + 4
     );
 
     let again = farma(&["batch", j, "-o", r, "--json"], dir.path());
@@ -114,7 +114,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
             s["skipped"].as_u64(),
             s["failed"].as_u64()
         ),
-        (Some(0), Some(done), Some(3)),
+        (Some(0), Some(done), Some(4)),
         "{s}"
     );
     assert_eq!(dataset(&root), files, "a rerun changed the dataset");
@@ -122,7 +122,7 @@ fn the_nightly_job_runs_isolates_a_bad_log_and_resumes() {
     let st = farma(&["batch", j, "-o", r, "--status"], dir.path());
     assert_eq!(st.status.code(), Some(0), "{}", stderr(&st));
     assert!(
-        stdout(&st).contains(&format!("{done} done, 3 failed, 0 skipped, 0 not run")),
+        stdout(&st).contains(&format!("{done} done, 4 failed, 0 skipped, 0 not run")),
         "{}",
         stdout(&st)
     );
