@@ -16,7 +16,7 @@
 //! temperature = ["temp*", "*_degc"]       # the default
 //!
 //! [[tasks]]
-//! kind = "fit"                            # adev | psd | fit | analyze | select | prep
+//! kind = "fit"                            # adev | psd | fit | analyze | select | prep | check
 //! name = "fit211"                         # optional, default the kind; unique
 //! order = "2,1,1"
 //! ```
@@ -27,7 +27,9 @@
 //! (constant, none), `bands_per_decade` (0, the default: every bin); `fit`: `order`,
 //! `grid`, `bandwidth`, `method` (fast, direct), `max_iter`, `tol`, `residuals`;
 //! `select`: `orders`, `grid`, `method`, `bootstrap`, `seed`; `analyze`: those of
-//! `select` and `holdout_s`, `maxlag`, `max_degree`; `prep`: none (the defaults of
+//! `select` and `holdout_s`, `maxlag`, `max_degree`; `check`: `model` (a model folder
+//! of `farma fit`, relative to the job file; required), `holdout_s`, `maxlag`,
+//! `max_degree`; `prep`: none (the defaults of
 //! `farma prep`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
@@ -80,6 +82,7 @@ pub struct Roles {
 pub enum TaskKind {
     Adev,
     Psd,
+    Check,
     Fit,
     Analyze,
     Select,
@@ -91,6 +94,7 @@ impl TaskKind {
         match self {
             TaskKind::Adev => "adev",
             TaskKind::Psd => "psd",
+            TaskKind::Check => "check",
             TaskKind::Fit => "fit",
             TaskKind::Analyze => "analyze",
             TaskKind::Select => "select",
@@ -143,6 +147,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
     match kind {
         TaskKind::Adev => &["fit_tau_min"],
         TaskKind::Psd => &["segment", "detrend", "bands_per_decade"],
+        TaskKind::Check => &["model", "holdout_s", "maxlag", "max_degree"],
         TaskKind::Fit => &[
             "order",
             "grid",
@@ -226,18 +231,19 @@ impl JobFile {
             let kind = match t.get("kind").and_then(|v| v.as_str()) {
                 Some("adev") => TaskKind::Adev,
                 Some("psd") => TaskKind::Psd,
+                Some("check") => TaskKind::Check,
                 Some("fit") => TaskKind::Fit,
                 Some("analyze") => TaskKind::Analyze,
                 Some("select") => TaskKind::Select,
                 Some("prep") => TaskKind::Prep,
                 Some(k) => {
                     return Err(bad(format!(
-                        "tasks[{i}].kind = '{k}': not one of adev, psd, fit, analyze, select, prep"
+                        "tasks[{i}].kind = '{k}': not one of adev, psd, fit, analyze, select, prep, check"
                     )));
                 }
                 None => {
                     return Err(bad(format!(
-                        "tasks[{i}]: no kind (adev, psd, fit, analyze, select, prep)"
+                        "tasks[{i}]: no kind (adev, psd, fit, analyze, select, prep, check)"
                     )));
                 }
             };
@@ -280,6 +286,18 @@ impl JobFile {
                     )));
                 }
                 options.insert(k.clone(), v.clone());
+            }
+            if kind == TaskKind::Check {
+                let model = options
+                    .get("model")
+                    .and_then(|v| v.as_str())
+                    .ok_or_else(|| {
+                        bad(format!(
+                            "tasks[{i}] (check): no model = \"FOLDER\" (the output folder of farma fit)"
+                        ))
+                    })?;
+                let abs = resolve(model).display().to_string();
+                options.insert("model".into(), toml::Value::String(abs));
             }
             tasks.push(Task {
                 kind,

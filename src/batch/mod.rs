@@ -40,6 +40,7 @@ use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::adev::AdevJob;
 use crate::jobs::analyze::AnalyzeJob;
+use crate::jobs::check::CheckJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::jobs::prep::PrepJob;
 use crate::jobs::psd::PsdJob;
@@ -341,6 +342,38 @@ fn run_task(
             let segment = crate::jobs::longest_segment(store, log);
             let done = job.run(store, segment)?;
             job.write(out, store, &done)
+        }
+        TaskKind::Check => {
+            let model = PathBuf::from(opt_str(task, "model")?.unwrap_or_default());
+            let job = CheckJob {
+                model: model.clone(),
+                log: log.to_path_buf(),
+                output: Some(out.to_path_buf()),
+                holdout_s: opt_f64(task, "holdout_s")?.unwrap_or(50.0),
+                maxlag: opt_usize(task, "maxlag")?.unwrap_or(40),
+                max_degree: opt_usize(task, "max_degree")?.unwrap_or(6),
+            };
+            if !(job.holdout_s.is_finite() && job.holdout_s >= 0.0) {
+                return Err(Error::Usage(format!(
+                    "task '{}': holdout_s = {} is not a non-negative number",
+                    task.name, job.holdout_s
+                )));
+            }
+            // the unit's channels that the model holds
+            let fitted = job.model_dir()?.channels()?;
+            let names: Vec<String> = channels
+                .into_iter()
+                .filter(|c| fitted.contains(c))
+                .collect();
+            if names.is_empty() {
+                return Err(Error::Usage(format!(
+                    "task '{}': the model {} holds none of the log's channels (it has {})",
+                    task.name,
+                    model.display(),
+                    fitted.join(", ")
+                )));
+            }
+            job.run(store, &names).map(|_| ())
         }
         TaskKind::Psd => {
             let detrend = match opt_str(task, "detrend")? {

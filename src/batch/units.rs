@@ -200,12 +200,27 @@ pub fn fingerprint(path: &Path) -> Result<Fingerprint> {
     })
 }
 
-/// The hash of a task's kind and options, of the log's channel list and gyro patterns
-/// and of the farma version (16 hex digits): what a rerun compares to know the unit's
-/// options unchanged.
+/// The hash of a task's kind and options, of the log's channel list and gyro patterns,
+/// of a check's model files (size and modification time) and of the farma version (16
+/// hex digits): what a rerun compares to know the unit's options unchanged.
 pub fn options_hash(task: &Task, log: &Log, roles: &super::jobfile::Roles) -> String {
+    // a check's model folder: a refit into the same folder is a change of options
+    let model = match (
+        &task.kind,
+        task.options.get("model").and_then(|v| v.as_str()),
+    ) {
+        (super::jobfile::TaskKind::Check, Some(m)) => ["params.parquet", "coef.parquet"]
+            .iter()
+            .map(|f| {
+                crate::log::source_identity(&Path::new(m).join(f))
+                    .map_or_else(|_| "missing".to_string(), |(s, t)| format!("{s}:{t}"))
+            })
+            .collect::<Vec<_>>()
+            .join(","),
+        _ => String::new(),
+    };
     let text = format!(
-        "{}\n{}\n{:?}\n{:?}\n{}",
+        "{}\n{}\n{:?}\n{:?}\n{model}\n{}",
         task.kind.as_str(),
         task.options,
         log.channels,

@@ -460,3 +460,85 @@ fn an_input_overrides_the_gyro_role() {
         stdout(&st)
     );
 }
+
+/// The check task checks a saved model on every log: its whiteness, prediction and
+/// polynomial tables land in the dataset; a model without any of a log's channels
+/// fails that unit, naming the model.
+#[test]
+fn the_check_task_checks_a_saved_model_on_every_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    std::fs::copy(fixture("multiaxis.csv"), logs.join("a.csv")).unwrap();
+    std::fs::copy(fixture("multiaxis.csv"), logs.join("b.csv")).unwrap();
+    let model = dir.path().join("model");
+    let o = farma(
+        &[
+            "fit",
+            fixture("multiaxis.csv").to_str().unwrap(),
+            "--channel",
+            "gyro_x,gyro_y",
+            "--order",
+            "1,1,1",
+            "--grid",
+            "31",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let j = job(
+        dir.path(),
+        "output = \"out\"\n[[inputs]]\npaths = [\"logs/\"]\n[[tasks]]\nkind = \"check\"\nmodel = \"model\"\nholdout_s = 20\n",
+    );
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(2));
+    // unchanged: skipped; the model refitted into its folder: both redone
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(json_of(&o)["skipped"].as_u64(), Some(2));
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let o = farma(
+        &[
+            "fit",
+            fixture("multiaxis.csv").to_str().unwrap(),
+            "--channel",
+            "gyro_x,gyro_y",
+            "--order",
+            "2,1,1",
+            "--grid",
+            "31",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(2));
+    for t in ["acf", "ljung_box", "prediction", "poly"] {
+        for l in ["a", "b"] {
+            let p = dir
+                .path()
+                .join(format!("out/{t}/task=check/log_id={l}/part-0.parquet"));
+            assert!(p.is_file(), "{}", p.display());
+        }
+    }
+    // a model of other channels: the units fail naming it
+    let j = job(
+        dir.path(),
+        "output = \"out2\"\n[[inputs]]\npaths = [\"logs/\"]\nchannels = [\"gyro_z\"]\n[[tasks]]\nkind = \"check\"\nmodel = \"model\"\n",
+    );
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let s = json_of(&o);
+    assert_eq!(s["failed"].as_u64(), Some(2), "{s}");
+    assert!(
+        s["failures"][0]["error"]
+            .as_str()
+            .unwrap()
+            .contains("holds none"),
+        "{s}"
+    );
+}
