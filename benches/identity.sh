@@ -50,6 +50,7 @@ run() {
   step fit_literal fit "$fx" --channel gyro_x --order 2,1,1 --init literal --json -o "$out/fit_literal"
   step fit_q2 fit "$fx" --channel gyro_x,gyro_y --order 3,2,1 --save-state --json -o "$out/fit_q2"
   step fit_index fit "$fx" --channel gyro_x,gyro_y --order 2,1,1 --index lag,temp_c --index-grid 11,11 --json -o "$out/fit_index"
+  step fit_index_res fit "$fx" --channel gyro_x --order 2,1,1 --index lag,temp_c --index-lag 2 --index-grid 7,9 --residuals --json -o "$out/fit_index_res"
   step update update "$out/fit_fast" fixtures/multiaxis.parquet --channel gyro_x,gyro_y --no-time-check --json -o "$out/update"
   step update_lambda update "$out/fit_q2" fixtures/multiaxis.parquet --channel gyro_x --no-time-check --forgetting 0.999 --json -o "$out/update_lambda"
   step check check "$out/fit_fast" "$fx" --json -o "$out/check"
