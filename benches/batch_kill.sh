@@ -33,7 +33,12 @@ orders = "1,1,1;2,1,1"
 bootstrap = 0
 JOB
 t0=$(date +%s.%N)
-"$bin" batch "$w/job.toml" -o "$w/clean" --json >"$w/clean.json" 2>/dev/null || true
+if [[ -x /usr/bin/time ]]; then
+  /usr/bin/time -f "%M" -o "$w/clean.maxrss" "$bin" batch "$w/job.toml" -o "$w/clean" --json >"$w/clean.json" 2>/dev/null || true
+  echo "clean run peak RSS: $(cat "$w/clean.maxrss" | tail -1) KiB"
+else
+  "$bin" batch "$w/job.toml" -o "$w/clean" --json >"$w/clean.json" 2>/dev/null || true
+fi
 t1=$(date +%s.%N)
 echo "clean run: $(echo "$t1 - $t0" | bc) s: $(cat "$w/clean.json")"
 for k in $(seq 1 "$kills"); do
