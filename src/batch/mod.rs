@@ -360,7 +360,8 @@ fn run_task(
                 )));
             }
             // the unit's channels that the model holds
-            let fitted = job.model_dir()?.channels()?;
+            let dir = job.model_dir()?;
+            let fitted = dir.channels()?;
             let names: Vec<String> = channels
                 .into_iter()
                 .filter(|c| fitted.contains(c))
@@ -373,7 +374,7 @@ fn run_task(
                     fitted.join(", ")
                 )));
             }
-            job.run(store, &names).map(|_| ())
+            job.run(&dir, store, &names).map(|_| ())
         }
         TaskKind::Psd => {
             let detrend = match opt_str(task, "detrend")? {

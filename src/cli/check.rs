@@ -84,7 +84,7 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             a.holdout_s
         )));
     }
-    for c in job.run(&store, &names)? {
+    for c in job.run(&dir, &store, &names)? {
         let (name, model, holdout, report) = (&c.channel, &c.model, c.holdout, &c.report);
         let (w, prediction, poly) = (&report.whiteness, &report.prediction, &report.poly);
         let (p, q, d) = (model.p(), model.q(), model.d());

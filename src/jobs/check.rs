@@ -73,11 +73,15 @@ impl CheckJob {
         Ok(dir)
     }
 
-    /// Checks the model's channels `names` on `store` (the log [`CheckJob::log`]) in
-    /// parallel, every failing channel named at once, and writes the tables when
-    /// [`CheckJob::output`] is set.
-    pub fn run(&self, store: &Store, names: &[String]) -> Result<Vec<ChannelCheck>> {
-        let dir = self.model_dir()?;
+    /// Checks the model's channels `names` in `dir` (from [`CheckJob::model_dir`]) on
+    /// `store` (the log [`CheckJob::log`]) in parallel, every failing channel named at
+    /// once, and writes the tables when [`CheckJob::output`] is set.
+    pub fn run(
+        &self,
+        dir: &ModelDir,
+        store: &Store,
+        names: &[String],
+    ) -> Result<Vec<ChannelCheck>> {
         let rate = store.sample_rate_hz();
         let done = super::map_channels(&self.log, names, CHECK_CHANNELS_HINT, |name| {
             let (_, model) = dir.load(Some(name))?;

@@ -15,6 +15,7 @@ use crate::model::folder::tables::{
     ModelRow, ResidualRows, coef_table, gcv_table, params_table, stage_residuals,
 };
 use crate::model::folder::{COEF_FILE, FIT_OUTPUTS, GCV_FILE, PARAMS_FILE};
+use crate::model::order::{MAX_D, MAX_PQ};
 use crate::model::report::FitReport2;
 use crate::model::{Farma, Report};
 use crate::output::OutputSet;
@@ -132,9 +133,9 @@ impl Fit2Job {
                 "--index lag,{index2}: the second index is the fitted channel at the same lag; use --index-lag to pick another lag"
             )));
         }
-        if p == 0 || d == 0 || p > 6 || q > 6 || d > 1000 {
+        if crate::model::Order::new(p, q, d).bounds().is_some() {
             return Err(Error::Usage(format!(
-                "--order: p and d at least 1, p, q at most 6 and d at most 1000 (got {p},{q},{d})"
+                "--order: p and d at least 1, p, q at most {MAX_PQ} and d at most {MAX_D} (got {p},{q},{d})"
             )));
         }
         if base.tol.is_nan() || base.tol <= 0.0 || base.max_iter == 0 {

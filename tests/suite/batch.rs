@@ -31,6 +31,20 @@ fn dataset(root: &Path) -> Vec<(String, Vec<u8>)> {
     out
 }
 
+/// `n` different logs `DIR/logs/log{k}.csv`: the fixture without its last k lines.
+fn fixture_logs(dir: &Path, n: usize) {
+    let logs = dir.join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
+    for k in 0..n {
+        let mut end = csv.len();
+        for _ in 0..k {
+            end = csv[..end - 1].rfind('\n').unwrap() + 1;
+        }
+        std::fs::write(logs.join(format!("log{k}.csv")), &csv[..end]).unwrap();
+    }
+}
+
 fn json_of(o: &std::process::Output) -> serde_json::Value {
     serde_json::from_str(stdout(o).trim()).unwrap_or_else(|e| panic!("{e}: {}", stdout(o)))
 }
@@ -174,17 +188,7 @@ fn a_changed_log_or_changed_options_are_redone() {
 #[test]
 fn two_shards_write_the_single_run_dataset() {
     let dir = tempfile::tempdir().unwrap();
-    let logs = dir.path().join("logs");
-    std::fs::create_dir(&logs).unwrap();
-    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
-    for k in 0..4 {
-        // different logs: the last k lines dropped
-        let mut end = csv.len();
-        for _ in 0..k {
-            end = csv[..end - 1].rfind('\n').unwrap() + 1;
-        }
-        std::fs::write(logs.join(format!("log{k}.csv")), &csv[..end]).unwrap();
-    }
+    fixture_logs(dir.path(), 4);
     let j = job(
         dir.path(),
         "[[inputs]]\npaths = [\"logs/*.csv\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = 31\n[[tasks]]\nkind = \"prep\"\n",
@@ -223,16 +227,7 @@ fn two_shards_write_the_single_run_dataset() {
 #[test]
 fn the_slurm_script_and_the_indexed_job_variables_run_shards() {
     let dir = tempfile::tempdir().unwrap();
-    let logs = dir.path().join("logs");
-    std::fs::create_dir(&logs).unwrap();
-    let csv = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
-    for k in 0..3 {
-        let mut end = csv.len();
-        for _ in 0..k {
-            end = csv[..end - 1].rfind('\n').unwrap() + 1;
-        }
-        std::fs::write(logs.join(format!("log{k}.csv")), &csv[..end]).unwrap();
-    }
+    fixture_logs(dir.path(), 3);
     let j = job(
         dir.path(),
         "[[inputs]]\npaths = [\"logs/\"]\n[[tasks]]\nkind = \"fit\"\norder = \"1,1,1\"\ngrid = 31\n[[tasks]]\nkind = \"prep\"\n",
