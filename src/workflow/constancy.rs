@@ -55,6 +55,14 @@ pub struct Constancy {
     pub t_boot: Vec<f64>,
 }
 
+impl Constancy {
+    /// The smallest p-value the test can return: 1 / (B + 1) for a bootstrap of B
+    /// replicates (what B can resolve).
+    pub fn min_p(&self) -> f64 {
+        1.0 / (self.bootstrap + 1) as f64
+    }
+}
+
 /// The GLR statistic of one series and the null model behind it.
 struct Glr {
     t: f64,
