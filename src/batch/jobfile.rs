@@ -12,8 +12,9 @@
 //! gyro = ["rate_*"]                       # optional; these logs' gyro patterns
 //!
 //! [roles]                                 # optional; channel-name patterns
-//! gyro = ["gyro*", "*_dps", "*_rad_s"]    # the default
-//! temperature = ["temp*", "*_degc"]       # the default
+//! gyro = ["*gyro*", "*_dps", "rate*"]     # default: crate::log::roles::GYRO_PATTERNS
+//! temperature = ["temp*", "*_degc"]       # default: TEMPERATURE_PATTERNS
+//! accel = ["*accel*", "*_g"]              # default: ACCEL_PATTERNS
 //!
 //! [[tasks]]
 //! kind = "fit"                            # adev | psd | fit | analyze | select | prep | check
@@ -39,10 +40,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, Result};
 
-/// The default patterns of the gyro role.
-pub const GYRO_PATTERNS: [&str; 3] = ["gyro*", "*_dps", "*_rad_s"];
-/// The default patterns of the temperature role.
-pub const TEMPERATURE_PATTERNS: [&str; 2] = ["temp*", "*_degc"];
+pub use crate::log::roles::{GYRO_PATTERNS, Roles, TEMPERATURE_PATTERNS, name_matches};
 
 /// A job file, parsed and checked.
 #[derive(Clone, Debug)]
@@ -68,13 +66,6 @@ pub struct Input {
     pub optional: bool,
     /// The gyro role's patterns for these logs, overriding `[roles] gyro`.
     pub gyro: Option<Vec<String>>,
-}
-
-/// Channel-name patterns per role.
-#[derive(Clone, Debug)]
-pub struct Roles {
-    pub gyro: Vec<String>,
-    pub temperature: Vec<String>,
 }
 
 /// What a task runs on each log.
@@ -140,6 +131,7 @@ struct RawInput {
 struct RawRoles {
     gyro: Option<Vec<String>>,
     temperature: Option<Vec<String>>,
+    accel: Option<Vec<String>>,
 }
 
 /// The keys each task kind takes (besides `kind` and `name`).
@@ -216,12 +208,15 @@ impl JobFile {
         }
         let roles = match raw.roles {
             None => Roles::default(),
-            Some(r) => Roles {
-                gyro: r.gyro.unwrap_or_else(|| Roles::default().gyro),
-                temperature: r
-                    .temperature
-                    .unwrap_or_else(|| Roles::default().temperature),
-            },
+            Some(r) => {
+                let d = Roles::default();
+                Roles {
+                    gyro: r.gyro.unwrap_or(d.gyro),
+                    temperature: r.temperature.unwrap_or(d.temperature),
+                    accel: r.accel.unwrap_or(d.accel),
+                    overrides: Vec::new(),
+                }
+            }
         };
         if raw.tasks.is_empty() {
             return Err(bad("no [[tasks]]: name what to run on each log".into()));
@@ -313,45 +308,6 @@ impl JobFile {
             tasks,
         })
     }
-}
-
-impl Default for Roles {
-    fn default() -> Self {
-        Roles {
-            gyro: GYRO_PATTERNS.iter().map(|s| s.to_string()).collect(),
-            temperature: TEMPERATURE_PATTERNS.iter().map(|s| s.to_string()).collect(),
-        }
-    }
-}
-
-impl Roles {
-    /// Whether `channel` has the gyro role (a pattern matches, case-insensitive).
-    pub fn is_gyro(&self, channel: &str) -> bool {
-        self.gyro.iter().any(|p| name_matches(p, channel))
-    }
-
-    /// The roles of an input's logs: its own gyro patterns, if it has them.
-    pub fn for_input(&self, gyro: &Option<Vec<String>>) -> Roles {
-        match gyro {
-            Some(g) => Roles {
-                gyro: g.clone(),
-                temperature: self.temperature.clone(),
-            },
-            None => self.clone(),
-        }
-    }
-
-    /// Whether `channel` has the temperature role.
-    pub fn is_temperature(&self, channel: &str) -> bool {
-        self.temperature.iter().any(|p| name_matches(p, channel))
-    }
-}
-
-/// A channel-name pattern: `*` any run of characters, `?` one, case-insensitive.
-pub fn name_matches(pattern: &str, name: &str) -> bool {
-    glob::Pattern::new(&pattern.to_ascii_lowercase())
-        .map(|p| p.matches(&name.to_ascii_lowercase()))
-        .unwrap_or(false)
 }
 
 /// A task option as an unsigned integer.

@@ -200,7 +200,7 @@ pub fn fingerprint(path: &Path) -> Result<Fingerprint> {
     })
 }
 
-/// The hash of a task's kind and options, of the log's channel list and gyro patterns,
+/// The hash of a task's kind and options, of the log's channel list and roles,
 /// of a check's model files (size and modification time) and of the farma version (16
 /// hex digits): what a rerun compares to know the unit's options unchanged.
 pub fn options_hash(task: &Task, log: &Log, roles: &super::jobfile::Roles) -> String {
@@ -224,7 +224,7 @@ pub fn options_hash(task: &Task, log: &Log, roles: &super::jobfile::Roles) -> St
         task.kind.as_str(),
         task.options,
         log.channels,
-        roles.for_input(&log.gyro).gyro,
+        roles.for_input(&log.gyro),
         env!("CARGO_PKG_VERSION")
     );
     format!("{:016x}", hash64(text.as_bytes()))

@@ -99,14 +99,6 @@ fn shard_from_env() -> Result<Option<(usize, usize)>> {
     Ok(None)
 }
 
-fn stamp() -> String {
-    let s = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (h, m, sec) = ((s / 3600) % 24, (s / 60) % 60, s % 60);
-    format!("{h:02}:{m:02}:{sec:02}Z")
-}
-
 pub fn run(a: BatchArgs, progress: &Progress) -> Result<()> {
     let job = JobFile::load(&a.job)?;
     let root = a.output.clone().or(job.output.clone()).ok_or_else(|| {
@@ -155,7 +147,7 @@ pub fn run(a: BatchArgs, progress: &Progress) -> Result<()> {
             } else {
                 format!(": {msg}")
             };
-            eprintln!("farma batch {}: {unit} {st}{msg}", stamp());
+            crate::log::progress_line("batch", &format!("{unit}: {st}{msg}"));
         }
     };
     let s = run.run(&report)?;

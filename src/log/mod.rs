@@ -11,6 +11,7 @@ pub mod cache;
 mod columnar;
 pub mod csv;
 mod repair;
+pub mod roles;
 mod timebase;
 
 use std::io::IsTerminal;
@@ -101,29 +102,51 @@ impl LogOptions {
     }
 }
 
-/// Progress bars on stderr, shown only when stderr is a terminal and not quiet.
+/// Progress on stderr: bars when stderr is a terminal, plain timestamped lines
+/// ([`Progress::line`]) when it is not (a log file, a scheduler's output), nothing
+/// when quiet.
 #[derive(Clone, Copy, Debug)]
 pub struct Progress {
     enabled: bool,
+    plain: bool,
 }
 
 impl Progress {
-    /// Bars when stderr is a terminal, unless `quiet`.
+    /// Bars when stderr is a terminal, plain lines when it is not; neither when
+    /// `quiet`.
     pub fn auto(quiet: bool) -> Self {
+        let terminal = std::io::stderr().is_terminal();
         Progress {
-            enabled: !quiet && std::io::stderr().is_terminal(),
+            enabled: !quiet && terminal,
+            plain: !quiet && !terminal,
         }
     }
 
-    /// No bars.
+    /// No bars and no lines.
     pub fn hidden() -> Self {
-        Progress { enabled: false }
+        Progress {
+            enabled: false,
+            plain: false,
+        }
     }
 
     /// Whether bars are drawn (stderr a terminal, not quiet): otherwise a long job
     /// prints plain lines.
     pub fn enabled(&self) -> bool {
         self.enabled
+    }
+
+    /// Whether plain progress lines are printed (stderr not a terminal, not quiet).
+    pub fn plain(&self) -> bool {
+        self.plain
+    }
+
+    /// A plain progress line of command `cmd` on stderr when [`Progress::plain`]:
+    /// `2026-11-27T07:30:01Z analyze gyro_x_dps: started`.
+    pub fn line(&self, cmd: &str, msg: &str) {
+        if self.plain {
+            progress_line(cmd, msg);
+        }
     }
 
     pub(crate) fn bar(&self, msg: &'static str, len: u64) -> ProgressBar {
@@ -160,6 +183,36 @@ impl Progress {
         pb.set_message(msg);
         pb
     }
+}
+
+/// Prints `STAMP CMD MSG` on stderr, STAMP the UTC time ([`utc_stamp`]): the one form
+/// of the plain progress lines of `farma analyze` and `farma batch`.
+pub fn progress_line(cmd: &str, msg: &str) {
+    eprintln!("{} {cmd} {msg}", utc_stamp(std::time::SystemTime::now()));
+}
+
+/// `t` as an ISO 8601 UTC time to the second: `2026-11-27T07:30:01Z`.
+pub fn utc_stamp(t: std::time::SystemTime) -> String {
+    let s = t
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs()) as i64;
+    let (days, sod) = (s.div_euclid(86_400), s.rem_euclid(86_400));
+    // civil date from days since 1970-01-01 (H. Hinnant's days_from_civil inverse)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
+        sod / 3600,
+        (sod / 60) % 60,
+        sod % 60
+    )
 }
 
 /// Count and first positions (rows) of non-finite values in one column.
@@ -628,5 +681,22 @@ pub fn open_log(
             // The map keeps the data alive after the temporary folder is removed.
             Ok(Store::open(&tmp)?.with_label(path))
         }
+    }
+}
+
+#[cfg(test)]
+mod stamp_tests {
+    use super::utc_stamp;
+    use std::time::{Duration, UNIX_EPOCH};
+
+    #[test]
+    fn utc_stamps_are_iso_8601() {
+        let at = |s: u64| utc_stamp(UNIX_EPOCH + Duration::from_secs(s));
+        assert_eq!(at(0), "1970-01-01T00:00:00Z");
+        // 2026-11-27T07:30:01Z
+        assert_eq!(at(1_795_764_601), "2026-11-27T07:30:01Z");
+        // a leap day
+        assert_eq!(at(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(at(4_107_542_399), "2100-02-28T23:59:59Z");
     }
 }
