@@ -40,6 +40,7 @@ use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::adev::AdevJob;
 use crate::jobs::analyze::AnalyzeJob;
+use crate::jobs::analyze::choice::ChannelChoice;
 use crate::jobs::check::CheckJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
 use crate::jobs::prep::PrepJob;
@@ -216,7 +217,7 @@ impl BatchRun {
                     .join(format!("{}.{}", u.key, std::process::id()));
             let _ = std::fs::remove_dir_all(&staging);
             let out = staging.join("out");
-            let run = run_task(task, &log.path, &out, &store, channels);
+            let run = run_task(task, &log.path, &out, &store, channels, &roles);
             let placed = run.and_then(|()| self.place(&out, log, task));
             let _ = std::fs::remove_dir_all(&staging);
             let files = placed?;
@@ -292,6 +293,7 @@ fn run_task(
     out: &Path,
     store: &crate::store::Store,
     channels: Vec<String>,
+    roles: &jobfile::Roles,
 ) -> Result<()> {
     let path = |t: &Task| -> Result<FitPath> {
         Ok(match opt_str(t, "method")? {
@@ -432,12 +434,18 @@ fn run_task(
             let job = AnalyzeJob {
                 log: log.to_path_buf(),
                 output: out.to_path_buf(),
-                channels,
+                choice: ChannelChoice::given(
+                    &store.channel_names(),
+                    channels,
+                    roles,
+                    "a channel of the unit",
+                ),
                 prep: PrepParams::default(),
                 select: select(task)?,
                 holdout_s: opt_f64(task, "holdout_s")?.unwrap_or(50.0),
                 maxlag: opt_usize(task, "maxlag")?.unwrap_or(40),
                 max_degree: opt_usize(task, "max_degree")?.unwrap_or(6),
+                fresh: true,
             };
             job.run(store, &Progress::hidden()).map(|_| ())
         }

@@ -5,24 +5,39 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use serde_json::json;
 
 use super::LogArgs;
 use super::prep::PrepFlags;
 use super::select::SelectFlags;
 use crate::error::{Error, Result};
 use crate::jobs::analyze::AnalyzeJob;
-use crate::jobs::select::select_json;
+use crate::jobs::analyze::choice::ChannelChoice;
 use crate::log::Progress;
+use crate::log::roles::Roles;
 use crate::output::OutputSet;
 
 #[derive(Args, Debug)]
 pub struct AnalyzeArgs {
     /// The log: a store, CSV, Parquet or Arrow IPC.
     pub log: PathBuf,
-    /// Channels (comma-separated, or all), analysed in parallel.
+    /// Channels (comma-separated), analysed in parallel; `all`: the gyro axes, by
+    /// their names and units (gyro, rate, _dps, _rps, _rad_s, _degph, gx..; see
+    /// --role); accelerometers (accel, _g, _mps2, ..) and other channels are skipped
+    /// unless named, temperatures (temp, _degc, ..) are named in the summary as the
+    /// 2-D index of later tools. No gyro at all: every channel but the temperatures,
+    /// with a warning.
     #[arg(long, default_value = "all")]
     pub channel: String,
+    /// Sets the role of channels for `--channel all`: NAME=ROLE, NAME a channel or a
+    /// pattern (`*`, `?`), ROLE gyro, temperature, accel or other; repeatable, the
+    /// last match wins (`--role imu_rx=gyro --role 'aux*=other'`).
+    #[arg(long, value_name = "NAME=ROLE")]
+    pub role: Vec<String>,
+    /// Analyse every channel again: by default a channel that an earlier run into the
+    /// same OUTDIR finished with the same log and options is kept (its folder
+    /// OUTDIR/channels/NAME has a matching done.json).
+    #[arg(long)]
+    pub fresh: bool,
     /// Output folder for every table and summary.txt.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: PathBuf,
@@ -54,60 +69,50 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
             a.holdout_s
         )));
     }
+    let mut roles = Roles::default();
+    for r in &a.role {
+        roles.add_override("--role", r)?;
+    }
     let select = a.select.job(&a.log, None)?;
     let store = a.log_args.open(&a.log, progress)?;
+    let choice = ChannelChoice::choose(&store, &a.channel, &roles)?;
+    if let Some(w) = &choice.warning {
+        eprintln!("farma: warning: {w}");
+    }
+    for l in &choice.lines {
+        eprintln!("farma: {l}");
+    }
     let job = AnalyzeJob {
         log: a.log.clone(),
         output: a.output.clone(),
-        channels: store.select_channels(&a.channel)?,
+        choice,
         prep: a.prep.params(),
         select,
         holdout_s: a.holdout_s,
         maxlag: a.maxlag,
         max_degree: a.max_degree,
+        fresh: a.fresh,
     };
     let done = job.run(&store, progress)?;
-    for r in &done.results {
-        if a.json {
-            let mut v = select_json(&r.name, &r.selection, r.constancy.as_ref());
-            let w = &r.check.whiteness;
-            v["n_train"] = json!(r.n_train);
-            v["ljung_box"] = json!(
-                w.ljung_box
-                    .iter()
-                    .map(|b| json!({"lag": b.lag, "q": b.q,
-                "df": b.df, "p_value": b.p_value}))
-                    .collect::<Vec<_>>()
-            );
-            v["acf_outside"] = json!(w.outside);
-            v["prediction"] = json!(r.check.prediction.as_ref().map(|p| {
-                p.horizons
-                    .iter()
-                    .map(|h| {
-                        json!({"k": h.k, "n": h.n, "rmse_farma": h.rmse_farma,
-                    "rmse_arma": h.rmse_arma})
-                    })
-                    .collect::<Vec<_>>()
-            }));
-            v["poly"] = json!(
-                r.check
-                    .poly
-                    .iter()
-                    .map(|p| json!({"m": p.m,
-                "degree": p.degree, "coef": p.coef, "wrms": p.wrms}))
-                    .collect::<Vec<_>>()
-            );
-            v["replaced"] = json!(r.prep.replaced.len());
-            v["stationary"] = json!(r.prep.stationary(a.prep.alpha));
-            outln!("{v}");
+    if a.json {
+        for l in &done.json_lines {
+            out!("{l}");
         }
-    }
-    if !a.json {
+    } else {
         out!("{}", done.text);
     }
+    let kept = if done.kept.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " ({} kept from an earlier run: {})",
+            done.kept.len(),
+            done.kept.join(", ")
+        )
+    };
     eprintln!(
-        "farma: {} channel(s) analysed in {:.2} s; tables and summary.txt in {}",
-        done.results.len(),
+        "farma: {} channel(s) analysed in {:.2} s{kept}; tables and summary.txt in {}",
+        done.channels.len(),
         done.secs,
         a.output.display()
     );
