@@ -537,3 +537,72 @@ fn the_check_task_checks_a_saved_model_on_every_log() {
         "{s}"
     );
 }
+
+/// The analyze task: its dataset holds every table of `farma analyze` with the
+/// verdict among them (one row per gyro channel), its summary.txt under `_files`, and
+/// none of the job's channel folders; its tables equal those of `farma analyze` on the
+/// same channels; a rerun skips it.
+#[test]
+fn the_analyze_task_writes_the_verdict_table() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(fixture("multiaxis.csv"), dir.path().join("m.csv")).unwrap();
+    let j = job(
+        dir.path(),
+        "output = \"out\"\n[[inputs]]\npaths = [\"m.csv\"]\n[[tasks]]\nkind = \"analyze\"\norders = \"1,1,1\"\ngrid = 21\nbootstrap = 4\n",
+    );
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(1));
+    let root = dir.path().join("out");
+    let files: Vec<String> = dataset(&root).into_iter().map(|(f, _)| f).collect();
+    for t in [
+        "verdict",
+        "select",
+        "ftests",
+        "constancy",
+        "coef",
+        "params",
+        "gcv",
+        "acf",
+        "ljung_box",
+        "prediction",
+        "poly",
+        "prep",
+        "replaced",
+    ] {
+        let f = format!("{t}/task=analyze/log_id=m/part-0.parquet");
+        assert!(files.contains(&f), "{f} missing: {files:?}");
+    }
+    assert!(files.contains(&"_files/task=analyze/log_id=m/summary.txt".to_string()));
+    assert!(!files.iter().any(|f| f.contains("channels")), "{files:?}");
+    // the same tables as farma analyze on the gyro channels
+    let out = dir.path().join("a");
+    let o = farma(
+        &[
+            "analyze",
+            dir.path().join("m.csv").to_str().unwrap(),
+            "--orders",
+            "1,1,1",
+            "--grid",
+            "21",
+            "--bootstrap",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for t in ["verdict", "params", "select"] {
+        assert_eq!(
+            std::fs::read(root.join(format!("{t}/task=analyze/log_id=m/part-0.parquet"))).unwrap(),
+            std::fs::read(out.join(format!("{t}.parquet"))).unwrap(),
+            "{t}"
+        );
+    }
+    let summary =
+        std::fs::read_to_string(root.join("_files/task=analyze/log_id=m/summary.txt")).unwrap();
+    assert!(summary.contains("== verdict") && summary.contains("gyro_z  FARMA(1,1,1)"));
+    let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
+    assert_eq!(json_of(&o)["skipped"].as_u64(), Some(1), "{}", stderr(&o));
+}

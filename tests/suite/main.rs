@@ -6,6 +6,7 @@
 mod common;
 
 mod adev;
+mod analyze_channels;
 mod bad_input;
 mod batch;
 mod estimator_multivariate;

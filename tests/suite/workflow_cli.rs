@@ -141,8 +141,23 @@ fn analyze_writes_every_table_and_a_summary() {
     }
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert!(summary.contains("######## gyro_z") && summary.contains("Ljung-Box"));
-    // written as one set: the 14 files and no temporary file left beside them
-    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 14);
+    assert!(out.join("verdict.parquet").exists());
+    // written as one set: the 15 files, the channel folders and no temporary file
+    // left beside them
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 16);
+    let mut chans: Vec<String> = std::fs::read_dir(out.join("channels"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    chans.sort();
+    assert_eq!(chans, ["gyro_x", "gyro_z"]);
+    // each channel folder: its 11 tables, summary, JSON line and marker
+    assert_eq!(
+        std::fs::read_dir(out.join("channels/gyro_z"))
+            .unwrap()
+            .count(),
+        14
+    );
     // -o naming a file: exit 2 before the work, the file untouched
     let taken = out.join("summary.txt");
     let o = farma(
@@ -416,7 +431,8 @@ fn select_and_analyze_check_orders_and_grid_before_the_log() {
 }
 
 /// `farma analyze` names every failing channel at once, in channel order, as `farma
-/// fit` does (not only the one error rayon meets first), and writes nothing.
+/// fit` does (not only the one error rayon meets first), and writes no folder-level
+/// table; the channel that succeeded is kept in its folder for the rerun.
 #[test]
 fn analyze_names_every_failing_channel() {
     let dir = tempfile::tempdir().unwrap();
@@ -454,7 +470,12 @@ fn analyze_names_every_failing_channel() {
     let (a, b) = (err.find("flat_a"), err.find("flat_b"));
     assert!(a.is_some() && b.is_some() && a < b, "{err}");
     assert!(!err.contains("'noise'"), "{err}");
-    assert!(!out.exists());
+    // no gyro among them: every channel, with a warning; each failure's progress line
+    assert!(err.contains("no channel is a gyro"), "{err}");
+    assert!(err.contains("analyze flat_a: failed: "), "{err}");
+    assert!(!out.join("summary.txt").exists() && !out.join("verdict.parquet").exists());
+    assert!(out.join("channels/noise/done.json").is_file());
+    assert!(!out.join("channels/flat_a").exists());
 }
 
 /// `farma check` on the folder of a fit on a 2-D index refuses it naming the index
