@@ -14,24 +14,25 @@
 
 use crate::error::{Error, Result};
 
-/// The default patterns of the gyro role (angular rate: deg/s, rad/s, rev/s, deg/h).
+/// The default patterns of the gyro role (angular rate: deg/s, rad/s, rev/s, deg/h):
+/// the units first, so that the reason a channel gives is its unit when it has one.
 pub const GYRO_PATTERNS: &[&str] = &[
-    "*gyro*", "*_dps", "*_rps", "*_rad_s", "*_rads", "*_degps", "*_deg_s", "*_degph", "*_deg_h",
-    "*_dph", "rate*", "*_rate", "*_rate_*", "omega*", "g[xyz]", "g[xyz]_*", "w[xyz]",
+    "*_dps", "*_rps", "*_rad_s", "*_rads", "*_degps", "*_deg_s", "*_degph", "*_deg_h", "*_dph",
+    "*gyro*", "rate*", "*_rate", "*_rate_*", "omega*", "g[xyz]", "g[xyz]_*", "w[xyz]",
 ];
-/// The default patterns of the temperature role.
+/// The default patterns of the temperature role (units first).
 pub const TEMPERATURE_PATTERNS: &[&str] = &[
+    "*_degc",
+    "*_degf",
+    "*_celsius",
     "temp*",
     "*_temp",
     "*_temp_*",
     "*temperature*",
-    "*_degc",
-    "*_degf",
-    "*_celsius",
 ];
-/// The default patterns of the accelerometer role (g, mg, m/s^2).
+/// The default patterns of the accelerometer role (g, mg, m/s^2; units first).
 pub const ACCEL_PATTERNS: &[&str] = &[
-    "*accel*", "acc_*", "acc[xyz]", "*_acc", "*_acc_*", "*_g", "*_mg", "*_mps2", "*_m_s2", "*_ms2",
+    "*_g", "*_mg", "*_mps2", "*_m_s2", "*_ms2", "*accel*", "acc_*", "acc[xyz]", "*_acc", "*_acc_*",
     "a[xyz]", "a[xyz]_*",
 ];
 
@@ -266,9 +267,10 @@ mod tests {
         ] {
             assert_eq!(r.role(name), role, "{name}");
         }
-        assert_eq!(r.classify("gyro_x_dps").reason, "name contains gyro");
-        assert_eq!(r.classify("x_dps").reason, "name ends in _dps");
-        assert_eq!(r.classify("accel_x_g").reason, "name contains accel");
+        assert_eq!(r.classify("gyro_x_dps").reason, "name ends in _dps");
+        assert_eq!(r.classify("gyro_x").reason, "name contains gyro");
+        assert_eq!(r.classify("accel_x_g").reason, "name ends in _g");
+        assert_eq!(r.classify("accel_x").reason, "name contains accel");
         assert_eq!(r.classify("temp_c").reason, "name starts with temp");
         assert_eq!(r.classify("gz").reason, "name matches g[xyz]");
         assert_eq!(describe("gx"), "name is gx");

@@ -109,7 +109,7 @@ fn channel_all_takes_the_gyros_and_names_what_it_skips() {
     let err = stderr(&o);
     for text in [&summary, &err] {
         assert!(
-            text.contains("gyro_x_dps: gyro (name contains gyro)"),
+            text.contains("gyro_x_dps: gyro (name ends in _dps)"),
             "{text}"
         );
         assert!(
@@ -117,7 +117,9 @@ fn channel_all_takes_the_gyros_and_names_what_it_skips() {
             "{text}"
         );
         assert!(
-            text.contains("accel_x_g: skipped, accelerometer (name contains accel); ask with --channel accel_x_g"),
+            text.contains(
+                "accel_x_g: skipped, accelerometer (name ends in _g); ask with --channel accel_x_g"
+            ),
             "{text}"
         );
         assert!(text.contains("temp_c: temperature"), "{text}");
