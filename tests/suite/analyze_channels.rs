@@ -178,6 +178,25 @@ fn channel_all_takes_the_gyros_and_names_what_it_skips() {
         strings(&table(&out.join("verdict.parquet")), "channel"),
         ["temp_c", "accel_x_g"]
     );
+    // a bad value in the skipped accelerometer does not block the gyros; in a taken
+    // channel it is refused, naming it
+    let log3 = dir.path().join("bad_accel.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let cells: Vec<&str> = lines[10].split(',').collect();
+    lines[10] = format!("{},{},,{},{}", cells[0], cells[1], cells[3], cells[4]);
+    std::fs::write(&log3, lines.join("\n") + "\n").unwrap();
+    let out3 = dir.path().join("c");
+    let o = analyze(&log3, &out3, &["--bootstrap", "0"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = analyze(
+        &log3,
+        &out3,
+        &["--bootstrap", "0", "--role", "accel_x_g=gyro"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("accel_x_g"), "{}", stderr(&o));
     // no gyro: every channel but the temperature, with a warning
     let log2 = dir.path().join("aux.csv");
     write_log(&log2, &["aux_a", "aux_b", "temp_c"], 800);

@@ -33,7 +33,8 @@ impl ChannelChoice {
             .filter(|(_, c)| c.role == Role::Temperature)
             .map(|(n, _)| n.to_string())
             .collect();
-        if selection.trim() != "all" {
+        if selection.trim() != "all" || names.is_empty() {
+            // names checked (and a log without channels refused) as every command does
             let channels = store.select_channels(selection)?;
             return Ok(Self::given(&names, channels, roles, "named in --channel"));
         }
@@ -96,9 +97,8 @@ impl ChannelChoice {
                 ),
             ));
         }
-        // a taken channel with non-finite values is refused before any work
-        let checked = store.select_channels(&channels.join(","))?;
-        debug_assert_eq!(checked, channels);
+        // a taken channel with non-finite values is refused when it is read (prep),
+        // naming it; a skipped one no longer blocks the run
         Ok(ChannelChoice {
             channels,
             lines,
