@@ -139,7 +139,7 @@ impl AnalyzeJob {
         let prm = AnalyzeParams {
             orders: self.select.order_tuples(),
             farma: self.select.farma.clone(),
-            bootstrap: self.select.bootstrap,
+            constancy: self.select.constancy,
             seed: self.select.seed,
             holdout: (self.holdout_s * rate).round() as usize,
             maxlag: self.maxlag,
