@@ -1,15 +1,18 @@
-//! Level and power of the bootstrap constancy test over repeated simulations.
+//! Level and power of the constancy tests over repeated simulations.
 //!
 //! Run: `cargo bench --bench constancy`. R series of N samples each from a linear
 //! ARMA(2,1) (a = 0.5, -0.3; b = 0.4) and from the FARMA(2,1,1) of
 //! tests/suite/workflow_select.rs (f_1 = 0.2 + 0.6 exp(-z^2), f_2 = -0.25 + 0.15 tanh z,
-//! b = 0.4), unit Gaussian innovations; on each, the test of FARMA(2,1,1) (grid 31)
-//! with B bootstrap replicates, the bandwidth by GCV on the series and on every
-//! replicate (`FARMA_BENCH_H=gcv`, default, what `farma select` does), or chosen by GCV
+//! b = 0.4), unit Gaussian innovations; on each, the test of FARMA(2,1,1) (grid
+//! FARMA_BENCH_GRID, default 201 as `farma analyze`): `FARMA_BENCH_TEST=chi2` (the
+//! default test of `farma select` and `analyze`: fixed bandwidth 0.5 sd, 2T against
+//! chi2 on tr(S) - p df) or `bootstrap` with B replicates, the bandwidth by GCV on the
+//! series and on every replicate (`FARMA_BENCH_H=gcv`, default), or chosen by GCV
 //! on the series and held fixed in the replicates (`FARMA_BENCH_H=fixed`, the invalid
 //! use, for comparison). Reports the rejection rate at 5 % with its binomial standard
-//! error. Environment: FARMA_BENCH_REPS (R, default 100), FARMA_BENCH_N (default
-//! 2000), FARMA_BENCH_B (default 99), FARMA_BENCH_H.
+//! error and the seconds per series. Environment: FARMA_BENCH_REPS (R, default 100),
+//! FARMA_BENCH_N (default 2000), FARMA_BENCH_B (default 99), FARMA_BENCH_H,
+//! FARMA_BENCH_TEST (default bootstrap), FARMA_BENCH_ONLY (level or power: one half).
 
 #[path = "common/mod.rs"]
 mod common;
@@ -17,7 +20,7 @@ mod common;
 use std::time::Instant;
 
 use farma::estimator::{FarmaParams, fit};
-use farma::workflow::constancy::{ConstancyParams, constancy_test};
+use farma::workflow::constancy::{ConstancyParams, chi2_test, constancy_test};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -54,20 +57,32 @@ fn main() {
     let reps = env("FARMA_BENCH_REPS", 100);
     let n = env("FARMA_BENCH_N", 2000);
     let b = env("FARMA_BENCH_B", 99);
+    let grid = env("FARMA_BENCH_GRID", 201);
+    let chi2 = std::env::var("FARMA_BENCH_TEST").is_ok_and(|v| v == "chi2");
+    let only = std::env::var("FARMA_BENCH_ONLY").ok();
     println!("machine: {}", common::machine());
     let fixed = std::env::var("FARMA_BENCH_H").is_ok_and(|v| v == "fixed");
-    println!(
-        "R = {reps}, N = {n}, B = {b}, FARMA(2,1,1), grid 31, level 5 %, bandwidth {}",
-        if fixed {
-            "by GCV on the series, fixed in the replicates"
-        } else {
-            "by GCV on the series and on every replicate"
-        }
-    );
+    if chi2 {
+        println!(
+            "R = {reps}, N = {n}, chi2 test (fixed bandwidth 0.5 sd), FARMA(2,1,1), grid {grid}, level 5 %"
+        );
+    } else {
+        println!(
+            "R = {reps}, N = {n}, B = {b}, FARMA(2,1,1), grid {grid}, level 5 %, bandwidth {}",
+            if fixed {
+                "by GCV on the series, fixed in the replicates"
+            } else {
+                "by GCV on the series and on every replicate"
+            }
+        );
+    }
     for (label, nonlinear) in [
         ("ARMA(2,1) data (level)", false),
         ("FARMA(2,1,1) data (power)", true),
     ] {
+        if only.as_deref().is_some_and(|o| (o == "power") != nonlinear) {
+            continue;
+        }
         let t0 = Instant::now();
         let mut rejected = 0;
         let mut ps = Vec::new();
@@ -78,7 +93,10 @@ fn main() {
                 nonlinear,
             );
             let base = FarmaParams {
-                grid_size: 31,
+                p: 2,
+                q: 1,
+                d: 1,
+                grid_size: grid,
                 ..FarmaParams::default()
             };
             let h = fixed.then(|| {
@@ -87,18 +105,22 @@ fn main() {
                     .0
                     .bandwidth
             });
-            let c = constancy_test(
-                &x,
-                &ConstancyParams {
-                    bootstrap: b,
-                    seed: r as u64,
-                    farma: FarmaParams {
-                        bandwidth: h,
-                        ..base
+            let c = if chi2 {
+                chi2_test(&x, &base).unwrap()
+            } else {
+                constancy_test(
+                    &x,
+                    &ConstancyParams {
+                        bootstrap: b,
+                        seed: r as u64,
+                        farma: FarmaParams {
+                            bandwidth: h,
+                            ..base
+                        },
                     },
-                },
-            )
-            .unwrap();
+                )
+                .unwrap()
+            };
             if farma::workflow::rejects(c.p_value, farma::workflow::ALPHA) {
                 rejected += 1;
             }
@@ -108,11 +130,12 @@ fn main() {
         let se = (rate * (1.0 - rate) / reps as f64).sqrt();
         ps.sort_by(f64::total_cmp);
         println!(
-            "{label}: rejected {rejected}/{reps} = {:.3} (se {:.3}); median p {:.3}; {:.1} s",
+            "{label}: rejected {rejected}/{reps} = {:.3} (se {:.3}); median p {:.3}; {:.1} s ({:.3} s per series)",
             rate,
             se,
             ps[reps / 2],
-            t0.elapsed().as_secs_f64()
+            t0.elapsed().as_secs_f64(),
+            t0.elapsed().as_secs_f64() / reps as f64
         );
     }
 }

@@ -5,9 +5,10 @@
 //! single FARMA(2,1,1) fit with GCV (default parameters, grid 201), then the workflow
 //! of `farma analyze` on the same series: preparation (Pauta, reverse arrangements,
 //! mean), the eight orders of the paper with GCV and the ARMA baselines, F-tests, the
-//! constancy test with FARMA_BENCH_B bootstrap replicates (default 19), and the check
-//! (whiteness, prediction of the last 5000 samples, polynomial fits). Each once, in this
-//! process, all cores.
+//! constancy test (FARMA_BENCH_TEST: chi2, the default, or bootstrap with FARMA_BENCH_B
+//! replicates, default 19), and the check (whiteness, prediction of the last 5000
+//! samples, polynomial fits); and the constancy test alone at FARMA(2,1,1), in single
+//! fits. Each once, in this process, all cores.
 
 #[path = "common/mod.rs"]
 mod common;
@@ -16,6 +17,7 @@ use std::time::Instant;
 
 use farma::estimator::{FarmaParams, fit};
 use farma::workflow::analyze::{AnalyzeParams, analyze_channel};
+use farma::workflow::constancy::{ConstancyTest, run_test};
 use farma::workflow::prep::{PrepParams, prep_channel};
 use farma::workflow::select::PAPER_ORDERS;
 use rand::SeedableRng;
@@ -50,6 +52,10 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(19);
+    let test = match std::env::var("FARMA_BENCH_TEST").as_deref() {
+        Ok("bootstrap") => ConstancyTest::Bootstrap(b),
+        _ => ConstancyTest::Chi2,
+    };
     println!("machine: {}", common::machine());
     let x = simulate(n, 77);
     let t0 = Instant::now();
@@ -60,12 +66,24 @@ fn main() {
         m.0.bandwidth, m.1.iterations
     );
     let t0 = Instant::now();
+    let c = run_test(&x, test, &FarmaParams::default(), 1)
+        .unwrap()
+        .unwrap();
+    let tc = t0.elapsed().as_secs_f64();
+    println!(
+        "constancy test alone ({}): {tc:.2} s = {:.2} single fits (T = {:.3}, p = {:.3e})",
+        c.method,
+        tc / single,
+        c.statistic,
+        c.p_value
+    );
+    let t0 = Instant::now();
     let prep = prep_channel("x", &x, &PrepParams::default());
     let tp = t0.elapsed().as_secs_f64();
     let prm = AnalyzeParams {
         orders: PAPER_ORDERS.to_vec(),
         farma: FarmaParams::default(),
-        bootstrap: b,
+        constancy: test,
         seed: 1,
         holdout: 5000,
         maxlag: 40,
@@ -75,7 +93,8 @@ fn main() {
     let total = t0.elapsed().as_secs_f64();
     let r = &a.selection.rows[a.selection.selected];
     println!(
-        "whole analysis (prep {tp:.2} s; 8 orders + ARMA baselines + F-tests + constancy B = {b} + check): {total:.2} s = {:.1} single fits",
+        "whole analysis (prep {tp:.2} s; 8 orders + ARMA baselines + F-tests + constancy {} + check): {total:.2} s = {:.1} single fits",
+        test.name(),
         total / single
     );
     println!(

@@ -27,7 +27,8 @@
 //! terms, as `farma adev` gives them); `psd`: `segment` (samples), `detrend`
 //! (constant, none), `bands_per_decade` (0, the default: every bin); `fit`: `order`,
 //! `grid`, `bandwidth`, `method` (fast, direct), `max_iter`, `tol`, `residuals`;
-//! `select`: `orders`, `grid`, `method`, `bootstrap`, `seed`; `analyze`: those of
+//! `select`: `orders`, `grid`, `method`, `constancy` (chi2, bootstrap, none),
+//! `bootstrap`, `seed`; `analyze`: those of
 //! `select` and `holdout_s`, `maxlag`, `max_degree`; `check`: `model` (a model folder
 //! of `farma fit`, relative to the job file; required), `holdout_s`, `maxlag`,
 //! `max_degree`; `prep`: none (the defaults of
@@ -149,11 +150,12 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "tol",
             "residuals",
         ],
-        TaskKind::Select => &["orders", "grid", "method", "bootstrap", "seed"],
+        TaskKind::Select => &["orders", "grid", "method", "constancy", "bootstrap", "seed"],
         TaskKind::Analyze => &[
             "orders",
             "grid",
             "method",
+            "constancy",
             "bootstrap",
             "seed",
             "holdout_s",

@@ -50,6 +50,7 @@ use crate::log::{CachePolicy, LogOptions, Progress};
 use crate::model::Order;
 use crate::stats::adev::{CiOptions, Kind, ONE_SIGMA, TauGrid};
 use crate::stats::psd::Detrend;
+use crate::workflow::constancy::ConstancyTest;
 use crate::workflow::prep::PrepParams;
 use crate::workflow::select::PAPER_ORDERS;
 use jobfile::{JobFile, Task, TaskKind, opt_bool, opt_f64, opt_str, opt_usize};
@@ -324,7 +325,11 @@ fn run_task(
                 path: path(t)?,
                 ..FarmaParams::default()
             },
-            bootstrap: opt_usize(t, "bootstrap")?.unwrap_or(99),
+            constancy: ConstancyTest::from_flags(
+                opt_str(t, "constancy")?,
+                opt_usize(t, "bootstrap")?,
+            )
+            .map_err(|e| Error::Usage(format!("task '{}': {e}", t.name)))?,
             seed: opt_usize(t, "seed")?.unwrap_or(1) as u64,
         })
     };

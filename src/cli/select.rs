@@ -13,6 +13,7 @@ use crate::jobs::select::{SelectJob, select_json, select_text};
 use crate::log::Progress;
 use crate::model::Order;
 use crate::output::OutputSet;
+use crate::workflow::constancy::ConstancyTest;
 use crate::workflow::select::PAPER_ORDERS;
 use clap::Args;
 
@@ -28,9 +29,15 @@ pub struct SelectFlags {
     /// Computation of the local fits.
     #[arg(long, value_enum, default_value_t = FitPathArg::Fast)]
     pub method: FitPathArg,
-    /// Bootstrap replicates of the constancy test (0: no test).
-    #[arg(long, default_value_t = 99, value_name = "B")]
-    pub bootstrap: usize,
+    /// The constancy test at the selected order: chi2 (GLR at a fixed bandwidth, 0.5 sd,
+    /// against chi2 on the smoother's degrees of freedom: one more fit; the default),
+    /// bootstrap (GLR with GCV on B simulated series: B + 1 fits), none.
+    #[arg(long, value_name = "TEST", value_parser = ["chi2", "bootstrap", "none"])]
+    pub constancy: Option<String>,
+    /// Bootstrap replicates of the constancy test (implies --constancy bootstrap; 0: no
+    /// test; default 99 with --constancy bootstrap).
+    #[arg(long, value_name = "B")]
+    pub bootstrap: Option<usize>,
     /// Seed of the bootstrap.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -76,7 +83,7 @@ impl SelectFlags {
             output,
             orders: self.check()?,
             farma: self.farma(),
-            bootstrap: self.bootstrap,
+            constancy: ConstancyTest::from_flags(self.constancy.as_deref(), self.bootstrap)?,
             seed: self.seed,
         })
     }

@@ -12,7 +12,7 @@ use crate::model::Order;
 use crate::output::OutputSet;
 use crate::store::Store;
 use crate::workflow::analyze::select_with_constancy;
-use crate::workflow::constancy::Constancy;
+use crate::workflow::constancy::{Constancy, ConstancyTest};
 use crate::workflow::select::{Selection, order_name};
 use crate::workflow::tables::{constancy_table, ftest_table, select_table};
 use crate::workflow::{ALPHA, rejects};
@@ -34,9 +34,13 @@ pub fn select_json(name: &str, s: &Selection, c: Option<&Constancy>) -> serde_js
         })).collect::<Vec<_>>(),
         "ftests": s.ftests.iter().map(|t| json!({"small": t.small, "large": t.large,
             "f": t.f, "df1": t.df1, "df2": t.df2, "p_value": t.p_value})).collect::<Vec<_>>(),
+        "constancy_method": c.map(|c| c.method),
         "constancy_p": c.map(|c| c.p_value),
         "constancy_statistic": c.map(|c| c.statistic),
+        "constancy_df": c.map(|c| c.df).filter(|d| d.is_finite()),
+        "constancy_bandwidth": c.map(|c| c.bandwidth),
         "constancy_bootstrap": c.map(|c| c.bootstrap),
+        "constancy_min_p": c.map(|c| c.min_p()),
         "reason": s.reason,
     })
 }
@@ -72,15 +76,28 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
         );
     }
     if let Some(c) = c {
+        let how = if c.method == "bootstrap" {
+            format!(
+                "bootstrap GLR, B = {}: p resolves down to {:.4}",
+                c.bootstrap,
+                c.min_p()
+            )
+        } else {
+            format!(
+                "GLR at fixed bandwidth {:.4e}, 2T against chi2 on {:.2} df",
+                c.bandwidth, c.df
+            )
+        };
         o += &format!(
-            "constancy (bootstrap GLR, B = {}): T = {:.3}, p = {:.4}: {}\n",
-            c.bootstrap,
+            "constancy ({how}): T = {:.3}, p = {:.4}: {}\n",
             c.statistic,
             c.p_value,
             if rejects(c.p_value, ALPHA) {
-                "the coefficient functions vary: the nonlinearity is real"
+                format!("constant coefficients rejected at {ALPHA}: the coefficient functions vary")
             } else {
-                "constant coefficients not rejected: the linear ARMA is adequate"
+                format!(
+                    "constant coefficients not rejected at {ALPHA}: the linear ARMA is adequate"
+                )
             }
         );
     }
@@ -105,8 +122,8 @@ pub struct SelectJob {
     pub orders: Vec<Order>,
     /// The parameters of every FARMA fit (the order replaced by each of `orders`).
     pub farma: FarmaParams,
-    /// Bootstrap replicates of the constancy test (0: none).
-    pub bootstrap: usize,
+    /// The constancy test at the selected order.
+    pub constancy: ConstancyTest,
     pub seed: u64,
 }
 
@@ -130,7 +147,7 @@ impl SelectJob {
             x,
             &self.order_tuples(),
             &self.farma,
-            self.bootstrap,
+            self.constancy,
             self.seed,
         )
     }
@@ -193,9 +210,12 @@ mod tests {
 
     fn constancy(p_value: f64) -> Constancy {
         Constancy {
+            method: "bootstrap",
             statistic: 10.0,
             p_value,
             bootstrap: 19,
+            df: f64::NAN,
+            trace: 5.0,
             bandwidth: 1.0,
             rss0: 2.0,
             rss1: 1.0,
@@ -215,7 +235,10 @@ mod tests {
             fits: vec![],
         };
         let at = select_text("x", &s, Some(&constancy(1.0 / 20.0)));
-        assert!(at.contains("the nonlinearity is real"), "{at}");
+        assert!(
+            at.contains("constant coefficients rejected at 0.05"),
+            "{at}"
+        );
         let above = select_text("x", &s, Some(&constancy(2.0 / 20.0)));
         assert!(
             above.contains("constant coefficients not rejected"),

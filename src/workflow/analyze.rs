@@ -4,7 +4,7 @@
 //! never seen by the fits), polynomial fits of the f_m.
 
 use super::check::{CheckReport, check_model};
-use super::constancy::{Constancy, ConstancyParams, constancy_test};
+use super::constancy::{Constancy, ConstancyTest, run_test};
 use super::prep::ChannelPrep;
 use super::select::{Selection, select};
 use crate::error::{Error, Result};
@@ -17,8 +17,8 @@ pub struct AnalyzeParams {
     pub orders: Vec<(usize, usize, usize)>,
     /// Grid, method and the rest of every FARMA fit.
     pub farma: FarmaParams,
-    /// Bootstrap replicates of the constancy test (0: none).
-    pub bootstrap: usize,
+    /// The constancy test at the selected order.
+    pub constancy: ConstancyTest,
     pub seed: u64,
     /// Samples held out at the end for prediction.
     pub holdout: usize,
@@ -28,35 +28,27 @@ pub struct AnalyzeParams {
     pub max_degree: usize,
 }
 
-/// Order selection and, when `bootstrap` > 0, the constancy test at the selected order
-/// (with the selected fit's bandwidth).
+/// Order selection and the constancy test `test` at the selected order (at the user's
+/// fixed bandwidth if any: the chi2 test otherwise fixes its own, the bootstrap runs
+/// GCV again on every replicate; see constancy.rs: a GCV choice held fixed
+/// over-rejects).
 pub fn select_with_constancy(
     x: &[f64],
     orders: &[(usize, usize, usize)],
     base: &FarmaParams,
-    bootstrap: usize,
+    test: ConstancyTest,
     seed: u64,
 ) -> Result<(Selection, Option<Constancy>)> {
     let sel = select(x, orders, base)?;
-    let con = if bootstrap > 0 {
-        let r = &sel.rows[sel.selected];
-        let prm = ConstancyParams {
-            bootstrap,
-            seed,
-            farma: FarmaParams {
-                p: r.order.0,
-                q: r.order.1,
-                d: r.order.2,
-                // GCV again on every replicate unless the user fixed h in advance
-                // (see constancy.rs: a GCV choice held fixed over-rejects)
-                bandwidth: base.bandwidth,
-                ..base.clone()
-            },
-        };
-        Some(constancy_test(x, &prm)?)
-    } else {
-        None
+    let r = &sel.rows[sel.selected];
+    let farma = FarmaParams {
+        p: r.order.0,
+        q: r.order.1,
+        d: r.order.2,
+        bandwidth: base.bandwidth,
+        ..base.clone()
     };
+    let con = run_test(x, test, &farma, seed)?;
     Ok((sel, con))
 }
 
@@ -85,7 +77,7 @@ pub fn analyze_channel(prep: ChannelPrep, prm: &AnalyzeParams) -> Result<Channel
     let n_train = n - prm.holdout;
     let train = &x[..n_train];
     let (selection, constancy) =
-        select_with_constancy(train, &prm.orders, &prm.farma, prm.bootstrap, prm.seed)?;
+        select_with_constancy(train, &prm.orders, &prm.farma, prm.constancy, prm.seed)?;
     let (model, report) = &selection.fits[selection.selected];
     let row = &selection.rows[selection.selected];
     let baseline = Farma::linear(&row.arma_ar, &row.arma_ma, model.mean, f64::NAN);

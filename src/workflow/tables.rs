@@ -236,8 +236,10 @@ pub fn ftest_table(sels: &[(String, &super::select::Selection)]) -> Result<Recor
     ])
 }
 
-/// constancy.parquet: channel, p, q, d, statistic, p_value, bootstrap, bandwidth,
-/// rss0, rss1.
+/// constancy.parquet: channel, p, q, d, method (chi2, bootstrap), statistic, p_value,
+/// min_p (the smallest p the test can give: 1 / (B + 1), 0 for chi2), bootstrap (B, 0
+/// for chi2), df (chi2's tr(S) - p, NaN for the bootstrap), trace, bandwidth, rss0,
+/// rss1.
 pub fn constancy_table(
     rows: &[(String, (usize, usize, usize), &super::constancy::Constancy)],
 ) -> Result<RecordBatch> {
@@ -253,7 +255,12 @@ pub fn constancy_table(
         vec![],
         vec![],
     );
+    let (mut meth, mut minp, mut df, mut tr) = (vec![], vec![], vec![], vec![]);
     for (name, o, c) in rows {
+        meth.push(c.method.to_string());
+        minp.push(c.min_p());
+        df.push(c.df);
+        tr.push(c.trace);
         ch.push(name.clone());
         p.push(o.0 as i64);
         q.push(o.1 as i64);
@@ -270,9 +277,13 @@ pub fn constancy_table(
         ("p", i(p)),
         ("q", i(q)),
         ("d", i(d)),
+        ("method", s(meth)),
         ("statistic", f(t)),
         ("p_value", f(pv)),
+        ("min_p", f(minp)),
         ("bootstrap", i(b)),
+        ("df", f(df)),
+        ("trace", f(tr)),
         ("bandwidth", f(h)),
         ("rss0", f(r0)),
         ("rss1", f(r1)),

@@ -429,6 +429,30 @@ fn the_verdict_table_agrees_with_the_detail() {
     assert_eq!(floats(&v, "constancy_p"), [None]);
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert!(summary.contains("nonlinear: not tested"), "{summary}");
+    // the default test, chi2: its method, p resolved down to 0
+    let o = farma(
+        &[
+            "analyze",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--orders",
+            "1,1,1",
+            "--grid",
+            "21",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = table(&out.join("verdict.parquet"));
+    assert_eq!(strings(&v, "constancy_method"), ["chi2"]);
+    assert_eq!(floats(&v, "constancy_min_p"), [Some(0.0)]);
+    let cp = floats(&v, "constancy_p")[0].unwrap();
+    assert_eq!(bools(&v, "nonlinear"), [Some(cp <= 0.05)]);
+    let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    assert!(summary.contains(", chi2 test)"), "{summary}");
 }
 
 /// stderr not a terminal: one timestamped line when a channel starts and when it is

@@ -8,6 +8,7 @@ use farma::estimator::{FarmaParams, fit};
 use farma::model::Farma;
 use farma::workflow::analyze::select_with_constancy;
 use farma::workflow::check::{poly_fits, predict_holdout, residual_whiteness};
+use farma::workflow::constancy::ConstancyTest::{Bootstrap, Chi2};
 use farma::workflow::select::PAPER_ORDERS;
 use farma::workflow::{ALPHA, rejects};
 use rand::SeedableRng;
@@ -59,7 +60,7 @@ fn base() -> FarmaParams {
 #[test]
 fn farma211_data_select_211_and_reject_constancy() {
     let x = farma211(3000, 21);
-    let (sel, con) = select_with_constancy(&x, &PAPER_ORDERS, &base(), 39, 5).unwrap();
+    let (sel, con) = select_with_constancy(&x, &PAPER_ORDERS, &base(), Bootstrap(39), 5).unwrap();
     for r in &sel.rows {
         eprintln!(
             "{:?} rss {:.2} df {:.2} aicc {:.5} arma_rss {:.2}",
@@ -74,6 +75,36 @@ fn farma211_data_select_211_and_reject_constancy() {
     // the FARMA(2,1,1) fits better than its ARMA(2,1), significantly
     let r = &sel.rows[sel.selected];
     assert!(r.rss < r.arma_rss && r.p_vs_arma < 0.01);
+}
+
+/// The default test (chi2 at a fixed bandwidth): FARMA(2,1,1) data reject constant
+/// coefficients, ARMA(2,1) data do not; its degrees of freedom are the smoother's
+/// trace less p, at 0.5 sd of the series.
+#[test]
+fn the_chi2_constancy_test_rejects_farma_data_and_not_arma_data() {
+    let nl = farma211(3000, 21);
+    let (sel, con) = select_with_constancy(&nl, &[(2, 1, 1)], &base(), Chi2, 0).unwrap();
+    let con = con.unwrap();
+    eprintln!(
+        "FARMA data: T = {}, df = {}, p = {}",
+        con.statistic, con.df, con.p_value
+    );
+    assert_eq!(con.method, "chi2");
+    assert!(rejects(con.p_value, ALPHA), "p = {}", con.p_value);
+    assert!((con.df - (con.trace - 2.0)).abs() < 1e-12 && con.df > 1.0);
+    assert_eq!(con.min_p(), 0.0);
+    assert!(sel.rows[sel.selected].bandwidth != con.bandwidth);
+    let x = arma21(3000, 22);
+    let (_, con) = select_with_constancy(&x, &[(2, 1, 1)], &base(), Chi2, 0).unwrap();
+    let con = con.unwrap();
+    eprintln!(
+        "ARMA data: T = {}, df = {}, p = {}",
+        con.statistic, con.df, con.p_value
+    );
+    assert!(!rejects(con.p_value, ALPHA), "p = {}", con.p_value);
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
+    assert!((con.bandwidth - 0.5 * sd).abs() < 1e-12 * sd);
 }
 
 /// The selection keeps the residuals of its selected fit alone (the others' are
@@ -120,7 +151,7 @@ fn arma21_data_do_not_reject_constancy_and_results_ignore_thread_count() {
         d: 1,
         ..base()
     };
-    let run = || select_with_constancy(&x, &[(2, 1, 1)], &b, 39, 6).unwrap();
+    let run = || select_with_constancy(&x, &[(2, 1, 1)], &b, Bootstrap(39), 6).unwrap();
     let (_, con) = run();
     let con = con.unwrap();
     eprintln!("constancy T = {}, p = {}", con.statistic, con.p_value);

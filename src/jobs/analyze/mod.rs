@@ -188,6 +188,7 @@ pub fn channel_json(r: &ChannelAnalysis, v: &Verdict, alpha: f64) -> serde_json:
     o["verdict"] = json!({
         "order": order_name(v.order),
         "nonlinear": v.nonlinear(),
+        "constancy_method": v.constancy.as_ref().map(|c| c.method.clone()),
         "constancy_p": v.constancy.as_ref().map(|c| c.p_value),
         "constancy_min_p": v.constancy.as_ref().map(|c| c.min_p),
         "residuals_white": v.residuals_white(),
@@ -225,14 +226,14 @@ impl AnalyzeJob {
         rate: f64,
     ) -> String {
         let text = format!(
-            "farma analyze channel 1\n{}\n{:?}\n{:?}\n{}\n{dropped}\n{:?}\n{:?}\n{}\n{}\n{}\n{}\n{}\n{rate}\n{}",
+            "farma analyze channel 1\n{}\n{:?}\n{:?}\n{}\n{dropped}\n{:?}\n{:?}\n{:?}\n{}\n{}\n{}\n{}\n{rate}\n{}",
             c.name,
             self.prep,
             c.steps,
             c.replaced.len(),
             prm.orders,
             prm.farma,
-            prm.bootstrap,
+            prm.constancy,
             prm.seed,
             prm.holdout,
             prm.maxlag,
@@ -318,7 +319,7 @@ impl AnalyzeJob {
         let prm = AnalyzeParams {
             orders: self.select.order_tuples(),
             farma: self.select.farma.clone(),
-            bootstrap: self.select.bootstrap,
+            constancy: self.select.constancy,
             seed: self.select.seed,
             holdout: (self.holdout_s * rate).round() as usize,
             maxlag: self.maxlag,

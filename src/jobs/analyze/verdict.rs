@@ -3,9 +3,10 @@
 //! are white (Ljung-Box), and whether the FARMA predicts the hold-out better than the
 //! linear ARMA; one line of summary.txt and one row of verdict.parquet per channel.
 //!
-//! - nonlinear: the bootstrap constancy test rejects constant coefficients,
-//!   p <= [`ALPHA`] ([`crate::workflow::rejects`]); null (not tested) without a
-//!   bootstrap. What the test can resolve: its smallest p-value, 1 / (B + 1).
+//! - nonlinear: the constancy test (`chi2` or `bootstrap`) rejects constant
+//!   coefficients, p <= [`ALPHA`] ([`crate::workflow::rejects`]); null (not tested)
+//!   with `--constancy none`. What the test can resolve: its smallest p-value, 1 / (B
+//!   + 1) for a bootstrap of B replicates, 0 for the chi2 test.
 //! - residuals white: the Ljung-Box test at the largest lag it was run at (20 with
 //!   the default `--maxlag 40`, ln n when that is larger and within `--maxlag`) does
 //!   not reject at [`ALPHA`]; null when no lag was tested (every lag at or below p + q).
@@ -23,9 +24,6 @@ use crate::output::batch;
 use crate::workflow::analyze::ChannelAnalysis;
 use crate::workflow::select::order_name;
 use crate::workflow::{ALPHA, rejects};
-
-/// The name of the constancy test's method in verdict.parquet.
-pub const CONSTANCY_METHOD: &str = "bootstrap";
 
 /// One channel's verdict.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,9 +46,11 @@ pub struct Verdict {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConstancyVerdict {
     pub p_value: f64,
-    /// The smallest p-value the test can return (1 / (B + 1)).
+    /// The smallest p-value the test can return (1 / (B + 1); 0 for chi2).
     pub min_p: f64,
+    /// B (0 for the chi2 test).
     pub bootstrap: usize,
+    /// `chi2` or `bootstrap`.
     pub method: String,
 }
 
@@ -65,7 +65,7 @@ impl Verdict {
                 p_value: c.p_value,
                 min_p: c.min_p(),
                 bootstrap: c.bootstrap,
-                method: CONSTANCY_METHOD.into(),
+                method: c.method.to_string(),
             }),
             ljung_box: a
                 .check
@@ -99,14 +99,20 @@ impl Verdict {
     pub fn line(&self, width: usize) -> String {
         let yes = |b: bool| if b { "yes" } else { "no" };
         let nonlinear = match (&self.constancy, self.nonlinear()) {
-            (Some(c), Some(n)) => format!(
-                "nonlinear: {} (p = {}, B = {} resolves p >= {})",
+            (Some(c), Some(n)) if c.method == "bootstrap" => format!(
+                "nonlinear: {} (p = {}, bootstrap B = {} resolves p >= {})",
                 yes(n),
                 fmt_p(c.p_value),
                 c.bootstrap,
                 fmt_p(c.min_p)
             ),
-            _ => "nonlinear: not tested (no bootstrap)".into(),
+            (Some(c), Some(n)) => format!(
+                "nonlinear: {} (p = {}, {} test)",
+                yes(n),
+                fmt_p(c.p_value),
+                c.method
+            ),
+            _ => "nonlinear: not tested (--constancy none)".into(),
         };
         let white = match (self.ljung_box, self.residuals_white()) {
             (Some((lag, p)), Some(w)) => format!(
@@ -263,7 +269,7 @@ mod tests {
                 p_value: 0.31,
                 min_p: 0.01,
                 bootstrap: 99,
-                method: CONSTANCY_METHOD.into(),
+                method: "bootstrap".into(),
             }),
             ljung_box: Some((20, 0.42)),
             rmse_k1: Some((0.998, 1.0)),
@@ -281,7 +287,7 @@ mod tests {
         assert_eq!(verdicts_of(&t).unwrap(), vec![a.clone(), b.clone()]);
         assert_eq!(
             a.line(10),
-            "gyro_x_dps  FARMA(3,2,1)  nonlinear: no (p = 0.310, B = 99 resolves p >= 0.010)  residuals white: yes (Ljung-Box lag 20 p = 0.420)  hold-out 1-step RMSE FARMA/ARMA 0.998"
+            "gyro_x_dps  FARMA(3,2,1)  nonlinear: no (p = 0.310, bootstrap B = 99 resolves p >= 0.010)  residuals white: yes (Ljung-Box lag 20 p = 0.420)  hold-out 1-step RMSE FARMA/ARMA 0.998"
         );
         assert!(b.line(10).contains("nonlinear: not tested"));
         assert_eq!(b.nonlinear(), None);
@@ -299,10 +305,25 @@ mod tests {
                 p_value: 0.05,
                 min_p: 0.05,
                 bootstrap: 19,
-                method: CONSTANCY_METHOD.into(),
+                method: "bootstrap".into(),
             }),
             ..a
         };
         assert_eq!(c.nonlinear(), Some(true));
+        let chi2 = Verdict {
+            constancy: Some(ConstancyVerdict {
+                p_value: 0.003,
+                min_p: 0.0,
+                bootstrap: 0,
+                method: "chi2".into(),
+            }),
+            ..c
+        };
+        assert!(
+            chi2.line(0)
+                .contains("nonlinear: yes (p = 0.003, chi2 test)"),
+            "{}",
+            chi2.line(0)
+        );
     }
 }
