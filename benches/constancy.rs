@@ -109,17 +109,17 @@ fn main() {
                 chi2_test(&x, &base).unwrap()
             } else {
                 constancy_test(
-                &x,
-                &ConstancyParams {
-                    bootstrap: b,
-                    seed: r as u64,
-                    farma: FarmaParams {
-                        bandwidth: h,
-                        ..base
+                    &x,
+                    &ConstancyParams {
+                        bootstrap: b,
+                        seed: r as u64,
+                        farma: FarmaParams {
+                            bandwidth: h,
+                            ..base
+                        },
                     },
-                },
-            )
-            .unwrap()
+                )
+                .unwrap()
             };
             if farma::workflow::rejects(c.p_value, farma::workflow::ALPHA) {
                 rejected += 1;

@@ -24,7 +24,10 @@ use rand_distr::{Distribution, StandardNormal};
 /// bench's own, the default), ar1 (0.9), arma11 (0.7; -0.3), ma_edge (0.3; -0.95, an
 /// MA part near the unit root, what differencing gives), ar3 (0.4, 0.2, -0.3; 0.5).
 fn null_model() -> (Vec<f64>, Vec<f64>) {
-    match std::env::var("FARMA_SCAN_NULL").as_deref().unwrap_or("arma21") {
+    match std::env::var("FARMA_SCAN_NULL")
+        .as_deref()
+        .unwrap_or("arma21")
+    {
         "ar1" => (vec![0.9], vec![]),
         "arma11" => (vec![0.7], vec![-0.3]),
         "ma_edge" => (vec![0.3], vec![-0.95]),
@@ -110,7 +113,11 @@ fn main() {
         let mut rej_proj = vec![0usize; labels.len()];
         let mut rej_f = vec![0usize; labels.len()];
         for r in 0..reps {
-            let x = simulate(n, 1000 + r as u64 + if nonlinear { 50_000 } else { 0 }, nonlinear);
+            let x = simulate(
+                n,
+                1000 + r as u64 + if nonlinear { 50_000 } else { 0 },
+                nonlinear,
+            );
             let mean = x.iter().sum::<f64>() / n as f64;
             let xc: Vec<f64> = x.iter().map(|v| v - mean).collect();
             let sd = (xc.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
@@ -124,7 +131,14 @@ fn main() {
             let mut hs = vec![None];
             hs.extend(cs.iter().map(|c| Some(c * sd)));
             for (k, h) in hs.into_iter().enumerate() {
-                let g = glr_at(&xc, &FarmaParams { bandwidth: h, ..base.clone() }).unwrap();
+                let g = glr_at(
+                    &xc,
+                    &FarmaParams {
+                        bandwidth: h,
+                        ..base.clone()
+                    },
+                )
+                .unwrap();
                 if farma::workflow::rejects(g.p_wilks, 0.05) {
                     rej[k] += 1;
                 }

@@ -66,7 +66,9 @@ fn main() {
         m.0.bandwidth, m.1.iterations
     );
     let t0 = Instant::now();
-    let c = run_test(&x, test, &FarmaParams::default(), 1).unwrap().unwrap();
+    let c = run_test(&x, test, &FarmaParams::default(), 1)
+        .unwrap()
+        .unwrap();
     let tc = t0.elapsed().as_secs_f64();
     println!(
         "constancy test alone ({}): {tc:.2} s = {:.2} single fits (T = {:.3}, p = {:.3e})",

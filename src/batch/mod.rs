@@ -36,12 +36,14 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use rayon::prelude::*;
 
+use crate::diagnosis::GapParams;
 use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::adev::AdevJob;
 use crate::jobs::analyze::AnalyzeJob;
 use crate::jobs::check::CheckJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
+use crate::jobs::gap::GapJob;
 use crate::jobs::prep::PrepJob;
 use crate::jobs::psd::PsdJob;
 use crate::jobs::select::SelectJob;
@@ -49,8 +51,8 @@ use crate::log::{CachePolicy, LogOptions, Progress};
 use crate::model::Order;
 use crate::stats::adev::{CiOptions, Kind, ONE_SIGMA, TauGrid};
 use crate::stats::psd::Detrend;
-use crate::workflow::prep::PrepParams;
 use crate::workflow::constancy::ConstancyTest;
+use crate::workflow::prep::PrepParams;
 use crate::workflow::select::PAPER_ORDERS;
 use jobfile::{JobFile, Task, TaskKind, opt_bool, opt_f64, opt_str, opt_usize};
 use manifest::Row;
@@ -217,7 +219,14 @@ impl BatchRun {
                     .join(format!("{}.{}", u.key, std::process::id()));
             let _ = std::fs::remove_dir_all(&staging);
             let out = staging.join("out");
-            let run = run_task(task, &log.path, &out, &store, channels);
+            // the log's first channel of the temperature role, offered to the tasks
+            // that read one (gap)
+            let temperature = store
+                .channel_names()
+                .into_iter()
+                .find(|c| roles.is_temperature(c))
+                .map(str::to_string);
+            let run = run_task(task, &log.path, &out, &store, channels, temperature);
             let placed = run.and_then(|()| self.place(&out, log, task));
             let _ = std::fs::remove_dir_all(&staging);
             let files = placed?;
@@ -293,6 +302,7 @@ fn run_task(
     out: &Path,
     store: &crate::store::Store,
     channels: Vec<String>,
+    temperature: Option<String>,
 ) -> Result<()> {
     let path = |t: &Task| -> Result<FitPath> {
         Ok(match opt_str(t, "method")? {
@@ -445,6 +455,45 @@ fn run_task(
                 max_degree: opt_usize(task, "max_degree")?.unwrap_or(6),
             };
             job.run(store, &Progress::hidden()).map(|_| ())
+        }
+        TaskKind::Gap => {
+            let spec_path = PathBuf::from(opt_str(task, "spec")?.unwrap_or_default());
+            let spec = crate::simulator::load_spec(&spec_path)?;
+            // the unit's channels that the spec simulates
+            let names: Vec<String> = channels
+                .into_iter()
+                .filter(|c| spec.channels.iter().any(|s| &s.name == c))
+                .collect();
+            if names.is_empty() {
+                return Err(Error::Usage(format!(
+                    "task '{}': the spec {} simulates none of the log's channels (it has {})",
+                    task.name,
+                    spec_path.display(),
+                    spec.channels
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            }
+            let d = GapParams::default();
+            let job = GapJob {
+                log: log.to_path_buf(),
+                spec_path,
+                spec,
+                channels: names,
+                temperature,
+                params: GapParams {
+                    train_fraction: opt_f64(task, "train_fraction")?.unwrap_or(d.train_fraction),
+                    replicas: opt_usize(task, "replicas")?.unwrap_or(d.replicas),
+                    n_blocks: opt_usize(task, "blocks")?.unwrap_or(d.n_blocks),
+                    seed: opt_usize(task, "seed")?.map(|s| s as u64),
+                    max_added: opt_usize(task, "max_effects")?.unwrap_or(d.max_added),
+                    ..d
+                },
+            };
+            let done = job.run(store)?;
+            job.write(out, &done).map(|_| ())
         }
         TaskKind::Prep => PrepJob {
             log: log.to_path_buf(),

@@ -93,11 +93,11 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
             c.statistic,
             c.p_value,
             if rejects(c.p_value, ALPHA) {
-                format!(
-                    "constant coefficients rejected at {ALPHA}: the coefficient functions vary"
-                )
+                format!("constant coefficients rejected at {ALPHA}: the coefficient functions vary")
             } else {
-                format!("constant coefficients not rejected at {ALPHA}: the linear ARMA is adequate")
+                format!(
+                    "constant coefficients not rejected at {ALPHA}: the linear ARMA is adequate"
+                )
             }
         );
     }
@@ -235,7 +235,10 @@ mod tests {
             fits: vec![],
         };
         let at = select_text("x", &s, Some(&constancy(1.0 / 20.0)));
-        assert!(at.contains("constant coefficients rejected at 0.05"), "{at}");
+        assert!(
+            at.contains("constant coefficients rejected at 0.05"),
+            "{at}"
+        );
         let above = select_text("x", &s, Some(&constancy(2.0 / 20.0)));
         assert!(
             above.contains("constant coefficients not rejected"),

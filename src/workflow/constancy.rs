@@ -78,7 +78,8 @@ impl ConstancyTest {
             ))),
             (Some("bootstrap"), None) => Ok(ConstancyTest::Bootstrap(DEFAULT_BOOTSTRAP)),
             (Some("bootstrap"), Some(0)) => Err(Error::Usage(
-                "--constancy bootstrap needs --bootstrap of at least 1 (or --constancy none)".into(),
+                "--constancy bootstrap needs --bootstrap of at least 1 (or --constancy none)"
+                    .into(),
             )),
             (Some("bootstrap"), Some(b)) => Ok(ConstancyTest::Bootstrap(b)),
             (Some(m), _) => Err(Error::Usage(format!(
@@ -421,7 +422,10 @@ mod tests {
         assert_eq!(t(None, None).unwrap(), ConstancyTest::Chi2);
         assert_eq!(t(None, Some(0)).unwrap(), ConstancyTest::None);
         assert_eq!(t(None, Some(19)).unwrap(), ConstancyTest::Bootstrap(19));
-        assert_eq!(t(Some("bootstrap"), None).unwrap(), ConstancyTest::Bootstrap(99));
+        assert_eq!(
+            t(Some("bootstrap"), None).unwrap(),
+            ConstancyTest::Bootstrap(99)
+        );
         assert_eq!(t(Some("none"), Some(5)).unwrap(), ConstancyTest::None);
         assert!(t(Some("chi2"), Some(5)).is_err());
         assert!(t(Some("bootstrap"), Some(0)).is_err());

@@ -7,8 +7,8 @@
 use farma::estimator::{FarmaParams, fit};
 use farma::model::Farma;
 use farma::workflow::analyze::select_with_constancy;
-use farma::workflow::constancy::ConstancyTest::{Bootstrap, Chi2};
 use farma::workflow::check::{poly_fits, predict_holdout, residual_whiteness};
+use farma::workflow::constancy::ConstancyTest::{Bootstrap, Chi2};
 use farma::workflow::select::PAPER_ORDERS;
 use farma::workflow::{ALPHA, rejects};
 use rand::SeedableRng;
@@ -85,7 +85,10 @@ fn the_chi2_constancy_test_rejects_farma_data_and_not_arma_data() {
     let nl = farma211(3000, 21);
     let (sel, con) = select_with_constancy(&nl, &[(2, 1, 1)], &base(), Chi2, 0).unwrap();
     let con = con.unwrap();
-    eprintln!("FARMA data: T = {}, df = {}, p = {}", con.statistic, con.df, con.p_value);
+    eprintln!(
+        "FARMA data: T = {}, df = {}, p = {}",
+        con.statistic, con.df, con.p_value
+    );
     assert_eq!(con.method, "chi2");
     assert!(rejects(con.p_value, ALPHA), "p = {}", con.p_value);
     assert!((con.df - (con.trace - 2.0)).abs() < 1e-12 && con.df > 1.0);
@@ -94,7 +97,10 @@ fn the_chi2_constancy_test_rejects_farma_data_and_not_arma_data() {
     let x = arma21(3000, 22);
     let (_, con) = select_with_constancy(&x, &[(2, 1, 1)], &base(), Chi2, 0).unwrap();
     let con = con.unwrap();
-    eprintln!("ARMA data: T = {}, df = {}, p = {}", con.statistic, con.df, con.p_value);
+    eprintln!(
+        "ARMA data: T = {}, df = {}, p = {}",
+        con.statistic, con.df, con.p_value
+    );
     assert!(!rejects(con.p_value, ALPHA), "p = {}", con.p_value);
     let mean = x.iter().sum::<f64>() / x.len() as f64;
     let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
