@@ -32,7 +32,11 @@
 //! `select` and `holdout_s`, `maxlag`, `max_degree`; `check`: `model` (a model folder
 //! of `farma fit`, relative to the job file; required), `holdout_s`, `maxlag`,
 //! `max_degree`; `prep`: none (the defaults of
-//! `farma prep`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
+//! `farma prep`); `gap`: `spec` (a simulation spec, relative to the job file;
+//! required; the unit's channels that the spec has are diagnosed, and the log's first
+//! channel of the temperature role is offered when the spec names no
+//! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`
+//! (the defaults of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
 use std::path::{Path, PathBuf};
@@ -79,6 +83,7 @@ pub enum TaskKind {
     Analyze,
     Select,
     Prep,
+    Gap,
 }
 
 impl TaskKind {
@@ -91,6 +96,7 @@ impl TaskKind {
             TaskKind::Analyze => "analyze",
             TaskKind::Select => "select",
             TaskKind::Prep => "prep",
+            TaskKind::Gap => "gap",
         }
     }
 }
@@ -163,6 +169,14 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "max_degree",
         ],
         TaskKind::Prep => &[],
+        TaskKind::Gap => &[
+            "spec",
+            "replicas",
+            "blocks",
+            "train_fraction",
+            "seed",
+            "max_effects",
+        ],
     }
 }
 
@@ -233,14 +247,15 @@ impl JobFile {
                 Some("analyze") => TaskKind::Analyze,
                 Some("select") => TaskKind::Select,
                 Some("prep") => TaskKind::Prep,
+                Some("gap") => TaskKind::Gap,
                 Some(k) => {
                     return Err(bad(format!(
-                        "tasks[{i}].kind = '{k}': not one of adev, psd, fit, analyze, select, prep, check"
+                        "tasks[{i}].kind = '{k}': not one of adev, psd, fit, analyze, select, prep, check, gap"
                     )));
                 }
                 None => {
                     return Err(bad(format!(
-                        "tasks[{i}]: no kind (adev, psd, fit, analyze, select, prep, check)"
+                        "tasks[{i}]: no kind (adev, psd, fit, analyze, select, prep, check, gap)"
                     )));
                 }
             };
@@ -295,6 +310,18 @@ impl JobFile {
                     })?;
                 let abs = resolve(model).display().to_string();
                 options.insert("model".into(), toml::Value::String(abs));
+            }
+            if kind == TaskKind::Gap {
+                let spec = options
+                    .get("spec")
+                    .and_then(|v| v.as_str())
+                    .ok_or_else(|| {
+                        bad(format!(
+                            "tasks[{i}] (gap): no spec = \"FILE\" (the simulation spec to diagnose)"
+                        ))
+                    })?;
+                let abs = resolve(spec).display().to_string();
+                options.insert("spec".into(), toml::Value::String(abs));
             }
             tasks.push(Task {
                 kind,

@@ -36,6 +36,7 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use rayon::prelude::*;
 
+use crate::diagnosis::GapParams;
 use crate::error::{Error, Result};
 use crate::estimator::{FarmaParams, FitPath};
 use crate::jobs::adev::AdevJob;
@@ -43,6 +44,7 @@ use crate::jobs::analyze::AnalyzeJob;
 use crate::jobs::analyze::choice::ChannelChoice;
 use crate::jobs::check::CheckJob;
 use crate::jobs::fit::{DEFAULT_GRID, FitJob};
+use crate::jobs::gap::GapJob;
 use crate::jobs::prep::PrepJob;
 use crate::jobs::psd::PsdJob;
 use crate::jobs::select::SelectJob;
@@ -218,7 +220,14 @@ impl BatchRun {
                     .join(format!("{}.{}", u.key, std::process::id()));
             let _ = std::fs::remove_dir_all(&staging);
             let out = staging.join("out");
-            let run = run_task(task, &log.path, &out, &store, channels, &roles);
+            // the log's first channel of the temperature role, offered to the tasks
+            // that read one (gap)
+            let temperature = store
+                .channel_names()
+                .into_iter()
+                .find(|c| roles.is_temperature(c))
+                .map(str::to_string);
+            let run = run_task(task, &log.path, &out, &store, channels, temperature, &roles);
             let placed = run.and_then(|()| self.place(&out, log, task));
             let _ = std::fs::remove_dir_all(&staging);
             let files = placed?;
@@ -294,6 +303,7 @@ fn run_task(
     out: &Path,
     store: &crate::store::Store,
     channels: Vec<String>,
+    temperature: Option<String>,
     roles: &jobfile::Roles,
 ) -> Result<()> {
     let path = |t: &Task| -> Result<FitPath> {
@@ -453,6 +463,45 @@ fn run_task(
                 fresh: true,
             };
             job.run(store, &Progress::hidden()).map(|_| ())
+        }
+        TaskKind::Gap => {
+            let spec_path = PathBuf::from(opt_str(task, "spec")?.unwrap_or_default());
+            let spec = crate::simulator::load_spec(&spec_path)?;
+            // the unit's channels that the spec simulates
+            let names: Vec<String> = channels
+                .into_iter()
+                .filter(|c| spec.channels.iter().any(|s| &s.name == c))
+                .collect();
+            if names.is_empty() {
+                return Err(Error::Usage(format!(
+                    "task '{}': the spec {} simulates none of the log's channels (it has {})",
+                    task.name,
+                    spec_path.display(),
+                    spec.channels
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            }
+            let d = GapParams::default();
+            let job = GapJob {
+                log: log.to_path_buf(),
+                spec_path,
+                spec,
+                channels: names,
+                temperature,
+                params: GapParams {
+                    train_fraction: opt_f64(task, "train_fraction")?.unwrap_or(d.train_fraction),
+                    replicas: opt_usize(task, "replicas")?.unwrap_or(d.replicas),
+                    n_blocks: opt_usize(task, "blocks")?.unwrap_or(d.n_blocks),
+                    seed: opt_usize(task, "seed")?.map(|s| s as u64),
+                    max_added: opt_usize(task, "max_effects")?.unwrap_or(d.max_added),
+                    ..d
+                },
+            };
+            let done = job.run(store)?;
+            job.write(out, &done).map(|_| ())
         }
         TaskKind::Prep => PrepJob {
             log: log.to_path_buf(),

@@ -219,6 +219,17 @@ pub fn options_hash(task: &Task, log: &Log, roles: &super::jobfile::Roles) -> St
             .join(","),
         _ => String::new(),
     };
+    // a gap's spec file: an edited spec is a change of options
+    let model = match (
+        &task.kind,
+        task.options.get("spec").and_then(|v| v.as_str()),
+    ) {
+        (super::jobfile::TaskKind::Gap, Some(s)) => std::fs::read(s).map_or_else(
+            |_| "missing".to_string(),
+            |b| format!("{:016x}", hash64(&b)),
+        ),
+        _ => model,
+    };
     let text = format!(
         "{}\n{}\n{:?}\n{:?}\n{model}\n{}",
         task.kind.as_str(),

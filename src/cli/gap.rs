@@ -7,8 +7,9 @@ use std::time::Instant;
 use clap::Args;
 
 use super::LogArgs;
-use crate::diagnosis::{GapParams, RealLog, diagnose, report};
-use crate::error::{Error, Result};
+use crate::diagnosis::{GapParams, diagnose, report};
+use crate::error::Result;
+use crate::jobs::gap::GapJob;
 use crate::log::Progress;
 use crate::simulator::load_spec;
 
@@ -56,50 +57,26 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
     }
     let spec = load_spec(&a.sim)?;
     let store = a.log_args.open(&a.real, progress)?;
-    let x = store.column(&a.channel)?;
-    let temperature_c = match &spec.temperature_channel {
-        Some(t) => Some(store.column(t).map_err(|e| match e {
-            Error::Column { .. } => Error::Usage(format!(
-                "{}: the spec's temperature_channel '{t}' is not a column of the real log {}",
-                a.sim.display(),
-                a.real.display()
-            )),
-            other => other,
-        })?),
-        None => None,
+    let job = GapJob {
+        log: a.real.clone(),
+        spec_path: a.sim.clone(),
+        spec,
+        channels: vec![a.channel.clone()],
+        temperature: None,
+        params: GapParams {
+            train_fraction: a.train_fraction,
+            replicas: a.replicas,
+            n_blocks: a.blocks,
+            seed: a.seed,
+            max_added: a.max_effects,
+            ..GapParams::default()
+        },
     };
-    let log_names = store.channel_names();
-    let others: Vec<(String, &[f64])> = spec
-        .channels
-        .iter()
-        .filter(|c| c.name != a.channel && log_names.contains(&c.name.as_str()))
-        .map(|c| Ok((c.name.clone(), store.column(&c.name)?)))
-        .collect::<Result<_>>()?;
-    let real = RealLog {
-        channel: a.channel.clone(),
-        x,
-        rate_hz: store.sample_rate_hz(),
-        temperature_c,
-        others,
-        spec_dir: a.sim.parent().map(|p| p.to_path_buf()),
-    };
-    let prm = GapParams {
-        train_fraction: a.train_fraction,
-        replicas: a.replicas,
-        n_blocks: a.blocks,
-        seed: a.seed,
-        max_added: a.max_effects,
-        ..GapParams::default()
-    };
-    let d = diagnose(&real, &spec, &prm)?;
+    let real = job.real_log(&store, &a.channel)?;
+    let d = diagnose(&real, &job.spec, &job.params)?;
     let mut json = report::to_json(&d);
     if let Some(dir) = &a.output {
-        let meta = [
-            ("real", a.real.display().to_string()),
-            ("spec", a.sim.display().to_string()),
-            ("channel", a.channel.clone()),
-        ];
-        let files = report::write_outputs(&d, dir, &meta)?;
+        let files = job.write(dir, std::slice::from_ref(&d))?;
         json["outputs"] = serde_json::json!(files);
     }
     eprintln!(

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow_array::{ArrayRef, BooleanArray, Float64Array, Int64Array, StringArray};
+use arrow_array::{ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray};
 use serde_json::{Value, json};
 
 use super::{Diagnosis, Region, Statistic};
@@ -73,11 +73,9 @@ fn strs(v: Vec<String>) -> ArrayRef {
     Arc::new(StringArray::from(v))
 }
 
-/// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
-/// `spec_after.toml` and `report.svg` into `dir` (created when missing) as one set
-/// ([`GAP_OUTPUTS`]).
-pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
-    let mut out = OutputSet::new(dir)?;
+/// The three tables of a diagnosis: gap_features, gap_regions and gap_effects (each row
+/// with the channel).
+pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
     let ch = |n: usize| strs(vec![d.channel.clone(); n]);
     let k = d.defs.len();
     let zb = d.ens_before.z(&d.real);
@@ -189,10 +187,26 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
             )) as ArrayRef,
         ),
     ])?;
+    Ok([feats, reg, eff])
+}
+
+/// The file-level metadata of a diagnosis's tables: `meta` and the gap before, after and
+/// the noise floor.
+pub fn table_meta<'a>(d: &Diagnosis, meta: &[(&'a str, String)]) -> Vec<(&'a str, String)> {
     let mut meta: Vec<(&str, String)> = meta.to_vec();
     meta.push(("gap_before", d.gap_before.to_string()));
     meta.push(("gap_after", d.gap_after.to_string()));
     meta.push(("noise_floor", d.noise_floor.to_string()));
+    meta
+}
+
+/// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
+/// `spec_after.toml` and `report.svg` into `dir` (created when missing) as one set
+/// ([`GAP_OUTPUTS`]).
+pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
+    let mut out = OutputSet::new(dir)?;
+    let [feats, reg, eff] = tables(d)?;
+    let meta = table_meta(d, meta);
     // one set: every file staged beside its place, all renamed into place together
     for (name, b) in [
         ("gap_features.parquet", &feats),

@@ -20,6 +20,7 @@ pub mod analyze;
 pub mod check;
 pub mod fit;
 pub mod fit2;
+pub mod gap;
 pub mod prep;
 pub mod psd;
 pub mod select;

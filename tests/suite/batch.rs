@@ -606,3 +606,61 @@ fn the_analyze_task_writes_the_verdict_table() {
     let o = farma(&["batch", j.to_str().unwrap(), "--json"], dir.path());
     assert_eq!(json_of(&o)["skipped"].as_u64(), Some(1), "{}", stderr(&o));
 }
+
+/// The gap task: the unit's channels that the spec simulates are diagnosed against it,
+/// every table a hive partition with every channel's rows; the log's temperature
+/// channel (the temperature role) is offered when the spec names none, and becomes the
+/// `temperature_channel` of each channel's `spec_after`; an edited spec redoes the unit.
+#[test]
+fn the_gap_task_diagnoses_the_specs_channels_with_the_temperature_role() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = "sample_rate_hz = 10.0\nseed = 3\n[[channel]]\nname = \"gyro_x\"\n[[channel.component]]\nkind = \"white_noise\"\nn = 0.01\n[[channel]]\nname = \"gyro_y\"\n[[channel.component]]\nkind = \"white_noise\"\nn = 0.01\n";
+    std::fs::write(dir.path().join("spec.toml"), spec).unwrap();
+    let log = fixture("multiaxis.csv");
+    let j = job(
+        dir.path(),
+        &format!(
+            "[[inputs]]\npaths = [{:?}]\n[[tasks]]\nkind = \"gap\"\nspec = \"spec.toml\"\nreplicas = 6\n",
+            log.to_str().unwrap()
+        ),
+    );
+    let root = dir.path().join("out");
+    let (j, r) = (j.to_str().unwrap(), root.to_str().unwrap());
+    let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(1));
+    let part = "task=gap/log_id=multiaxis";
+    for t in ["gap_features", "gap_regions", "gap_effects"] {
+        let f = root.join(t).join(part).join("part-0.parquet");
+        let rows = crate::common::parquet_strings(&f, "channel");
+        assert!(
+            rows.iter().any(|c| c == "gyro_x") && rows.iter().any(|c| c == "gyro_y"),
+            "{t}: {rows:?}"
+        );
+        assert!(!rows.iter().any(|c| c == "gyro_z" || c == "temp_c"), "{t}");
+    }
+    for c in ["gyro_x", "gyro_y"] {
+        let after = std::fs::read_to_string(
+            root.join("_files")
+                .join(part)
+                .join(format!("spec_after_{c}.toml")),
+        )
+        .unwrap();
+        assert!(
+            after.contains("temperature_channel = \"temp_c\""),
+            "{after}"
+        );
+        assert!(
+            root.join("_files")
+                .join(part)
+                .join(format!("report_{c}.svg"))
+                .is_file()
+        );
+    }
+    // unchanged: skipped; an edited spec: redone
+    let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(0), "{}", stderr(&o));
+    std::fs::write(dir.path().join("spec.toml"), spec.replace("0.01", "0.02")).unwrap();
+    let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    assert_eq!(json_of(&o)["done"].as_u64(), Some(1), "{}", stderr(&o));
+}

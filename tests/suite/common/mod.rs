@@ -68,3 +68,27 @@ pub fn reference_parse_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     }
     (names, cols)
 }
+
+/// The string column `col` of a Parquet file, every row.
+pub fn parquet_strings(path: &Path, col: &str) -> Vec<String> {
+    use arrow_array::{Array, StringArray};
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut out = Vec::new();
+    for b in ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap()
+    {
+        let b = b.unwrap();
+        let a = b
+            .column_by_name(col)
+            .unwrap_or_else(|| panic!("{}: no column {col}", path.display()));
+        let s = a
+            .as_any()
+            .downcast_ref::<StringArray>()
+            .expect("a string column");
+        out.extend((0..s.len()).map(|i| s.value(i).to_string()));
+    }
+    out
+}
