@@ -13,6 +13,7 @@
 #![allow(clippy::needless_range_loop)] // numeric kernels index several arrays in step
 
 pub mod analyze;
+pub mod budget;
 pub mod check;
 pub mod constancy;
 pub mod ljung_box;

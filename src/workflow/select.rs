@@ -20,7 +20,6 @@
 //! F(df_1 - df_0, m - df_1). Nested: the same d, p_0 <= p_1, q_0 <= q_1; and every
 //! ARMA(p,q) inside its FARMA(p,q,d).
 
-use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
@@ -143,10 +142,11 @@ pub fn select(
         0.0
     };
     let xc: Vec<f64> = x.iter().map(|v| v - mean).collect();
-    let results: Vec<(OrderRow, (Farma, FitReport))> = valid
-        .par_iter()
-        .zip(orders.par_iter())
-        .map(|(vp, &(p, q, d))| {
+    // the orders' fits, at most `fits_in_flight` at once (the memory budget)
+    let pairs: Vec<_> = valid.iter().zip(orders.iter().copied()).collect();
+    let in_flight = super::budget::fits_in_flight(n);
+    let results: Vec<(OrderRow, (Farma, FitReport))> =
+        super::budget::par_map_waves(&pairs, in_flight, |&(vp, (p, q, d))| {
             let (m, mut r) = fit(x, vp)?;
             // (the selected fit's residuals are recomputed below, the same bits)
             r.residuals = Vec::new();
@@ -186,6 +186,7 @@ pub fn select(
                 (m, r),
             ))
         })
+        .into_iter()
         .collect::<Result<_>>()?;
     let (rows, mut fits): (Vec<OrderRow>, Vec<(Farma, FitReport)>) = results.into_iter().unzip();
     let mut ftests = Vec::new();

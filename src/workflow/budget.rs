@@ -1,0 +1,91 @@
+//! How many FARMA fits run at once. A fit of N samples holds about
+//! [`FIT_BYTES_PER_SAMPLE`] N bytes while it runs (its centred series, residuals, the
+//! linear start's work arrays and the moment tables), and the fits in flight share one
+//! memory budget, `FARMA_MEMORY_GB` (default [`DEFAULT_BUDGET_GB`]): on a machine of
+//! many threads the order table's fits, and the channels of `farma analyze`, run in
+//! waves of at most [`fits_in_flight`] instead of one fit per thread at once. Where the
+//! threads are fewer than that, nothing changes: the threads bound the fits in flight.
+//!
+//! The figure per sample is measured: `farma analyze` of ADIS16405 run 1's three gyro
+//! axes (1e6 samples each, eight orders) peaked at 322 MB with 2 threads and 864 MB with
+//! 8 (2026-11-27, BENCHMARKS.md): 542 MB for 6 more fits in flight, 90 bytes per
+//! sample each; one `farma fit` of one such channel peaks at 116 MB, the process and
+//! the mapped channel included.
+
+use rayon::prelude::*;
+
+/// Bytes a running fit holds per sample of its series (module doc).
+pub const FIT_BYTES_PER_SAMPLE: f64 = 96.0;
+
+/// The memory the fits in flight may hold when `FARMA_MEMORY_GB` is not set, in GB
+/// (1e9 bytes).
+pub const DEFAULT_BUDGET_GB: f64 = 0.75;
+
+/// The budget in bytes: `FARMA_MEMORY_GB` (a positive number of GB) or the default.
+pub fn budget_bytes() -> f64 {
+    std::env::var("FARMA_MEMORY_GB")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|g| g.is_finite() && *g > 0.0)
+        .unwrap_or(DEFAULT_BUDGET_GB)
+        * 1e9
+}
+
+/// Fits of `n` samples that may run at once within the budget: at least 1.
+pub fn fits_in_flight(n: usize) -> usize {
+    let per_fit = (n as f64 * FIT_BYTES_PER_SAMPLE).max(1.0);
+    ((budget_bytes() / per_fit).floor() as usize).max(1)
+}
+
+/// `f` over `items` in parallel, at most `k` at once (in waves of `k` when `k` is
+/// below both the items and the pool's threads; else all at once), results in the
+/// items' order.
+pub fn par_map_waves<T: Sync, R: Send>(
+    items: &[T],
+    k: usize,
+    f: impl Fn(&T) -> R + Sync + Send,
+) -> Vec<R> {
+    let k = k.max(1);
+    if k >= items.len() || k >= rayon::current_num_threads() {
+        return items.par_iter().map(&f).collect();
+    }
+    let mut out = Vec::with_capacity(items.len());
+    for wave in items.chunks(k) {
+        out.extend(wave.par_iter().map(&f).collect::<Vec<R>>());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn waves_keep_the_order_and_bound_the_work_in_flight() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(8)
+            .build()
+            .unwrap();
+        let items: Vec<usize> = (0..20).collect();
+        let now = AtomicUsize::new(0);
+        let most = AtomicUsize::new(0);
+        let out = pool.install(|| {
+            par_map_waves(&items, 3, |i| {
+                let k = now.fetch_add(1, Ordering::SeqCst) + 1;
+                most.fetch_max(k, Ordering::SeqCst);
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                now.fetch_sub(1, Ordering::SeqCst);
+                i * 2
+            })
+        });
+        assert_eq!(out, items.iter().map(|i| i * 2).collect::<Vec<_>>());
+        assert!(most.load(Ordering::SeqCst) <= 3, "{most:?}");
+    }
+
+    #[test]
+    fn a_budget_allows_at_least_one_fit() {
+        assert!(fits_in_flight(usize::MAX / 1024) >= 1);
+        assert!(fits_in_flight(1_000_000) >= 1);
+    }
+}
