@@ -302,6 +302,18 @@ impl Smoother for LagSmoother<'_> {
         sm.fit_at(h, &mut self.cache)
     }
 
+    fn blend(old: &GridFit, new: &GridFit, lam: f64) -> GridFit {
+        let mut out = new.clone();
+        let mix = |o: &[f64], n: &[f64], out: &mut [f64]| {
+            for ((v, o), n) in out.iter_mut().zip(o).zip(n) {
+                *v = o + lam * (n - o);
+            }
+        };
+        mix(&old.f, &new.f, &mut out.f);
+        mix(&old.slope, &new.slope, &mut out.slope);
+        out
+    }
+
     fn fill(&self, coef: &mut GridFit, h: f64) -> Result<Vec<bool>> {
         let (grid, range) = (self.grid, self.range);
         fill_failed(coef, grid).ok_or_else(|| {
