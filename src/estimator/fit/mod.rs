@@ -209,9 +209,10 @@ pub(super) trait Smoother {
     fn chose(&mut self, _h: Self::H) {}
     /// Local fits at bandwidth `h` at residuals `e` and MA coefficients `b`.
     fn fit_at(&mut self, e: &[f64], b: &[f64], h: Self::H) -> Self::Coef;
-    /// The damped f-step's f (module doc): `old` + `lam` (`new` - `old`), f and slopes
-    /// at every grid point; the other diagnostics are `new`'s.
-    fn blend(old: &Self::Coef, new: &Self::Coef, lam: f64) -> Self::Coef;
+    /// The damped f-step's f (module doc): `old` + alpha D + beta D_c, D = `new` -
+    /// `old` and D_c = D less its mean over the grid points (per m), f and slopes at
+    /// every grid point; the other diagnostics are `new`'s.
+    fn combine(old: &Self::Coef, new: &Self::Coef, ab: (f64, f64)) -> Self::Coef;
     /// Fills the grid points without a local fit, returning which; an error when no
     /// point has one.
     fn fill(&self, coef: &mut Self::Coef, h: Self::H) -> Result<Vec<bool>>;
@@ -297,73 +298,106 @@ pub(super) struct Alternation<S: Smoother + ?Sized> {
 
 /// The damped f-step (module doc): the f-step's `new` f raised the RSS above the
 /// iterate's (`old`, `b_old`, RSS `rss_old`). At b = `b_old` the residuals are affine
-/// in lambda along f_old + lambda (f_new - f_old), so their RSS is a quadratic in
-/// lambda: two residual passes (at lambda 0 and at the trial lambda) give it, and its
-/// minimiser is the step; the b-step then runs from `b_old` at that f. The step is
-/// taken when that RSS is below `rss_old`, else lambda is halved ([`DAMP_HALVINGS`]
-/// times). Returns (lambda, f, RSS) with `b`, `b_resp` and `e` the b-step's, or None
-/// with `b`, `b_resp` set to `b_old` and `e` holding the residuals of (`old`,
-/// `b_old`); every lambda tried is pushed to `tried`.
+/// in f, so over the plane f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less
+/// its mean over the grid points, per m) their RSS is a quadratic in (alpha, beta):
+/// three residual passes (at f_old, at D and at D_c) give it, and its minimiser is
+/// the step (the centred direction matters at a linear start, where the constant part
+/// of D is no descent: the start is the least-squares ARMA). When D overflows, both
+/// directions are shrunk by [`DAMP_SHRINK`] ([`DAMP_OVERFLOW_TRIES`] times). The b-step
+/// then runs from `b_old` at the step's f; the step is taken when that RSS is below
+/// `rss_old` by more than `tol` relative, else it is halved ([`DAMP_HALVINGS`] times). Returns ((alpha, beta),
+/// f, RSS) with `b`, `b_resp` and `e` the b-step's, or None with `b`, `b_resp` set to
+/// `b_old` and `e` holding the residuals of (`old`, `b_old`); the scale of every step
+/// tried (alpha + beta) is pushed to `tried`.
 #[allow(clippy::too_many_arguments)]
 fn damped_step<S: Smoother>(
     sm: &mut S,
     start: usize,
     (old, b_old, rss_old): (&S::Coef, &[f64], f64),
     new: &S::Coef,
+    tol: f64,
     h: S::H,
     (b, b_resp): (&mut Vec<f64>, &mut Vec<f64>),
     e: &mut [f64],
     iteration: usize,
     tried: &mut Vec<f64>,
-) -> Option<(f64, S::Coef, f64)> {
+) -> Option<((f64, f64), S::Coef, f64)> {
     let restore = |b: &mut Vec<f64>, b_resp: &mut Vec<f64>| {
         b.clear();
         b.extend_from_slice(b_old);
         b_resp.clear();
         b_resp.extend_from_slice(b_old);
     };
-    // the iterate's residuals at b_old (lambda = 0)
+    // the iterate's residuals at b_old (the plane's origin), and the responses of the
+    // two directions (residuals at f_old + scale D, less e0)
     let mut e0 = vec![0.0; e.len()];
     sm.residuals(old, b_old, &mut e0);
-    let mut lam_try = 1.0;
-    let mut quad = None;
+    let mut ec = vec![0.0; e.len()];
+    let dot = |a: &[f64], b: &[f64]| -> f64 {
+        a[start..].iter().zip(&b[start..]).map(|(x, y)| x * y).sum()
+    };
+    let mut scale = 1.0;
+    let mut gram = None;
     for k in 0..DAMP_OVERFLOW_TRIES {
         if k > 0 {
-            lam_try /= DAMP_SHRINK;
+            scale /= DAMP_SHRINK;
+            tried.push(scale);
         }
-        let trial = S::blend(old, new, lam_try);
-        sm.residuals(&trial, b_old, e);
-        // RSS(mu lam_try) = RSS(0) + 2 mu B + mu^2 C
-        let (mut bs, mut cs) = (0.0, 0.0);
-        for (v, v0) in e[start..].iter().zip(&e0[start..]) {
-            let dv = v - v0;
-            bs += v0 * dv;
-            cs += dv * dv;
+        sm.residuals(&S::combine(old, new, (scale, 0.0)), b_old, e);
+        sm.residuals(&S::combine(old, new, (0.0, scale)), b_old, &mut ec);
+        for ((v, c), v0) in e.iter_mut().zip(ec.iter_mut()).zip(&e0) {
+            *v -= v0;
+            *c -= v0;
         }
-        if bs.is_finite() && cs.is_finite() {
-            quad = Some((bs, cs));
+        let g = [
+            dot(e, e),
+            dot(e, &ec),
+            dot(&ec, &ec),
+            dot(&e0, e),
+            dot(&e0, &ec),
+        ];
+        if g.iter().all(|v| v.is_finite()) {
+            gram = Some(g);
             break;
         }
-        tried.push(lam_try);
     }
     let stop = |e: &mut [f64], b: &mut Vec<f64>, b_resp: &mut Vec<f64>| {
         e.copy_from_slice(&e0);
         restore(b, b_resp);
         None
     };
-    let (bs, cs) = match quad {
-        // a descent direction at b_old (else no lambda > 0 lowers the RSS there)
-        Some((bs, cs)) if bs < 0.0 && cs > 0.0 => (bs, cs),
-        Some(_) => {
-            tried.push(lam_try);
-            return stop(e, b, b_resp);
-        }
-        None => return stop(e, b, b_resp),
+    let Some([a11, a12, a22, g1, g2]) = gram else {
+        return stop(e, b, b_resp);
     };
-    let mut lam = lam_try * (-bs / cs).min(1.0);
+    // the step: of the quadratic's minimisers over the plane and over each direction
+    // alone, the one of largest predicted decrease -(alpha g1 + beta g2) among those
+    // that take a positive share alpha + beta of the f-step (a damped f-step, not a
+    // step away from it), scaled to at most the f-step itself
+    let det = a11 * a22 - a12 * a12;
+    let mut cands = Vec::new();
+    if det > 1e-9 * a11 * a22 {
+        cands.push(((-g1 * a22 + g2 * a12) / det, (g1 * a12 - g2 * a11) / det));
+    }
+    if a11 > 0.0 {
+        cands.push((-g1 / a11, 0.0));
+    }
+    if a22 > 0.0 {
+        cands.push((0.0, -g2 / a22));
+    }
+    let step = cands
+        .into_iter()
+        .map(|(al, be): (f64, f64)| {
+            let big = al.abs().max(be.abs()).max(1.0);
+            (al / big, be / big)
+        })
+        .filter(|(al, be)| al + be > 0.0 && al * g1 + be * g2 < 0.0)
+        .max_by(|x, y| (-(x.0 * g1 + x.1 * g2)).total_cmp(&-(y.0 * g1 + y.1 * g2)));
+    let Some((mut al, mut be)) = step else {
+        return stop(e, b, b_resp);
+    };
     for _ in 0..=DAMP_HALVINGS {
-        tried.push(lam);
-        let f = S::blend(old, new, lam);
+        tried.push(scale * (al + be));
+        let f = S::combine(old, new, (scale * al, scale * be));
         restore(b, b_resp);
         let rss = match sm.b_step(&f, h, (b, b_resp), e, iteration) {
             Some(rss) => rss,
@@ -372,10 +406,12 @@ fn damped_step<S: Smoother>(
                 sm.residuals(&f, b, e)
             }
         };
-        if rss < rss_old {
-            return Some((lam, f, rss));
+        // a decrease beyond the tolerance (a smaller one is what the alternation
+        // calls settled: no better than the iterate)
+        if rss_old - rss > tol * rss_old {
+            return Some(((scale * al, scale * be), f, rss));
         }
-        lam *= 0.5;
+        (al, be) = (al * 0.5, be * 0.5);
     }
     stop(e, b, b_resp)
 }
@@ -474,13 +510,17 @@ pub(super) fn alternate<S: Smoother>(
                 ctl.start,
                 (&coef_old, &b_old, rss),
                 &coef,
+                ctl.tol,
                 h,
                 (&mut b, &mut b_resp),
                 &mut e,
                 iterations,
                 &mut tried,
             ) {
-                Some((l, f, r)) => {
+                Some(((al, be), f, r)) => {
+                    // (the mix's weight of the new smoother: the constant shift of the
+                    // centred direction is left out of the trace, module doc)
+                    let l = al + be;
                     (lam, coef, new_rss) = (l, f, r);
                     for (f, o) in filled.iter_mut().zip(&filled_old) {
                         *f |= *o;
@@ -490,7 +530,7 @@ pub(super) fn alternate<S: Smoother>(
                 None => {
                     // no step lowers the RSS: the alternation stops at its iterate
                     notes.push(format!(
-                        "alternation {iterations}: the f-step at {} {} raised the RSS ({new_rss:.7e} > {rss:.7e}) and no damped step f_old + lambda (f_new - f_old) lowered it (lambda tried: {}): the alternation stops at its iterate {current} (RSS {rss:.7e})",
+                        "alternation {iterations}: the f-step at {} {} raised the RSS ({new_rss:.7e} > {rss:.7e}) and no damped step f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less its mean) lowered it (steps tried, alpha + beta: {}): the alternation stops at its iterate {current} (RSS {rss:.7e})",
                         words.noun,
                         S::fmt_h(h),
                         fmt_lambdas(&tried)
@@ -599,9 +639,9 @@ pub(super) fn alternate<S: Smoother>(
     let (p, q) = (ctl.p, ctl.q);
     if !damped.is_empty() {
         let lo = damped.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = damped.iter().copied().fold(0.0, f64::max);
+        let hi = damped.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         notes.push(format!(
-            "{} f-step(s) raised the RSS and were damped (f = f_old + lambda (f_new - f_old), lambda from the RSS's quadratic in lambda at fixed b: {lo:.3e} to {hi:.3e})",
+            "{} f-step(s) raised the RSS and were damped (f = f_old + alpha D + beta D_c, D = f_new - f_old, D_c = D less its mean, from the RSS's quadratic at fixed b; weight of the new local fits alpha + beta from {lo:.3e} to {hi:.3e}; the trace is the same combination of the smoothers' traces, an approximation)",
             damped.len()
         ));
     }

@@ -302,15 +302,24 @@ impl Smoother for LagSmoother<'_> {
         sm.fit_at(h, &mut self.cache)
     }
 
-    fn blend(old: &GridFit, new: &GridFit, lam: f64) -> GridFit {
+    fn combine(old: &GridFit, new: &GridFit, (al, be): (f64, f64)) -> GridFit {
         let mut out = new.clone();
-        let mix = |o: &[f64], n: &[f64], out: &mut [f64]| {
-            for ((v, o), n) in out.iter_mut().zip(o).zip(n) {
-                *v = o + lam * (n - o);
+        let p = old.p;
+        let g = old.f.len() / p.max(1);
+        for m in 0..p {
+            // the mean of D_m over the grid points
+            let mean = (0..g)
+                .map(|k| new.f[k * p + m] - old.f[k * p + m])
+                .sum::<f64>()
+                / g as f64;
+            for k in 0..g {
+                let (o, d) = (old.f[k * p + m], new.f[k * p + m] - old.f[k * p + m]);
+                out.f[k * p + m] = o + al * d + be * (d - mean);
             }
-        };
-        mix(&old.f, &new.f, &mut out.f);
-        mix(&old.slope, &new.slope, &mut out.slope);
+        }
+        for ((v, o), n) in out.slope.iter_mut().zip(&old.slope).zip(&new.slope) {
+            *v = o + (al + be) * (n - o);
+        }
         out
     }
 

@@ -140,16 +140,27 @@ impl Smoother for Index2Smoother<'_> {
         fit_grid2(&step.prob, self.index, self.grid, h)
     }
 
-    fn blend(old: &Grid2Fit, new: &Grid2Fit, lam: f64) -> Grid2Fit {
+    fn combine(old: &Grid2Fit, new: &Grid2Fit, (al, be): (f64, f64)) -> Grid2Fit {
         let mut out = new.clone();
-        let mix = |o: &[f64], n: &[f64], out: &mut [f64]| {
-            for ((v, o), n) in out.iter_mut().zip(o).zip(n) {
-                *v = o + lam * (n - o);
+        let p = old.p;
+        let g = old.f.len() / p.max(1);
+        for m in 0..p {
+            // the mean of D_m over the grid points
+            let mean = (0..g)
+                .map(|k| new.f[k * p + m] - old.f[k * p + m])
+                .sum::<f64>()
+                / g as f64;
+            for k in 0..g {
+                let (o, d) = (old.f[k * p + m], new.f[k * p + m] - old.f[k * p + m]);
+                out.f[k * p + m] = o + al * d + be * (d - mean);
             }
-        };
-        mix(&old.f, &new.f, &mut out.f);
-        mix(&old.slope1, &new.slope1, &mut out.slope1);
-        mix(&old.slope2, &new.slope2, &mut out.slope2);
+        }
+        for ((v, o), n) in out.slope1.iter_mut().zip(&old.slope1).zip(&new.slope1) {
+            *v = o + (al + be) * (n - o);
+        }
+        for ((v, o), n) in out.slope2.iter_mut().zip(&old.slope2).zip(&new.slope2) {
+            *v = o + (al + be) * (n - o);
+        }
         out
     }
 
