@@ -232,6 +232,11 @@ impl Report<'_> {
         of_fit!(self, ladder_extended, false)
     }
 
+    /// Why a fit returned its linear start (None for a local fit and for an update).
+    pub fn returned_start_reason(&self) -> Option<StartReason> {
+        of_fit!(self, returned_start_reason, None)
+    }
+
     /// How it started: `arma` or `literal` for a fit, `state` for an update.
     pub fn init_name(&self) -> &'static str {
         match self {

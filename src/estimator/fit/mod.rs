@@ -501,6 +501,7 @@ pub(super) fn alternate<S: Smoother>(
             }
         };
         let mut lam = 1.0;
+        let mut stalled = false;
         if went_back(new_rss, rss, ctl.tol) {
             // the f-step raised the RSS (beyond the tolerance) or overflowed: the
             // damped step towards the iterate (module doc)
@@ -528,23 +529,35 @@ pub(super) fn alternate<S: Smoother>(
                     damped.push(l);
                 }
                 None => {
-                    // no step lowers the RSS: the alternation stops at its iterate
+                    // no step lowers the RSS: the alternation stays at its iterate
+                    // (b_resp is b_old again, e its residuals)
+                    (coef, b, filled) = (coef_old, b_old, filled_old);
+                    let at_new_h = h != iter_h;
                     notes.push(format!(
-                        "alternation {iterations}: the f-step at {} {} raised the RSS ({new_rss:.7e} > {rss:.7e}) and no damped step f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less its mean) lowered it (steps tried, alpha + beta: {}): the alternation stops at its iterate {current} (RSS {rss:.7e})",
+                        "alternation {iterations}: the f-step at {} {} raised the RSS ({new_rss:.7e} > {rss:.7e}) and no damped step f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less its mean) lowered it (steps tried, alpha + beta: {}): the alternation stays at its iterate {current} (RSS {rss:.7e}){}",
                         words.noun,
                         S::fmt_h(h),
-                        fmt_lambdas(&tried)
+                        fmt_lambdas(&tried),
+                        if at_new_h {
+                            " and stops"
+                        } else {
+                            ", as if it had settled there"
+                        }
                     ));
-                    (coef, b, filled) = (coef_old, b_old, filled_old);
-                    at.residuals_s = lap();
-                    timings.push(at);
-                    ended = Ended::Stalled;
-                    break;
+                    if at_new_h {
+                        // the bandwidth GCV chose at these very residuals: a re-check
+                        // would choose it again
+                        at.residuals_s = lap();
+                        timings.push(at);
+                        ended = Ended::Stalled;
+                        break;
+                    }
+                    stalled = true;
                 }
             }
         }
         at.residuals_s = lap();
-        if !new_rss.is_finite() {
+        if !stalled && !new_rss.is_finite() {
             // (the damped step gives a finite RSS or none: not reached from it) the
             // iterate of least RSS is returned below (`went_back`), not converged
             notes.push(format!(
@@ -556,35 +569,39 @@ pub(super) fn alternate<S: Smoother>(
             ended = Ended::NotFinite;
             break;
         }
-        let change = (rss - new_rss).abs();
-        rss = new_rss;
-        rss_history.push(rss);
-        current = rss_history.len() - 1;
-        iter_h = h;
-        mix = if lam == 1.0 {
-            vec![(1.0, Some(h))]
-        } else {
-            mixed(&mix, h, lam)
-        };
-        if rss < best.rss {
-            best = Iterate {
-                index: current,
-                rss,
-                coef: coef.clone(),
-                b: b.clone(),
-                h,
-                filled: filled.clone(),
-                mix: mix.clone(),
+        // a stall at the iterate's own bandwidth counts as settled there: GCV re-checks
+        // the bandwidth at its residuals (module doc)
+        let settled = stalled || {
+            let change = (rss - new_rss).abs();
+            rss = new_rss;
+            rss_history.push(rss);
+            current = rss_history.len() - 1;
+            iter_h = h;
+            mix = if lam == 1.0 {
+                vec![(1.0, Some(h))]
+            } else {
+                mixed(&mix, h, lam)
             };
-        }
-        // settled: the RSS changed by less than tol, or the least RSS so far was not
-        // beaten for PATIENCE alternations while the last is above it by more than tol
-        // (the iterate of least RSS is then returned, see below)
-        // (counted from the last bandwidth re-selection, if later: a new h gets its own
-        // PATIENCE alternations)
-        let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
-        let settled = change <= ctl.tol * rss.max(f64::MIN_POSITIVE)
-            || (since_best >= PATIENCE && rss - best.rss > ctl.tol * rss);
+            if rss < best.rss {
+                best = Iterate {
+                    index: current,
+                    rss,
+                    coef: coef.clone(),
+                    b: b.clone(),
+                    h,
+                    filled: filled.clone(),
+                    mix: mix.clone(),
+                };
+            }
+            // settled: the RSS changed by less than tol, or the least RSS so far was not
+            // beaten for PATIENCE alternations while the last is above it by more than tol
+            // (the iterate of least RSS is then returned, see below)
+            // (counted from the last bandwidth re-selection, if later: a new h gets its own
+            // PATIENCE alternations)
+            let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
+            change <= ctl.tol * rss.max(f64::MIN_POSITIVE)
+                || (since_best >= PATIENCE && rss - best.rss > ctl.tol * rss)
+        };
         if settled {
             if ctl.bandwidth.is_none() && reselections < 2 {
                 // re-check the bandwidth at the converged residuals
@@ -630,7 +647,11 @@ pub(super) fn alternate<S: Smoother>(
                 }
                 timings.push(at.clone());
             }
-            ended = Ended::Settled;
+            ended = if stalled {
+                Ended::Stalled
+            } else {
+                Ended::Settled
+            };
             break;
         }
         timings.push(at);
