@@ -29,16 +29,59 @@
 //!    than `tol` relative (default 1e-6), or the least RSS so far has not been beaten
 //!    for [`PATIENCE`] alternations and the last RSS is above it by more than `tol`.
 //!    sigma^2 = RSS / (N - max(p,q,d)).
+//! 5. the guard (issue 25): when the iterate of steps 2-4 has an RSS above the one it
+//!    started from by more than `tol` relative (or not finite), it is not taken. Near
+//!    the MA unit root (b_1 = -0.9996 on the ADIS16405 gyros, what differencing gives)
+//!    the recursion e_t = w_t - b e_(t-1) integrates every error of the f-step over
+//!    thousands of samples, and an f-step computed with e held fixed can raise the
+//!    true RSS by fourteen orders of magnitude (2.3e19 from 1.2e5). The damped step
+//!    (`damped_step`) goes back towards the iterate: with b held at the iterate's,
+//!    the residuals are affine in f, so over the plane f_old + alpha D + beta D_c
+//!    (D = f_new - f_old; D_c = D less its mean over the grid points, per m) the RSS
+//!    is a quadratic in (alpha, beta), known exactly from three residual passes
+//!    (f_old, and each direction, shrunk 1000-fold while it overflows). Its minimiser
+//!    (over the plane or over one direction; the one of largest predicted decrease that
+//!    keeps a positive share alpha + beta of the f-step, at most the f-step itself) is
+//!    the step; the b-step then runs from the iterate's b, and the step is taken when
+//!    the RSS falls by more than `tol` relative, else halved ([`DAMP_HALVINGS`] times).
+//!    The centred direction matters at the linear start: that is the least-squares
+//!    ARMA, so a constant shift of f is no descent there, while the shape of f may be.
+//!    When no step is taken the alternation stays at its iterate: at the bandwidth
+//!    that iterate was fitted at this counts as settled (GCV re-checks the bandwidth
+//!    at its residuals, and the alternation goes on at another one it chooses); at a
+//!    bandwidth GCV has just chosen at these very residuals (the first f-step, or the
+//!    one after a re-selection) the alternation stops there (`Ended::Stalled`,
+//!    converged). The cost is paid only when the guard acts: two N-long buffers and
+//!    three to seven passes over the series. A fit that never leaves its start
+//!    returns it with [`StartReason::NoDescent`] and a note saying so.
 //!
-//! The alternation is not a descent method (the f-step holds the residuals fixed): on
-//! the FARMA(2,1,1) of the tests its RSS falls by 1.6 % in the first step, then moves
-//! by about 1e-6 relative, in a slowly damped two-cycle, while b changes in the fifth
-//! digit; on the benchmark's 1e6 samples it is least at the third alternation and then
-//! rises slowly towards a fixed point 1.2e-5 above. `rss_history` records every step.
+//! Degrees of freedom of a damped iterate: f = (1 - lambda) f_old + lambda S_h y plus
+//! a constant shift, lambda = alpha + beta; the trace reported is (1 - lambda)
+//! tr_old + lambda tr(S_h), tr of the linear start p, applied recursively (the
+//! iterate's `Mix`: the weight of each bandwidth's smoother, and of the linear start,
+//! in its f). An approximation: f_old was fitted to other residuals than S_h's y (the
+//! trace of a combination of smoothers of one response is the combination of their
+//! traces; here the responses differ by the residuals the alternation moved), and the
+//! constant shift -beta mean(D) is counted with the smoothers it came from (its own
+//! trace, the projection of each smoother on constants, is about p for either, so the
+//! two cancel). The standard-error factors are combined with the same weights (by the
+//! triangle inequality an upper bound on the standard error of the combination when
+//! the two are computed from one response). The model's bandwidth is the last f-step's.
+//!
+//! Without the guard the alternation is not a descent method (the f-step holds the
+//! residuals fixed): on the FARMA(2,1,1) of the tests its RSS falls by 1.6 % in the
+//! first step, then moves by about 1e-6 relative, in a slowly damped two-cycle, while
+//! b changes in the fifth digit; on the benchmark's 1e6 samples it is least at the
+//! third alternation and then rises slowly towards a fixed point 1.2e-5 above. Rises
+//! within `tol` per alternation are still taken (the guard leaves them to the rules
+//! below, so those fits are unchanged); a larger one is damped (step 5).
+//! `rss_history` records every iterate taken.
 //! The iterate of least global RSS (the linear start included) is returned when the
 //! last one ends above it by more than `tol` relative, with a note: the fit never ends
-//! more than `tol` above the linear ARMA it nests. Residuals that are not finite stop
-//! the alternation (`converged` false) and the iterate of least RSS is returned. A returned linear start reports the
+//! more than `tol` above the linear ARMA it nests (with [`StartReason::EndedAbove`]
+//! when that is the start). Residuals that are not finite are damped (step 5); were a
+//! step to leave them non-finite it would stop the alternation (`converged` false)
+//! and the iterate of least RSS would be returned. A returned linear start reports the
 //! linear model's degrees of freedom, trace = p, its GCV from them and the
 //! least-squares standard errors of its constant coefficients (the bandwidth field
 //! keeps the one GCV last chose, which that model does not use). Alternating on past
