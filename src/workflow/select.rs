@@ -248,7 +248,13 @@ pub fn nested_tests(rows: &[OrderRow]) -> (Vec<FTest>, Vec<Untested>) {
     let (mut ftests, mut untested) = (Vec::new(), Vec::new());
     let start_words = |r: &OrderRow| {
         r.returned_start_reason
-            .map(|w| format!("; {} returned its linear start: {}", order_name(r.order), w.words()))
+            .map(|w| {
+                format!(
+                    "; {} returned its linear start: {}",
+                    order_name(r.order),
+                    w.words()
+                )
+            })
             .unwrap_or_default()
     };
     // t: the test (F, df1, df2, p), None for a pair untested whatever its df
@@ -288,7 +294,10 @@ pub fn nested_tests(rows: &[OrderRow]) -> (Vec<FTest>, Vec<Untested>) {
                         start_words(b)
                     )
                 } else {
-                    format!("{large} leaves no residual degrees of freedom (m - df = {:.2})", t.2)
+                    format!(
+                        "{large} leaves no residual degrees of freedom (m - df = {:.2})",
+                        t.2
+                    )
                 };
                 pair(small, large, Some(t), why);
             }
@@ -312,7 +321,10 @@ pub fn nested_tests(rows: &[OrderRow]) -> (Vec<FTest>, Vec<Untested>) {
                 p + q
             )
         } else {
-            format!("{large} leaves no residual degrees of freedom (m - df = {:.2})", t.2)
+            format!(
+                "{large} leaves no residual degrees of freedom (m - df = {:.2})",
+                t.2
+            )
         };
         pair(small, large, Some(t), why);
     }

@@ -416,9 +416,9 @@ fn fit_never_ends_above_its_linear_start() {
     // the returned model is not worse than the linear ARMA it nests
     assert!(m.1.rss <= rss0 * (1.0 + prm.tol), "{} > {rss0}", m.1.rss);
     assert!(
-        m.1.notes
-            .iter()
-            .any(|s| s.contains("no local fit at any tried step lowered the RSS below the linear ARMA(1,1) start")),
+        m.1.notes.iter().any(|s| s.contains(
+            "no local fit at any tried step lowered the RSS below the linear ARMA(1,1) start"
+        )),
         "{:?}",
         m.1.notes
     );

@@ -46,7 +46,11 @@ fn near_the_unit_root_the_fit_descends_to_a_local_fit_below_its_start() {
     let prm = params(1, 1, 1);
     let (m, r) = fit(&x, &prm.validate(x.len()).unwrap()).unwrap();
     let start = r.rss_history[0];
-    let highest = r.rss_history.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let highest = r
+        .rss_history
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     assert!(
         r.rss_history.iter().all(|v| v.is_finite()),
         "{:?}",
@@ -61,7 +65,12 @@ fn near_the_unit_root_the_fit_descends_to_a_local_fit_below_its_start() {
     );
     assert!(!r.linear_start, "{:?}", r.notes);
     assert_eq!(r.returned_start_reason, None);
-    assert!(r.rss < start * (1.0 - 1e-3), "{} vs {start}: {:?}", r.rss, r.notes);
+    assert!(
+        r.rss < start * (1.0 - 1e-3),
+        "{} vs {start}: {:?}",
+        r.rss,
+        r.notes
+    );
     assert!(r.residuals.iter().all(|v| v.is_finite()));
     assert!(m.coef.f.iter().all(|v| v.is_finite()));
     assert!(r.trace.is_finite() && r.trace > 1.0, "{}", r.trace);
@@ -92,7 +101,10 @@ fn near_the_unit_root_every_f_test_has_positive_degrees_of_freedom() {
     for r in &sel.rows {
         let arma = format!("ARMA({},{})", r.order.0, r.order.1);
         let large = farma::workflow::select::order_name(r.order);
-        let tested = sel.ftests.iter().any(|t| t.small == arma && t.large == large);
+        let tested = sel
+            .ftests
+            .iter()
+            .any(|t| t.small == arma && t.large == large);
         let untested = sel
             .untested
             .iter()
@@ -109,5 +121,8 @@ fn near_the_unit_root_every_f_test_has_positive_degrees_of_freedom() {
         .flat_map(|a| sel.rows.iter().map(move |b| (a.order, b.order)))
         .filter(|(o0, o1)| o0 != o1 && o0.2 == o1.2 && o0.0 <= o1.0 && o0.1 <= o1.1)
         .count();
-    assert_eq!(sel.ftests.len() + sel.untested.len(), nested + sel.rows.len());
+    assert_eq!(
+        sel.ftests.len() + sel.untested.len(),
+        nested + sel.rows.len()
+    );
 }

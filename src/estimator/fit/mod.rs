@@ -1012,7 +1012,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     let (trace, factors) = if returned_start {
         part(None)
     } else {
-        mix_parts(&mix, |h| part(h))
+        mix_parts(&mix, part)
     };
     let trace = trace.unwrap_or(f64::NAN);
     if trace.is_nan() {

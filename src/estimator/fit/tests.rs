@@ -499,20 +499,33 @@ fn a_2d_fit_damps_a_step_to_non_finite_residuals_and_goes_on() {
     assert!(r.converged, "{:?}", r.notes);
     assert!(r.iterations >= 2, "{}", r.iterations);
     assert!(
-        r.notes.iter().any(|s| s.starts_with("alternation 2: the f-step")
-            && s.contains("raised the RSS (NaN >"))
-            || r.notes.iter().any(|s| s.contains("f-step(s) raised the RSS and were damped")),
+        r.notes
+            .iter()
+            .any(|s| s.starts_with("alternation 2: the f-step")
+                && s.contains("raised the RSS (NaN >"))
+            || r.notes
+                .iter()
+                .any(|s| s.contains("f-step(s) raised the RSS and were damped")),
         "{:?}",
         r.notes
     );
-    assert!(r.rss_history.iter().all(|v| v.is_finite()), "{:?}", r.rss_history);
+    assert!(
+        r.rss_history.iter().all(|v| v.is_finite()),
+        "{:?}",
+        r.rss_history
+    );
     for w in r.rss_history.windows(2) {
         assert!(w[1] - w[0] <= 1e-6 * w[1], "{:?}", r.rss_history);
     }
     assert!(r.rss.is_finite() && r.residuals.iter().all(|v| v.is_finite()));
     assert!(m.coef.f.iter().all(|v| v.is_finite()));
     // no worse than the fit of one alternation
-    assert!(r.rss <= one.1.rss * (1.0 + 1e-6), "{} vs {}", r.rss, one.1.rss);
+    assert!(
+        r.rss <= one.1.rss * (1.0 + 1e-6),
+        "{} vs {}",
+        r.rss,
+        one.1.rss
+    );
     let pp = 1;
     let rss: f64 = r.residuals[pp..].iter().map(|v| v * v).sum();
     assert_eq!(rss.to_bits(), r.rss.to_bits());
