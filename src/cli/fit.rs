@@ -298,6 +298,10 @@ fn run_index2(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 "grid": [m.coef.grid.len(), second.grid.len()],
                 "notes": r.notes,
             });
+            let mut v = v;
+            if let Some(w) = r.returned_start_reason {
+                v["returned_start_reason"] = w.as_str().into();
+            }
             outln!("{v}");
         }
     }

@@ -31,9 +31,12 @@ pub fn select_json(name: &str, s: &Selection, c: Option<&Constancy>) -> serde_js
             "arma_sigma2": r.arma_sigma2, "arma_aicc": r.arma_aicc,
             "arma_ar": r.arma_ar, "arma_ma": r.arma_ma,
             "f_vs_arma": r.f_vs_arma, "p_vs_arma": r.p_vs_arma,
+            "returned_start_reason": r.returned_start_reason.map(|w| w.as_str()),
         })).collect::<Vec<_>>(),
         "ftests": s.ftests.iter().map(|t| json!({"small": t.small, "large": t.large,
             "f": t.f, "df1": t.df1, "df2": t.df2, "p_value": t.p_value})).collect::<Vec<_>>(),
+        "untested": s.untested.iter().map(|t| json!({"small": t.small, "large": t.large,
+            "reason": t.reason})).collect::<Vec<_>>(),
         "constancy_method": c.map(|c| c.method),
         "constancy_p": c.map(|c| c.p_value),
         "constancy_statistic": c.map(|c| c.statistic),
@@ -65,7 +68,13 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
             r.arma_aicc,
             r.f_vs_arma,
             r.p_vs_arma,
-            if k == s.selected { "  <- selected" } else { "" }
+            if k == s.selected {
+                "  <- selected"
+            } else if r.returned_start_reason.is_some() {
+                "  (linear start)"
+            } else {
+                ""
+            }
         );
     }
     o += "F-tests between nested models (effective degrees of freedom):\n";
@@ -74,6 +83,21 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
             "  {:<14} in {:<15} F = {:>9.3} on ({:.2}, {:.1}) df, p = {:.3e}\n",
             t.small, t.large, t.f, t.df1, t.df2, t.p_value
         );
+    }
+    if !s.untested.is_empty() {
+        o += "not tested (the test is not defined):\n";
+        for t in &s.untested {
+            o += &format!("  {:<14} in {:<15} {}\n", t.small, t.large, t.reason);
+        }
+    }
+    for r in s.rows.iter() {
+        if let Some(w) = r.returned_start_reason {
+            o += &format!(
+                "{} returned its linear start: {}\n",
+                order_name(r.order),
+                w.words()
+            );
+        }
     }
     if let Some(c) = c {
         let how = if c.method == "bootstrap" {
@@ -230,6 +254,7 @@ mod tests {
         let s = Selection {
             rows: vec![],
             ftests: vec![],
+            untested: vec![],
             selected: 0,
             reason: "none".into(),
             fits: vec![],

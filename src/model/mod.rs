@@ -32,7 +32,7 @@ pub mod state;
 
 pub use coef::{Coef, SecondIndex};
 pub use order::Order;
-pub use report::{FitReport, Report, UpdateReport};
+pub use report::{FitReport, Report, StartReason, UpdateReport};
 pub use state::ChannelState;
 
 /// A fitted FARMA(p,q,d) model of one channel on the lag index x_{t-d} or on a 2-D

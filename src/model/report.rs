@@ -102,11 +102,47 @@ pub struct FitReport<L = GridFit> {
     /// Whether the fit returned its linear ARMA start (the alternation ended above it:
     /// constant f_m, no local systems); `farma update` has no local fits to continue.
     pub linear_start: bool,
+    /// Why the linear start was returned (Some exactly when `linear_start`), for the
+    /// order table to count; the notes say it in words.
+    pub returned_start_reason: Option<StartReason>,
     /// Messages for the user (ladder extensions, filled points).
     pub notes: Vec<String>,
     /// Where the time went (the lag index's fit; zeros on a 2-D index, whose fit
     /// does not time its steps).
     pub timings: FitTimings,
+}
+
+/// Why a fit returned its linear ARMA start (module doc of `estimator::fit`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartReason {
+    /// No local fit lowered the RSS below the start's: the first f-step, damped down
+    /// to the smallest step tried, did not (the alternation stalled there).
+    NoDescent,
+    /// The alternation moved off the start but ended above it by more than the
+    /// tolerance, and no iterate in between was below it.
+    EndedAbove,
+}
+
+impl StartReason {
+    /// The machine-readable name (JSON, tables).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StartReason::NoDescent => "no_descent",
+            StartReason::EndedAbove => "ended_above",
+        }
+    }
+
+    /// In words.
+    pub fn words(self) -> &'static str {
+        match self {
+            StartReason::NoDescent => {
+                "no local fit at any tried step lowered the RSS below the linear start's"
+            }
+            StartReason::EndedAbove => {
+                "the alternation ended above the linear start and no iterate on the way was below it"
+            }
+        }
+    }
 }
 
 /// The report of a fit on a 2-D index.
@@ -194,6 +230,11 @@ impl Report<'_> {
 
     pub fn ladder_extended(&self) -> bool {
         of_fit!(self, ladder_extended, false)
+    }
+
+    /// Why a fit returned its linear start (None for a local fit and for an update).
+    pub fn returned_start_reason(&self) -> Option<StartReason> {
+        of_fit!(self, returned_start_reason, None)
     }
 
     /// How it started: `arma` or `literal` for a fit, `state` for an update.

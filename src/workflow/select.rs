@@ -19,13 +19,23 @@
 //! model 1, F = ((RSS_0 - RSS_1) / (df_1 - df_0)) / (RSS_1 / (m - df_1)) against
 //! F(df_1 - df_0, m - df_1). Nested: the same d, p_0 <= p_1, q_0 <= q_1; and every
 //! ARMA(p,q) inside its FARMA(p,q,d).
+//!
+//! A pair is tested only where the test is defined: df_1 > df_0, m > df_1 and both RSS
+//! finite. Effective degrees of freedom need not grow with the order (a FARMA fit
+//! that returned its linear start has df = p + q, fewer than a smaller order's local
+//! fit), so a nested pair can have df_1 <= df_0: such a pair is left out of
+//! [`Selection::ftests`] (and ftests.parquet) and listed in [`Selection::untested`]
+//! with the reason in words. An ARMA(p,q) inside a FARMA(p,q,d) that returned its
+//! linear start is untested: that FARMA is the ARMA. Every F-test then has positive,
+//! finite degrees of freedom (before this rule such pairs were printed with a negative
+//! or zero df1 and F = NaN).
 
 
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
 use crate::estimator::fit::{linear_start, residuals};
 use crate::estimator::{FarmaParams, fit};
-use crate::model::{Farma, FitReport};
+use crate::model::{Farma, FitReport, StartReason};
 use crate::stats::special::f_sf;
 
 /// The paper's eight orders.
@@ -62,9 +72,12 @@ pub struct OrderRow {
     pub arma_aicc: f64,
     pub arma_ar: Vec<f64>,
     pub arma_ma: Vec<f64>,
-    /// F-test of ARMA(p,q) inside FARMA(p,q,d).
+    /// F-test of ARMA(p,q) inside FARMA(p,q,d) (NaN when untested: see
+    /// [`Selection::untested`]).
     pub f_vs_arma: f64,
     pub p_vs_arma: f64,
+    /// Why the FARMA fit returned its linear start (None: it returned a local fit).
+    pub returned_start_reason: Option<StartReason>,
 }
 
 /// An F-test between nested models.
@@ -79,11 +92,23 @@ pub struct FTest {
     pub p_value: f64,
 }
 
+/// A nested pair that is not F-tested (module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Untested {
+    pub small: String,
+    pub large: String,
+    /// Why, in words.
+    pub reason: String,
+}
+
 /// The result of order selection.
 #[derive(Clone, Debug)]
 pub struct Selection {
     pub rows: Vec<OrderRow>,
+    /// The F-tests that are defined (positive, finite degrees of freedom).
     pub ftests: Vec<FTest>,
+    /// Nested pairs left out of `ftests`, with the reason (module doc).
+    pub untested: Vec<Untested>,
     /// Index of the selected row.
     pub selected: usize,
     /// Why it was selected, in words.
@@ -182,6 +207,7 @@ pub fn select(
                     arma_ma,
                     f_vs_arma: f,
                     p_vs_arma: pv,
+                    returned_start_reason: r.returned_start_reason,
                 },
                 (m, r),
             ))
@@ -189,35 +215,7 @@ pub fn select(
         .into_iter()
         .collect::<Result<_>>()?;
     let (rows, mut fits): (Vec<OrderRow>, Vec<(Farma, FitReport)>) = results.into_iter().unzip();
-    let mut ftests = Vec::new();
-    for a in &rows {
-        for b in &rows {
-            let (o0, o1) = (a.order, b.order);
-            if o0 != o1 && o0.2 == o1.2 && o0.0 <= o1.0 && o0.1 <= o1.1 {
-                let rw = a.m.min(b.m);
-                let (f, d1, d2, pv) = f_test(a.rss, a.df, b.rss, b.df, rw);
-                ftests.push(FTest {
-                    small: order_name(o0),
-                    large: order_name(o1),
-                    f,
-                    df1: d1,
-                    df2: d2,
-                    p_value: pv,
-                });
-            }
-        }
-    }
-    for r in &rows {
-        let (f, d1, d2, pv) = f_test(r.arma_rss, (r.order.0 + r.order.1) as f64, r.rss, r.df, r.m);
-        ftests.push(FTest {
-            small: format!("ARMA({},{})", r.order.0, r.order.1),
-            large: order_name(r.order),
-            f,
-            df1: d1,
-            df2: d2,
-            p_value: pv,
-        });
-    }
+    let (ftests, untested) = nested_tests(&rows);
     let selected = rows
         .iter()
         .enumerate()
@@ -238,10 +236,100 @@ pub fn select(
     Ok(Selection {
         rows,
         ftests,
+        untested,
         selected,
         reason,
         fits,
     })
+}
+
+/// The F-tests of every nested pair of `rows` where defined, and the pairs left
+/// untested with the reason (module doc).
+pub fn nested_tests(rows: &[OrderRow]) -> (Vec<FTest>, Vec<Untested>) {
+    let (mut ftests, mut untested) = (Vec::new(), Vec::new());
+    let start_words = |r: &OrderRow| {
+        r.returned_start_reason
+            .map(|w| {
+                format!(
+                    "; {} returned its linear start: {}",
+                    order_name(r.order),
+                    w.words()
+                )
+            })
+            .unwrap_or_default()
+    };
+    // t: the test (F, df1, df2, p), None for a pair untested whatever its df
+    let mut pair = |small: String, large: String, t: Option<(f64, f64, f64, f64)>, why: String| {
+        let (f, d1, d2, pv) = t.unwrap_or((f64::NAN, f64::NAN, f64::NAN, f64::NAN));
+        if d1 > 0.0 && d2 > 0.0 && d1.is_finite() && d2.is_finite() && !f.is_nan() {
+            ftests.push(FTest {
+                small,
+                large,
+                f,
+                df1: d1,
+                df2: d2,
+                p_value: pv,
+            });
+        } else {
+            untested.push(Untested {
+                small,
+                large,
+                reason: why,
+            });
+        }
+    };
+    for a in rows {
+        for b in rows {
+            let (o0, o1) = (a.order, b.order);
+            if o0 != o1 && o0.2 == o1.2 && o0.0 <= o1.0 && o0.1 <= o1.1 {
+                let rw = a.m.min(b.m);
+                let (small, large) = (order_name(o0), order_name(o1));
+                let t = f_test(a.rss, a.df, b.rss, b.df, rw);
+                let why = if !(a.rss.is_finite() && b.rss.is_finite()) {
+                    "an RSS is not finite".to_string()
+                } else if b.df <= a.df {
+                    format!(
+                        "{large} has no more effective degrees of freedom than {small} ({:.2} <= {:.2}){}",
+                        b.df,
+                        a.df,
+                        start_words(b)
+                    )
+                } else {
+                    format!(
+                        "{large} leaves no residual degrees of freedom (m - df = {:.2})",
+                        t.2
+                    )
+                };
+                pair(small, large, Some(t), why);
+            }
+        }
+    }
+    for r in rows {
+        let (p, q) = (r.order.0, r.order.1);
+        let (small, large) = (format!("ARMA({p},{q})"), order_name(r.order));
+        if r.returned_start_reason.is_some() {
+            let why = format!("{large} returned its linear start: it is the {small}");
+            pair(small, large, None, why);
+            continue;
+        }
+        let t = f_test(r.arma_rss, (p + q) as f64, r.rss, r.df, r.m);
+        let why = if !(r.arma_rss.is_finite() && r.rss.is_finite()) {
+            "an RSS is not finite".to_string()
+        } else if r.df <= (p + q) as f64 {
+            format!(
+                "{large} has no more effective degrees of freedom than {small} ({:.2} <= {})",
+                r.df,
+                p + q
+            )
+        } else {
+            format!(
+                "{large} leaves no residual degrees of freedom (m - df = {:.2})",
+                t.2
+            )
+        };
+        pair(small, large, Some(t), why);
+    }
+    (ftests, untested)
 }
 
 fn explain(rows: &[OrderRow], ftests: &[FTest], sel: usize) -> String {
@@ -271,9 +359,19 @@ fn explain(rows: &[OrderRow], ftests: &[FTest], sel: usize) -> String {
             t.large, t.f, t.p_value
         );
     }
-    s += &format!(
-        "; against the linear ARMA({},{}): RSS {:.6e} vs {:.6e}, F = {:.3}, p = {:.3e}",
-        r.order.0, r.order.1, r.rss, r.arma_rss, r.f_vs_arma, r.p_vs_arma
-    );
+    if let Some(w) = r.returned_start_reason {
+        s += &format!(
+            "; it returned its linear start ({}): it is the linear ARMA({},{}), RSS {:.6e}",
+            w.words(),
+            r.order.0,
+            r.order.1,
+            r.rss
+        );
+    } else {
+        s += &format!(
+            "; against the linear ARMA({},{}): RSS {:.6e} vs {:.6e}, F = {:.3}, p = {:.3e}",
+            r.order.0, r.order.1, r.rss, r.arma_rss, r.f_vs_arma, r.p_vs_arma
+        );
+    }
     s
 }

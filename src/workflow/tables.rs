@@ -156,7 +156,9 @@ pub fn write_prepared_store(
 }
 
 /// select.parquet: channel, p, q, d, m, rss, sigma2, trace, df, gcv, aicc, bandwidth,
-/// converged, arma_rss, arma_sigma2, arma_aicc, f_vs_arma, p_vs_arma, selected.
+/// converged, arma_rss, arma_sigma2, arma_aicc, f_vs_arma, p_vs_arma, selected,
+/// returned_start_reason (null for a local fit; `no_descent` or `ended_above` when the
+/// fit returned its linear start, [`crate::model::StartReason`]).
 pub fn select_table(sels: &[(String, &super::select::Selection)]) -> Result<RecordBatch> {
     let mut ch = vec![];
     let (mut p, mut q, mut d, mut m) = (vec![], vec![], vec![], vec![]);
@@ -164,6 +166,7 @@ pub fn select_table(sels: &[(String, &super::select::Selection)]) -> Result<Reco
         (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
     let (mut conv, mut arss, mut as2, mut aaicc, mut fv, mut pv, mut sel) =
         (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+    let mut why: Vec<Option<&'static str>> = vec![];
     for (name, s) in sels {
         for (k, r) in s.rows.iter().enumerate() {
             ch.push(name.clone());
@@ -185,6 +188,7 @@ pub fn select_table(sels: &[(String, &super::select::Selection)]) -> Result<Reco
             fv.push(r.f_vs_arma);
             pv.push(r.p_vs_arma);
             sel.push(k == s.selected);
+            why.push(r.returned_start_reason.map(|w| w.as_str()));
         }
     }
     batch(vec![
@@ -207,10 +211,17 @@ pub fn select_table(sels: &[(String, &super::select::Selection)]) -> Result<Reco
         ("f_vs_arma", f(fv)),
         ("p_vs_arma", f(pv)),
         ("selected", Arc::new(arrow_array::BooleanArray::from(sel))),
+        (
+            "returned_start_reason",
+            Arc::new(arrow_array::StringArray::from(why)),
+        ),
     ])
 }
 
-/// ftests.parquet: channel, small, large, f, df1, df2, p_value.
+/// ftests.parquet: channel, small, large, f, df1, df2, p_value: the F-tests that are
+/// defined; the nested pairs left untested (`Selection::untested`: df_1 <= df_0, or
+/// the FARMA returned its linear start) are not written here (the `--json` output
+/// and the text list them with the reason).
 pub fn ftest_table(sels: &[(String, &super::select::Selection)]) -> Result<RecordBatch> {
     let (mut ch, mut a, mut b, mut fv, mut d1, mut d2, mut pv) =
         (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);

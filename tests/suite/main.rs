@@ -24,6 +24,7 @@ mod psd_acf;
 mod simulate;
 mod spec;
 mod store_checksums;
+mod unit_root;
 mod update_cli;
 mod workflow_cli;
 mod workflow_golden;

@@ -65,6 +65,19 @@ fn fit_state(d: &Path, old: &Path, order: &str, grid: &str) -> PathBuf {
     model
 }
 
+/// [`fit_state`] at order 1,1,1 on a 21-point grid, with gyro_x's state marked as
+/// that of a fit that returned its linear ARMA start (the column `linear_start`, what
+/// `update` reads). Before the damped f-step (issue 25) this fit of gyro_x returned its
+/// linear start by itself (the alternation ended above it); it now returns a local fit
+/// below the start, and no fit of this slice at the orders of these tests returns one.
+fn fit_linear_start_state(d: &Path, old: &Path) -> PathBuf {
+    use farma::model::folder::state_file::read_state;
+    let model = fit_state(d, old, "1,1,1", "21");
+    let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
+    states[0].linear_start = true;
+    write_edited_state(&model, &states, &md, same)
+}
+
 /// Writes `states` to `dir`/state.parquet (the folder made) with the metadata `md` of
 /// a state read back (less its format version, which `write_state` adds), each value
 /// passed through `edit_md(key, value)`: an edited model folder. Returns `dir`.
@@ -258,7 +271,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (old, new) = old_and_new(d);
-    let model = fit_state(d, &old, "1,1,1", "21");
+    let model = fit_linear_start_state(d, &old);
     // the state with a NaN mean for gyro_x
     let (mut states, md) = read_state(&model.join("state.parquet")).unwrap();
     states[0].mean = f64::NAN;
@@ -272,7 +285,7 @@ fn update_rejects_a_nan_state_and_samples_off_the_models_scale() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
-    // this 1,1,1 fit of gyro_x returned its linear ARMA start: the state holds no fitted
+    // gyro_x's state is that of a fit that returned its linear ARMA start: it holds no fitted
     // local model, and update refuses it (rather than solve the rejected local fits)
     let r = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
     let err = stderr(&r);
@@ -574,8 +587,8 @@ fn update_names_the_state_for_a_linear_start_and_an_impossible_sample_count() {
     let d = dir.path();
     let (old, new) = old_and_new(d);
     let out = d.join("out");
-    // this 1,1,1 fit of gyro_x returns its linear ARMA start (as in the test above)
-    let model = fit_state(d, &old, "1,1,1", "21");
+    // gyro_x's state is that of a fit that returned its linear ARMA start
+    let model = fit_linear_start_state(d, &old);
     let r = farma(&["update", s(&model), s(&new), "-o", s(&out)], d);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
@@ -715,8 +728,8 @@ fn update_of_some_channels_leaves_out_a_linear_start() {
     let d = dir.path();
     let (old, new) = old_and_new(d);
     let out = d.join("out");
-    // gyro_x's 1,1,1 fit returns its linear start, gyro_y's does not
-    let model = fit_state(d, &old, "1,1,1", "21");
+    // gyro_x's state is that of a fit that returned its linear start, gyro_y's not
+    let model = fit_linear_start_state(d, &old);
     let (states, _) = read_state(&model.join("state.parquet")).unwrap();
     let linear: Vec<bool> = states.iter().map(|s| s.linear_start).collect();
     assert_eq!(linear, [true, false], "the fixture's fits changed");

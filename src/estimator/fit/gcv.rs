@@ -1,5 +1,7 @@
 //! The bandwidth choice: GCV over the ladder h_j = 1.1^-j range/2, extended while the
-//! minimum sits at an end.
+//! minimum sits at an end. A rung where some grid point has no local fit has no GCV
+//! (infinite): the ladder's bottom is where the local systems lose their support, and
+//! a minimum right above it says so in a note.
 
 use super::params::FitPath;
 use super::smoother::{LagStep, StepCache};
@@ -284,6 +286,19 @@ pub(super) fn gcv_select(
                         if i == 0 { "largest" } else { "smallest" },
                         js[i],
                         rows[i].bandwidth
+                    ));
+                }
+                if i < last && rows[i + 1].n_failed > 0 {
+                    // the minimum at the edge of the local systems' support: the
+                    // ladder stops there (a smaller bandwidth has no GCV)
+                    notes.push(format!(
+                        "GCV minimum at h_{} = {:.6e}, the smallest bandwidth with a local fit at every grid point: at h_{} = {:.6e} {} of {} grid points have none, so the ladder stops there (the optimum may lie below, where the local systems lose their support)",
+                        js[i],
+                        rows[i].bandwidth,
+                        js[i + 1],
+                        rows[i + 1].bandwidth,
+                        rows[i + 1].n_failed,
+                        sm.grid.len()
                     ));
                 }
                 let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();

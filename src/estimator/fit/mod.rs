@@ -29,16 +29,59 @@
 //!    than `tol` relative (default 1e-6), or the least RSS so far has not been beaten
 //!    for [`PATIENCE`] alternations and the last RSS is above it by more than `tol`.
 //!    sigma^2 = RSS / (N - max(p,q,d)).
+//! 5. the guard (issue 25): when the iterate of steps 2-4 has an RSS above the one it
+//!    started from by more than `tol` relative (or not finite), it is not taken. Near
+//!    the MA unit root (b_1 = -0.9996 on the ADIS16405 gyros, what differencing gives)
+//!    the recursion e_t = w_t - b e_(t-1) integrates every error of the f-step over
+//!    thousands of samples, and an f-step computed with e held fixed can raise the
+//!    true RSS by fourteen orders of magnitude (2.3e19 from 1.2e5). The damped step
+//!    (`damped_step`) goes back towards the iterate: with b held at the iterate's,
+//!    the residuals are affine in f, so over the plane f_old + alpha D + beta D_c
+//!    (D = f_new - f_old; D_c = D less its mean over the grid points, per m) the RSS
+//!    is a quadratic in (alpha, beta), known exactly from three residual passes
+//!    (f_old, and each direction, shrunk 1000-fold while it overflows). Its minimiser
+//!    (over the plane or over one direction; the one of largest predicted decrease that
+//!    keeps a positive share alpha + beta of the f-step, at most the f-step itself) is
+//!    the step; the b-step then runs from the iterate's b, and the step is taken when
+//!    the RSS falls by more than `tol` relative, else halved ([`DAMP_HALVINGS`] times).
+//!    The centred direction matters at the linear start: that is the least-squares
+//!    ARMA, so a constant shift of f is no descent there, while the shape of f may be.
+//!    When no step is taken the alternation stays at its iterate: at the bandwidth
+//!    that iterate was fitted at this counts as settled (GCV re-checks the bandwidth
+//!    at its residuals, and the alternation goes on at another one it chooses); at a
+//!    bandwidth GCV has just chosen at these very residuals (the first f-step, or the
+//!    one after a re-selection) the alternation stops there (`Ended::Stalled`,
+//!    converged). The cost is paid only when the guard acts: two N-long buffers and
+//!    three to seven passes over the series. A fit that never leaves its start
+//!    returns it with [`StartReason::NoDescent`] and a note saying so.
 //!
-//! The alternation is not a descent method (the f-step holds the residuals fixed): on
-//! the FARMA(2,1,1) of the tests its RSS falls by 1.6 % in the first step, then moves
-//! by about 1e-6 relative, in a slowly damped two-cycle, while b changes in the fifth
-//! digit; on the benchmark's 1e6 samples it is least at the third alternation and then
-//! rises slowly towards a fixed point 1.2e-5 above. `rss_history` records every step.
+//! Degrees of freedom of a damped iterate: f = (1 - lambda) f_old + lambda S_h y plus
+//! a constant shift, lambda = alpha + beta; the trace reported is (1 - lambda)
+//! tr_old + lambda tr(S_h), tr of the linear start p, applied recursively (the
+//! iterate's `Mix`: the weight of each bandwidth's smoother, and of the linear start,
+//! in its f). An approximation: f_old was fitted to other residuals than S_h's y (the
+//! trace of a combination of smoothers of one response is the combination of their
+//! traces; here the responses differ by the residuals the alternation moved), and the
+//! constant shift -beta mean(D) is counted with the smoothers it came from (its own
+//! trace, the projection of each smoother on constants, is about p for either, so the
+//! two cancel). The standard-error factors are combined with the same weights (by the
+//! triangle inequality an upper bound on the standard error of the combination when
+//! the two are computed from one response). The model's bandwidth is the last f-step's.
+//!
+//! Without the guard the alternation is not a descent method (the f-step holds the
+//! residuals fixed): on the FARMA(2,1,1) of the tests its RSS falls by 1.6 % in the
+//! first step, then moves by about 1e-6 relative, in a slowly damped two-cycle, while
+//! b changes in the fifth digit; on the benchmark's 1e6 samples it is least at the
+//! third alternation and then rises slowly towards a fixed point 1.2e-5 above. Rises
+//! within `tol` per alternation are still taken (the guard leaves them to the rules
+//! below, so those fits are unchanged); a larger one is damped (step 5).
+//! `rss_history` records every iterate taken.
 //! The iterate of least global RSS (the linear start included) is returned when the
 //! last one ends above it by more than `tol` relative, with a note: the fit never ends
-//! more than `tol` above the linear ARMA it nests. Residuals that are not finite stop
-//! the alternation (`converged` false) and the iterate of least RSS is returned. A returned linear start reports the
+//! more than `tol` above the linear ARMA it nests (with [`StartReason::EndedAbove`]
+//! when that is the start). Residuals that are not finite are damped (step 5); were a
+//! step to leave them non-finite it would stop the alternation (`converged` false)
+//! and the iterate of least RSS would be returned. A returned linear start reports the
 //! linear model's degrees of freedom, trace = p, its GCV from them and the
 //! least-squares standard errors of its constant coefficients (the bandwidth field
 //! keeps the one GCV last chose, which that model does not use). Alternating on past
@@ -88,7 +131,7 @@ use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
 pub use crate::model::report::{AlternationTiming, FitReport, FitTimings, GcvRow};
-use crate::model::{Coef, Farma, Order};
+use crate::model::{Coef, Farma, Order, StartReason};
 pub use bstep::{SMALL_STEP, ma_cls, ma_step};
 use grid::quantiles;
 pub use notes::{
@@ -125,7 +168,41 @@ pub(super) struct Iterate<C, H> {
     /// Its bandwidth (NaN for the start).
     pub(super) h: H,
     pub(super) filled: Vec<bool>,
+    /// What its f is a combination of (module doc, damped f-steps).
+    pub(super) mix: Mix<H>,
 }
+
+/// The smoothers an iterate's f combines, with their weights (summing to 1): Some(h)
+/// the local fits at bandwidth h, None the linear start. One entry (weight 1) unless
+/// a damped f-step (module doc) mixed the new local fits with the iterate's f.
+pub(super) type Mix<H> = Vec<(f64, Option<H>)>;
+
+/// The linear start's mix.
+pub(super) fn start_mix<H>() -> Mix<H> {
+    vec![(1.0, None)]
+}
+
+/// `lam` of the smoother at `h` and 1 - `lam` of `old` (entries at the same bandwidth
+/// merged).
+fn mixed<H: PartialEq + Copy>(old: &Mix<H>, h: H, lam: f64) -> Mix<H> {
+    let mut out: Mix<H> = vec![(lam, Some(h))];
+    for &(w, k) in old {
+        match out.iter_mut().find(|(_, o)| *o == k) {
+            Some(e) => e.0 += (1.0 - lam) * w,
+            None => out.push(((1.0 - lam) * w, k)),
+        }
+    }
+    out
+}
+
+/// Attempts of the damped f-step at a step that overflows: lambda is divided by
+/// [`DAMP_SHRINK`] after each until the residuals at lambda are finite.
+pub const DAMP_OVERFLOW_TRIES: usize = 4;
+/// See [`DAMP_OVERFLOW_TRIES`].
+pub const DAMP_SHRINK: f64 = 1e3;
+/// Halvings of the line search's lambda when the b-step's RSS at it is not below the
+/// iterate's (the quadratic's minimum lost to rounding, or the b-step's own step).
+pub const DAMP_HALVINGS: usize = 3;
 
 /// Alternations without a new least RSS after which the alternation stops when its
 /// last RSS is above that least one by more than `tol` (it is past its minimum; the
@@ -175,6 +252,10 @@ pub(super) trait Smoother {
     fn chose(&mut self, _h: Self::H) {}
     /// Local fits at bandwidth `h` at residuals `e` and MA coefficients `b`.
     fn fit_at(&mut self, e: &[f64], b: &[f64], h: Self::H) -> Self::Coef;
+    /// The damped f-step's f (module doc): `old` + alpha D + beta D_c, D = `new` -
+    /// `old` and D_c = D less its mean over the grid points (per m), f and slopes at
+    /// every grid point; the other diagnostics are `new`'s.
+    fn combine(old: &Self::Coef, new: &Self::Coef, ab: (f64, f64)) -> Self::Coef;
     /// Fills the grid points without a local fit, returning which; an error when no
     /// point has one.
     fn fill(&self, coef: &mut Self::Coef, h: Self::H) -> Result<Vec<bool>>;
@@ -212,6 +293,9 @@ pub(super) enum Ended {
     MaxIterAtReselection,
     /// The residuals were not finite.
     NotFinite,
+    /// An f-step raised the RSS and no damped step lowered it (module doc): the
+    /// alternation stopped at its last iterate (counted as converged).
+    Stalled,
 }
 
 /// The order and the rules of an alternation.
@@ -222,6 +306,8 @@ pub(super) struct Control<H> {
     pub(super) tol: f64,
     /// A fixed bandwidth instead of GCV.
     pub(super) bandwidth: Option<H>,
+    /// The first row of the regression, max(p, q, d): the RSS sums from it.
+    pub(super) start: usize,
 }
 
 /// The alternation's result: the returned iterate and the alternation's record.
@@ -230,6 +316,10 @@ pub(super) struct Alternation<S: Smoother + ?Sized> {
     pub(super) b: Vec<f64>,
     /// Residuals e_t for every t, of (`coef`, `b`).
     pub(super) e: Vec<f64>,
+    /// What `coef` combines (module doc, damped f-steps).
+    pub(super) mix: Mix<S::H>,
+    /// Why the linear start was returned (Some exactly when `returned_start`).
+    pub(super) returned_start_reason: Option<StartReason>,
     pub(super) rss: f64,
     pub(super) h: S::H,
     pub(super) filled: Vec<bool>,
@@ -247,6 +337,134 @@ pub(super) struct Alternation<S: Smoother + ?Sized> {
     /// Whether the returned iterate is the linear start.
     pub(super) returned_start: bool,
     pub(super) timings: Vec<AlternationTiming>,
+}
+
+/// The damped f-step (module doc): the f-step's `new` f raised the RSS above the
+/// iterate's (`old`, `b_old`, RSS `rss_old`). At b = `b_old` the residuals are affine
+/// in f, so over the plane f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less
+/// its mean over the grid points, per m) their RSS is a quadratic in (alpha, beta):
+/// three residual passes (at f_old, at D and at D_c) give it, and its minimiser is
+/// the step (the centred direction matters at a linear start, where the constant part
+/// of D is no descent: the start is the least-squares ARMA). When D overflows, both
+/// directions are shrunk by [`DAMP_SHRINK`] ([`DAMP_OVERFLOW_TRIES`] times). The b-step
+/// then runs from `b_old` at the step's f; the step is taken when that RSS is below
+/// `rss_old` by more than `tol` relative, else it is halved ([`DAMP_HALVINGS`] times). Returns ((alpha, beta),
+/// f, RSS) with `b`, `b_resp` and `e` the b-step's, or None with `b`, `b_resp` set to
+/// `b_old` and `e` holding the residuals of (`old`, `b_old`); the scale of every step
+/// tried (alpha + beta) is pushed to `tried`.
+#[allow(clippy::too_many_arguments)]
+fn damped_step<S: Smoother>(
+    sm: &mut S,
+    start: usize,
+    (old, b_old, rss_old): (&S::Coef, &[f64], f64),
+    new: &S::Coef,
+    tol: f64,
+    h: S::H,
+    (b, b_resp): (&mut Vec<f64>, &mut Vec<f64>),
+    e: &mut [f64],
+    iteration: usize,
+    tried: &mut Vec<f64>,
+) -> Option<((f64, f64), S::Coef, f64)> {
+    let restore = |b: &mut Vec<f64>, b_resp: &mut Vec<f64>| {
+        b.clear();
+        b.extend_from_slice(b_old);
+        b_resp.clear();
+        b_resp.extend_from_slice(b_old);
+    };
+    // the iterate's residuals at b_old (the plane's origin), and the responses of the
+    // two directions (residuals at f_old + scale D, less e0)
+    let mut e0 = vec![0.0; e.len()];
+    sm.residuals(old, b_old, &mut e0);
+    let mut ec = vec![0.0; e.len()];
+    let dot = |a: &[f64], b: &[f64]| -> f64 {
+        a[start..].iter().zip(&b[start..]).map(|(x, y)| x * y).sum()
+    };
+    let mut scale = 1.0;
+    let mut gram = None;
+    for k in 0..DAMP_OVERFLOW_TRIES {
+        if k > 0 {
+            scale /= DAMP_SHRINK;
+            tried.push(scale);
+        }
+        sm.residuals(&S::combine(old, new, (scale, 0.0)), b_old, e);
+        sm.residuals(&S::combine(old, new, (0.0, scale)), b_old, &mut ec);
+        for ((v, c), v0) in e.iter_mut().zip(ec.iter_mut()).zip(&e0) {
+            *v -= v0;
+            *c -= v0;
+        }
+        let g = [
+            dot(e, e),
+            dot(e, &ec),
+            dot(&ec, &ec),
+            dot(&e0, e),
+            dot(&e0, &ec),
+        ];
+        if g.iter().all(|v| v.is_finite()) {
+            gram = Some(g);
+            break;
+        }
+    }
+    let stop = |e: &mut [f64], b: &mut Vec<f64>, b_resp: &mut Vec<f64>| {
+        e.copy_from_slice(&e0);
+        restore(b, b_resp);
+        None
+    };
+    let Some([a11, a12, a22, g1, g2]) = gram else {
+        return stop(e, b, b_resp);
+    };
+    // the step: of the quadratic's minimisers over the plane and over each direction
+    // alone, the one of largest predicted decrease -(alpha g1 + beta g2) among those
+    // that take a positive share alpha + beta of the f-step (a damped f-step, not a
+    // step away from it), scaled to at most the f-step itself
+    let det = a11 * a22 - a12 * a12;
+    let mut cands = Vec::new();
+    if det > 1e-9 * a11 * a22 {
+        cands.push(((-g1 * a22 + g2 * a12) / det, (g1 * a12 - g2 * a11) / det));
+    }
+    if a11 > 0.0 {
+        cands.push((-g1 / a11, 0.0));
+    }
+    if a22 > 0.0 {
+        cands.push((0.0, -g2 / a22));
+    }
+    let step = cands
+        .into_iter()
+        .map(|(al, be): (f64, f64)| {
+            let big = al.abs().max(be.abs()).max(1.0);
+            (al / big, be / big)
+        })
+        .filter(|(al, be)| al + be > 0.0 && al * g1 + be * g2 < 0.0)
+        .max_by(|x, y| (-(x.0 * g1 + x.1 * g2)).total_cmp(&-(y.0 * g1 + y.1 * g2)));
+    let Some((mut al, mut be)) = step else {
+        return stop(e, b, b_resp);
+    };
+    for _ in 0..=DAMP_HALVINGS {
+        tried.push(scale * (al + be));
+        let f = S::combine(old, new, (scale * al, scale * be));
+        restore(b, b_resp);
+        let rss = match sm.b_step(&f, h, (b, b_resp), e, iteration) {
+            Some(rss) => rss,
+            None => {
+                b_resp.clone_from(b);
+                sm.residuals(&f, b, e)
+            }
+        };
+        // a decrease beyond the tolerance (a smaller one is what the alternation
+        // calls settled: no better than the iterate)
+        if rss_old - rss > tol * rss_old {
+            return Some(((scale * al, scale * be), f, rss));
+        }
+        (al, be) = (al * 0.5, be * 0.5);
+    }
+    stop(e, b, b_resp)
+}
+
+/// The lambdas of a note.
+fn fmt_lambdas(l: &[f64]) -> String {
+    l.iter()
+        .map(|v| format!("{v:.3e}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The alternation (module doc, steps 2 to 4) from `start` (iterate 0, with its
@@ -267,7 +485,10 @@ pub(super) fn alternate<S: Smoother>(
     };
     let (mut coef, mut b, mut rss) = (start.coef.clone(), start.b.clone(), start.rss);
     let mut filled = start.filled.clone();
+    let mut mix = start.mix.clone();
     let mut h = ctl.bandwidth.unwrap_or(start.h);
+    // the current iterate's bandwidth and rss_history index (h is the next f-step's)
+    let (mut iter_h, mut current) = (start.h, 0);
     // The best iterate by global RSS, the linear start being iterate 0 (see the end).
     let mut best = start;
     let mut rss_history = vec![rss];
@@ -284,11 +505,16 @@ pub(super) fn alternate<S: Smoother>(
     // the b of the response y_t = x_t - sum b_m e_{t-m} of the next f-step: the
     // iterate's own b, or the Gauss-Newton step from it (see the b-step)
     let mut b_resp = b.clone();
+    // the lambdas of the damped f-steps taken
+    let mut damped: Vec<f64> = Vec::new();
     let words = S::WORDS;
     while iterations < ctl.max_iter {
         iterations += 1;
         let mut at = AlternationTiming::default();
         lap();
+        // the iterate the f-step starts from (the damped step goes back towards it)
+        let (coef_old, b_old) = (coef.clone(), b.clone());
+        let filled_old = filled.clone();
         // 2. f-step
         let mut fit_h = if need_gcv {
             need_gcv = false;
@@ -310,18 +536,73 @@ pub(super) fn alternate<S: Smoother>(
         // 3. b-step; 4. residuals
         let stepped = sm.b_step(&coef, h, (&mut b, &mut b_resp), &mut e, iterations);
         at.b_step_s = lap();
-        let new_rss = match stepped {
+        let mut new_rss = match stepped {
             Some(rss) => rss,
             None => {
                 b_resp = b.clone();
                 sm.residuals(&coef, &b, &mut e)
             }
         };
+        let mut lam = 1.0;
+        let mut stalled = false;
+        if went_back(new_rss, rss, ctl.tol) {
+            // the f-step raised the RSS (beyond the tolerance) or overflowed: the
+            // damped step towards the iterate (module doc)
+            let mut tried = vec![1.0];
+            match damped_step(
+                sm,
+                ctl.start,
+                (&coef_old, &b_old, rss),
+                &coef,
+                ctl.tol,
+                h,
+                (&mut b, &mut b_resp),
+                &mut e,
+                iterations,
+                &mut tried,
+            ) {
+                Some(((al, be), f, r)) => {
+                    // (the mix's weight of the new smoother: the constant shift of the
+                    // centred direction is left out of the trace, module doc)
+                    let l = al + be;
+                    (lam, coef, new_rss) = (l, f, r);
+                    for (f, o) in filled.iter_mut().zip(&filled_old) {
+                        *f |= *o;
+                    }
+                    damped.push(l);
+                }
+                None => {
+                    // no step lowers the RSS: the alternation stays at its iterate
+                    // (b_resp is b_old again, e its residuals)
+                    (coef, b, filled) = (coef_old, b_old, filled_old);
+                    let at_new_h = h != iter_h;
+                    notes.push(format!(
+                        "alternation {iterations}: the f-step at {} {} raised the RSS ({new_rss:.7e} > {rss:.7e}) and no damped step f_old + alpha D + beta D_c (D = f_new - f_old, D_c = D less its mean) lowered it (steps tried, alpha + beta: {}): the alternation stays at its iterate {current} (RSS {rss:.7e}){}",
+                        words.noun,
+                        S::fmt_h(h),
+                        fmt_lambdas(&tried),
+                        if at_new_h {
+                            " and stops"
+                        } else {
+                            ", as if it had settled there"
+                        }
+                    ));
+                    if at_new_h {
+                        // the bandwidth GCV chose at these very residuals: a re-check
+                        // would choose it again
+                        at.residuals_s = lap();
+                        timings.push(at);
+                        ended = Ended::Stalled;
+                        break;
+                    }
+                    stalled = true;
+                }
+            }
+        }
         at.residuals_s = lap();
-        if !new_rss.is_finite() {
-            // residuals that overflow (local fits far off the data's scale at a small
-            // bandwidth): no later step can start from them; the iterate of least RSS
-            // is returned below (`went_back`), not converged
+        if !stalled && !new_rss.is_finite() {
+            // (the damped step gives a finite RSS or none: not reached from it) the
+            // iterate of least RSS is returned below (`went_back`), not converged
             notes.push(format!(
                 "alternation {iterations}: the residuals are not finite (RSS {new_rss}): the alternation stops"
             ));
@@ -331,27 +612,39 @@ pub(super) fn alternate<S: Smoother>(
             ended = Ended::NotFinite;
             break;
         }
-        let change = (rss - new_rss).abs();
-        rss = new_rss;
-        rss_history.push(rss);
-        if rss < best.rss {
-            best = Iterate {
-                index: rss_history.len() - 1,
-                rss,
-                coef: coef.clone(),
-                b: b.clone(),
-                h,
-                filled: filled.clone(),
+        // a stall at the iterate's own bandwidth counts as settled there: GCV re-checks
+        // the bandwidth at its residuals (module doc)
+        let settled = stalled || {
+            let change = (rss - new_rss).abs();
+            rss = new_rss;
+            rss_history.push(rss);
+            current = rss_history.len() - 1;
+            iter_h = h;
+            mix = if lam == 1.0 {
+                vec![(1.0, Some(h))]
+            } else {
+                mixed(&mix, h, lam)
             };
-        }
-        // settled: the RSS changed by less than tol, or the least RSS so far was not
-        // beaten for PATIENCE alternations while the last is above it by more than tol
-        // (the iterate of least RSS is then returned, see below)
-        // (counted from the last bandwidth re-selection, if later: a new h gets its own
-        // PATIENCE alternations)
-        let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
-        let settled = change <= ctl.tol * rss.max(f64::MIN_POSITIVE)
-            || (since_best >= PATIENCE && rss - best.rss > ctl.tol * rss);
+            if rss < best.rss {
+                best = Iterate {
+                    index: current,
+                    rss,
+                    coef: coef.clone(),
+                    b: b.clone(),
+                    h,
+                    filled: filled.clone(),
+                    mix: mix.clone(),
+                };
+            }
+            // settled: the RSS changed by less than tol, or the least RSS so far was not
+            // beaten for PATIENCE alternations while the last is above it by more than tol
+            // (the iterate of least RSS is then returned, see below)
+            // (counted from the last bandwidth re-selection, if later: a new h gets its own
+            // PATIENCE alternations)
+            let since_best = rss_history.len() - 1 - best.index.max(reselected_at);
+            change <= ctl.tol * rss.max(f64::MIN_POSITIVE)
+                || (since_best >= PATIENCE && rss - best.rss > ctl.tol * rss)
+        };
         if settled {
             if ctl.bandwidth.is_none() && reselections < 2 {
                 // re-check the bandwidth at the converged residuals
@@ -397,27 +690,43 @@ pub(super) fn alternate<S: Smoother>(
                 }
                 timings.push(at.clone());
             }
-            ended = Ended::Settled;
+            ended = if stalled {
+                Ended::Stalled
+            } else {
+                Ended::Settled
+            };
             break;
         }
         timings.push(at);
+    }
+    let converged = matches!(ended, Ended::Settled | Ended::Stalled);
+    let (p, q) = (ctl.p, ctl.q);
+    if !damped.is_empty() {
+        let lo = damped.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = damped.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        notes.push(format!(
+            "{} f-step(s) raised the RSS and were damped (f = f_old + alpha D + beta D_c, D = f_new - f_old, D_c = D less its mean, from the RSS's quadratic at fixed b; weight of the new local fits alpha + beta from {lo:.3e} to {hi:.3e}; the trace is the same combination of the smoothers' traces, an approximation)",
+            damped.len()
+        ));
     }
     let mut alt = Alternation {
         coef,
         b,
         e,
+        mix,
         rss,
-        h,
+        h: if current == 0 { h } else { iter_h },
         filled,
         rss_history,
         gcv_table,
         ladder_extended,
         notes,
         iterations,
-        converged: ended == Ended::Settled,
+        converged,
         ended,
         chosen,
-        returned_start: false,
+        returned_start: current == 0,
+        returned_start_reason: None,
         timings,
     };
     let end = sm.end_notes(&alt);
@@ -430,20 +739,26 @@ pub(super) fn alternate<S: Smoother>(
     // than the convergence tolerance. The linear start (constant f_m = a_m) is the
     // linear model: trace p, its GCV, and the least-squares standard errors of a_m
     // (the bandwidth field keeps the one GCV last chose, unused by that model).
+    let how = || {
+        format!(
+            "constant f_m, slope 0, no local systems: n_support and kernel_mass 0, cond NaN; trace p = {p}, the linear model's; h = {} {} the {} {}",
+            S::fmt_h(alt.h),
+            words.verb,
+            words.noun,
+            if ctl.bandwidth.is_some() {
+                format!("fixed by {}", words.fixed_by)
+            } else {
+                "GCV last chose".to_string()
+            }
+        )
+    };
     if went_back(alt.rss, best.rss, ctl.tol) {
-        let (p, q, rss) = (ctl.p, ctl.q, alt.rss);
+        let rss = alt.rss;
         alt.notes.push(if best.index == 0 {
             format!(
-                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned (constant f_m, slope 0, no local systems: n_support and kernel_mass 0, cond NaN; trace p = {p}, the linear model's; h = {} {} the {} {})",
+                "the alternation ended above its linear ARMA({p},{q}) start (RSS {rss:.7e} > {:.7e}): the linear start is returned ({})",
                 best.rss,
-                S::fmt_h(alt.h),
-                words.verb,
-                words.noun,
-                if ctl.bandwidth.is_some() {
-                    format!("fixed by {}", words.fixed_by)
-                } else {
-                    "GCV last chose".to_string()
-                }
+                how()
             )
         } else {
             format!(
@@ -452,15 +767,51 @@ pub(super) fn alternate<S: Smoother>(
             )
         });
         alt.returned_start = best.index == 0;
+        alt.returned_start_reason = alt.returned_start.then_some(StartReason::EndedAbove);
         alt.coef = best.coef;
         alt.b = best.b;
         alt.filled = best.filled;
+        alt.mix = best.mix;
         if best.index > 0 {
             alt.h = best.h;
         }
         alt.rss = sm.residuals(&alt.coef, &alt.b, &mut alt.e);
+    } else if alt.returned_start {
+        // the alternation never left its start: the first f-step, damped down to the
+        // smallest lambda tried, did not lower the RSS (max_iter >= 1)
+        alt.notes.push(format!(
+            "no local fit at any tried step lowered the RSS below the linear ARMA({p},{q}) start's ({:.7e}): the linear start is returned ({})",
+            alt.rss,
+            how()
+        ));
+        alt.returned_start_reason = Some(StartReason::NoDescent);
     }
     Ok(alt)
+}
+
+/// The trace and standard-error factors of a mixed f (module doc): each smoother's
+/// from `part`, combined with the mix's weights (one smoother: its own, bit for bit).
+/// A trace that is not known for one of them is not known for the mix.
+pub(super) fn mix_parts<H: Copy>(
+    mix: &Mix<H>,
+    mut part: impl FnMut(Option<H>) -> (Option<f64>, Vec<f64>),
+) -> (Option<f64>, Vec<f64>) {
+    if let [(_, h)] = mix[..] {
+        return part(h);
+    }
+    let mut trace = Some(0.0);
+    let mut factors: Vec<f64> = Vec::new();
+    for &(w, h) in mix {
+        let (tr, f) = part(h);
+        trace = trace.zip(tr).map(|(a, t)| a + w * t);
+        if factors.is_empty() {
+            factors = vec![0.0; f.len()];
+        }
+        for (a, v) in factors.iter_mut().zip(&f) {
+            *a += w * v;
+        }
+    }
+    (trace, factors)
 }
 
 /// Fits a FARMA model to `series`.
@@ -580,6 +931,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         b,
         h: f64::NAN,
         filled: vec![false; g],
+        mix: start_mix(),
     };
     let mut notes = Vec::new();
     if prm.bandwidth.is_none() {
@@ -605,6 +957,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         max_iter: prm.max_iter,
         tol: prm.tol,
         bandwidth: prm.bandwidth,
+        start: pp,
     };
     let alt = alternate(&mut sm, &ctl, start, e, notes)?;
     timings.alternations = alt.timings;
@@ -612,6 +965,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     let (filled, rss_history, gcv_table) = (alt.filled, alt.rss_history, alt.gcv_table);
     let (ladder_extended, mut notes, iterations) = (alt.ladder_extended, alt.notes, alt.iterations);
     let (converged, returned_start) = (alt.converged, alt.returned_start);
+    let (returned_start_reason, mix) = (alt.returned_start_reason, alt.mix);
     let mut cache = sm.cache;
     lap();
     // trace, GCV and standard errors at the final bandwidth: the trace and the
@@ -621,27 +975,44 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
     let prob = sm.prob;
     let m = (n - pp) as f64;
     let sigma2 = rss / (n - pp) as f64;
-    let (trace, factors) = match prm.path {
-        // the linear model with constant f_m: trace p, the least-squares standard
-        // errors of a_m
-        _ if returned_start => (Some(p as f64), linear_se_factors(&x, p, pp).repeat(g)),
-        FitPath::Fast => {
-            // one table of the design's families to degree 10 (K^2 for the standard
-            // errors): the local systems' inverses, the trace, the standard errors
-            let index = cache.index_for(&prob, &grid, h);
-            let breaks = || breakpoints(&grid, &[h]);
-            let table =
-                MomentTable::build_over(&prob, index, breaks, (xmin, xmax), 10, Families::Design);
-            let f = table.local_systems(&grid, h).design_fit();
-            let trace = f.all_ok().then(|| table.trace(&grid, &f));
-            (trace, table.se_factors(&grid, &f))
+    // the trace and standard-error factors of each smoother the returned f combines
+    // (one, weight 1, unless a damped f-step mixed two or more: module doc)
+    let mut part = |at: Option<f64>| -> (Option<f64>, Vec<f64>) {
+        let Some(h) = at else {
+            // the linear model with constant f_m: trace p, the least-squares standard
+            // errors of a_m
+            return (Some(p as f64), linear_se_factors(&x, p, pp).repeat(g));
+        };
+        match prm.path {
+            FitPath::Fast => {
+                // one table of the design's families to degree 10 (K^2 for the standard
+                // errors): the local systems' inverses, the trace, the standard errors
+                let index = cache.index_for(&prob, &grid, h);
+                let breaks = || breakpoints(&grid, &[h]);
+                let table = MomentTable::build_over(
+                    &prob,
+                    index,
+                    breaks,
+                    (xmin, xmax),
+                    10,
+                    Families::Design,
+                );
+                let f = table.local_systems(&grid, h).design_fit();
+                let trace = f.all_ok().then(|| table.trace(&grid, &f));
+                (trace, table.se_factors(&grid, &f))
+            }
+            FitPath::Direct => {
+                let index = cache.direct_index(&prob);
+                let (f, rt) = sm.ladder_direct(index, &[h]).remove(0);
+                let factors = direct::se_factors(&prob, index, &grid, &f);
+                (rt.map(|(_, tr)| tr), factors)
+            }
         }
-        FitPath::Direct => {
-            let index = cache.direct_index(&prob);
-            let (f, rt) = sm.ladder_direct(index, &[h]).remove(0);
-            let factors = direct::se_factors(&prob, index, &grid, &f);
-            (rt.map(|(_, tr)| tr), factors)
-        }
+    };
+    let (trace, factors) = if returned_start {
+        part(None)
+    } else {
+        mix_parts(&mix, part)
     };
     let trace = trace.unwrap_or(f64::NAN);
     if trace.is_nan() {
@@ -688,6 +1059,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         n_rows: n - pp,
         residuals: e,
         linear_start: returned_start,
+        returned_start_reason,
         notes,
         timings,
     };

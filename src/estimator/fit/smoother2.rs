@@ -28,7 +28,10 @@ use super::grid2::{
 use super::notes::{ma_edge_note, missing_se_note, stretched_ladder_note, undefined_trace_note};
 use super::params::{Farma2Params, FitPath, Init, check_fit2, check_magnitude, range_of};
 use super::start::linear_se_factors;
-use super::{Alternation, BandwidthWords, Control, Ended, Iterate, Selection, Smoother, alternate};
+use super::{
+    Alternation, BandwidthWords, Control, Ended, Iterate, Selection, Smoother, alternate,
+    mix_parts, start_mix,
+};
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
 use crate::estimator::problem::PointStatus;
@@ -135,6 +138,30 @@ impl Smoother for Index2Smoother<'_> {
     fn fit_at(&mut self, e: &[f64], b: &[f64], h: (f64, f64)) -> Grid2Fit {
         let step = self.step(e, b);
         fit_grid2(&step.prob, self.index, self.grid, h)
+    }
+
+    fn combine(old: &Grid2Fit, new: &Grid2Fit, (al, be): (f64, f64)) -> Grid2Fit {
+        let mut out = new.clone();
+        let p = old.p;
+        let g = old.f.len() / p.max(1);
+        for m in 0..p {
+            // the mean of D_m over the grid points
+            let mean = (0..g)
+                .map(|k| new.f[k * p + m] - old.f[k * p + m])
+                .sum::<f64>()
+                / g as f64;
+            for k in 0..g {
+                let (o, d) = (old.f[k * p + m], new.f[k * p + m] - old.f[k * p + m]);
+                out.f[k * p + m] = o + al * d + be * (d - mean);
+            }
+        }
+        for ((v, o), n) in out.slope1.iter_mut().zip(&old.slope1).zip(&new.slope1) {
+            *v = o + (al + be) * (n - o);
+        }
+        for ((v, o), n) in out.slope2.iter_mut().zip(&old.slope2).zip(&new.slope2) {
+            *v = o + (al + be) * (n - o);
+        }
+        out
     }
 
     fn fill(&self, coef: &mut Grid2Fit, h: (f64, f64)) -> Result<Vec<bool>> {
@@ -442,6 +469,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, 
         b,
         h: (f64::NAN, f64::NAN),
         filled: vec![false; gl],
+        mix: start_mix(),
     };
     let ctl = Control {
         p,
@@ -449,6 +477,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, 
         max_iter: prm.max_iter,
         tol: prm.tol,
         bandwidth: params.bandwidth,
+        start: pp,
     };
     let alt = alternate(&mut sm, &ctl, start, e, notes)?;
     let (coef, b, e, rss, h) = (alt.coef, alt.b, alt.e, alt.rss, alt.h);
@@ -456,30 +485,45 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, 
     let (ladder_extended, iterations, converged) =
         (alt.ladder_extended, alt.iterations, alt.converged);
     let (rss_history, returned_start) = (alt.rss_history, alt.returned_start);
+    let (returned_start_reason, mix) = (alt.returned_start_reason, alt.mix);
     let m = (n - pp) as f64;
     let sigma2 = rss / m;
     // the returned model's trace, GCV (from its own RSS, as the 1-D fit's) and standard
     // errors
-    let (trace, factors, status, cond) = if returned_start {
-        // the linear model with constant f_m (as the 1-D fit's)
-        let factors = linear_se_factors(&x, p, pp).repeat(gl);
-        (p as f64, factors, coef.status.clone(), coef.cond.clone())
-    } else {
-        let prob = Vc2Problem {
-            e: &e,
-            b: &b,
-            ..prob0
-        };
-        let step = Step2 {
-            prob,
-            grid: &grid,
-            index: &index,
-        };
-        let (final_fit, rt) = step.at(h);
-        let trace = rt.map_or(f64::NAN, |(_, tr)| tr);
-        let factors = se_factors2(&prob, &index, &grid, &final_fit);
-        (trace, factors, final_fit.status, final_fit.cond)
+    let prob = Vc2Problem {
+        e: &e,
+        b: &b,
+        ..prob0
     };
+    let step = Step2 {
+        prob,
+        grid: &grid,
+        index: &index,
+    };
+    // each smoother the returned f combines (one unless a damped f-step mixed them:
+    // module doc): its trace and standard-error factors; the status and condition
+    // numbers are those of the local fits at the returned bandwidths
+    let (mut status, mut cond) = (coef.status.clone(), coef.cond.clone());
+    let mut part = |at: Option<(f64, f64)>| -> (Option<f64>, Vec<f64>) {
+        match at {
+            // the linear model with constant f_m (as the 1-D fit's)
+            None => (Some(p as f64), linear_se_factors(&x, p, pp).repeat(gl)),
+            Some(hh) => {
+                let (final_fit, rt) = step.at(hh);
+                let factors = se_factors2(&prob, &index, &grid, &final_fit);
+                if hh == h {
+                    (status, cond) = (final_fit.status, final_fit.cond);
+                }
+                (rt.map(|(_, tr)| tr), factors)
+            }
+        }
+    };
+    let (trace, factors) = if returned_start {
+        part(None)
+    } else {
+        mix_parts(&mix, part)
+    };
+    let trace = trace.unwrap_or(f64::NAN);
     if trace.is_nan() {
         let at = format!("bandwidths ({:.6e}, {:.6e})", h.0, h.1);
         notes.push(undefined_trace_note(&status, &at));
@@ -530,6 +574,7 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, 
         n_rows: n - pp,
         residuals: e,
         linear_start: returned_start,
+        returned_start_reason,
         notes,
         timings: FitTimings::default(),
     };

@@ -454,10 +454,14 @@ fn quantiles_by_selection_equal_those_of_a_full_sort() {
 }
 
 /// A 2-D fit whose residuals turn non-finite (here by the test hook, as an overflow
-/// would leave them) stops at that alternation, not converged, and returns the iterate
-/// of least RSS with its own finite residuals, with a note for each, as the 1-D fit.
+/// would leave them) does not stop there: the f-step raised the RSS (to NaN), so the
+/// damped step goes back towards the iterate before it (module doc), whose residuals
+/// are finite; the alternation goes on from whichever iterate that gives, its RSS
+/// never above the one before by more than tol, and returns finite residuals that are
+/// its own. (Before the damped step it stopped there, not converged, and returned the
+/// iterate of least RSS.)
 #[test]
-fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
+fn a_2d_fit_damps_a_step_to_non_finite_residuals_and_goes_on() {
     use super::params::Farma2Params;
     use super::smoother2::{NAN_RESIDUALS_AT, fit2};
     // FARMA(1,1,1) whose f_1 follows a slow temperature-like channel
@@ -492,29 +496,36 @@ fn a_2d_fit_stops_at_non_finite_residuals_and_returns_its_least_rss_iterate() {
     let m = fit2(&x, &temp, &params(20));
     NAN_RESIDUALS_AT.set(None);
     let (m, r) = m.unwrap();
-    assert_eq!(r.iterations, 2, "it stops at the non-finite residuals");
-    assert!(!r.converged);
+    assert!(r.converged, "{:?}", r.notes);
+    assert!(r.iterations >= 2, "{}", r.iterations);
     assert!(
         r.notes
             .iter()
-            .any(|s| s.starts_with("alternation 2: the residuals are not finite (RSS NaN)")),
+            .any(|s| s.starts_with("alternation 2: the f-step")
+                && s.contains("raised the RSS (NaN >"))
+            || r.notes
+                .iter()
+                .any(|s| s.contains("f-step(s) raised the RSS and were damped")),
         "{:?}",
         r.notes
     );
     assert!(
-        r.notes
-            .iter()
-            .any(|s| s.starts_with("the alternation ended above its")),
+        r.rss_history.iter().all(|v| v.is_finite()),
         "{:?}",
-        r.notes
+        r.rss_history
     );
+    for w in r.rss_history.windows(2) {
+        assert!(w[1] - w[0] <= 1e-6 * w[1], "{:?}", r.rss_history);
+    }
     assert!(r.rss.is_finite() && r.residuals.iter().all(|v| v.is_finite()));
     assert!(m.coef.f.iter().all(|v| v.is_finite()));
-    // the iterate of least RSS of the two before (a fit of one alternation returns
-    // it): its RSS, b and f, bit for bit
-    assert_eq!(r.rss.to_bits(), one.1.rss.to_bits());
-    assert_eq!(m.b, one.0.b);
-    assert_eq!(m.coef.f, one.0.coef.f);
+    // no worse than the fit of one alternation
+    assert!(
+        r.rss <= one.1.rss * (1.0 + 1e-6),
+        "{} vs {}",
+        r.rss,
+        one.1.rss
+    );
     let pp = 1;
     let rss: f64 = r.residuals[pp..].iter().map(|v| v * v).sum();
     assert_eq!(rss.to_bits(), r.rss.to_bits());

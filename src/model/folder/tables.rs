@@ -377,6 +377,10 @@ pub fn fit_json(name: &str, m: &Farma, r: Report, coef_path: &str) -> Value {
         "n": r.n(),
         "notes": r.notes(),
     });
+    // only where the fit returned its linear start (the other fits' JSON unchanged)
+    if let Some(w) = r.returned_start_reason() {
+        v["returned_start_reason"] = w.as_str().into();
+    }
     if let Report::Update(u) = r {
         v["forgetting"] = u.forgetting.into();
         v["n_new"] = u.w.len().into();
