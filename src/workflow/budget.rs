@@ -37,9 +37,9 @@ pub fn fits_in_flight(n: usize) -> usize {
     ((budget_bytes() / per_fit).floor() as usize).max(1)
 }
 
-/// `f` over `items` in parallel, at most `k` at once (in waves of `k` when `k` is
-/// below both the items and the pool's threads; else all at once), results in the
-/// items' order.
+/// `f` over `items` in parallel, at most `k` at once (in waves of equal size, none
+/// above `k`, when `k` is below both the items and the pool's threads; else all at
+/// once), results in the items' order.
 pub fn par_map_waves<T: Sync, R: Send>(
     items: &[T],
     k: usize,
@@ -49,8 +49,11 @@ pub fn par_map_waves<T: Sync, R: Send>(
     if k >= items.len() || k >= rayon::current_num_threads() {
         return items.par_iter().map(&f).collect();
     }
+    // waves of equal size: 8 items at k = 7 are two waves of 4, not 7 and 1
+    let waves = items.len().div_ceil(k);
+    let size = items.len().div_ceil(waves);
     let mut out = Vec::with_capacity(items.len());
-    for wave in items.chunks(k) {
+    for wave in items.chunks(size) {
         out.extend(wave.par_iter().map(&f).collect::<Vec<R>>());
     }
     out

@@ -30,7 +30,6 @@
 //! finite degrees of freedom (before this rule such pairs were printed with a negative
 //! or zero df1 and F = NaN).
 
-
 use crate::error::{Error, Result};
 use crate::estimator::arma::arma_residuals;
 use crate::estimator::fit::{linear_start, residuals};

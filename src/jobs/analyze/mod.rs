@@ -16,7 +16,6 @@ pub mod verdict;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use rayon::prelude::*;
 use serde_json::json;
 
 use super::select::{SelectJob, select_json, select_text};
@@ -353,17 +352,23 @@ impl AnalyzeJob {
         bar.inc(markers.iter().filter(|m| m.1).count() as u64);
         // every failing channel is named at once, in channel order, as `farma fit` does
         // (the first error rayon meets is any one of them: each rerun would find the next)
+        // the channels at once within the memory budget: each runs its order table's
+        // fits in parallel (as many as the threads, or the budget, allow)
+        let todo: Vec<_> = chans
+            .iter()
+            .zip(&markers)
+            .filter(|(_, (_, keep))| !keep)
+            .map(|(c, (m, _))| (c, m))
+            .collect();
+        let n = chans.iter().map(|c| c.values.len()).max().unwrap_or(0);
+        let per_channel = prm.orders.len().min(rayon::current_num_threads()).max(1);
+        let at_once = (crate::workflow::budget::fits_in_flight(n) / per_channel).max(1);
         super::every_channel(
-            chans
-                .par_iter()
-                .zip(&markers)
-                .filter(|(_, (_, keep))| !keep)
-                .map(|(c, (m, _))| {
-                    let r = self.run_channel(c, m, &prm, store, &md, progress);
-                    bar.inc(1);
-                    r.map_err(|e| super::on_channel(&self.log, &c.name, e))
-                })
-                .collect(),
+            crate::workflow::budget::par_map_waves(&todo, at_once, |&(c, m)| {
+                let r = self.run_channel(c, m, &prm, store, &md, progress);
+                bar.inc(1);
+                r.map_err(|e| super::on_channel(&self.log, &c.name, e))
+            }),
             super::fit::FIT_CHANNELS_HINT,
         )?;
         bar.finish_and_clear();
