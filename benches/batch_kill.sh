@@ -73,14 +73,22 @@ spec6() { # the bar's spec of log $1
     echo "n = 0.001"
   done
 }
-for i in $(seq 1 "$n"); do
+gen() {
+  local i="$1"
   if [[ "$mode" == bar ]]; then
     spec6 "$i" >"$w/specs/log$i.toml"
-    "$bin" simulate "$w/specs/log$i.toml" --duration "$secs" -q -o "$w/logs/sim$i.parquet" >/dev/null 2>&1
+    "$bin" --threads 1 simulate "$w/specs/log$i.toml" --duration "$secs" -q -o "$w/logs/sim$i.parquet" >/dev/null 2>&1
   else
-    "$bin" simulate "$here/fixtures/specs/adis16405_datasheet.toml" --duration "$secs" --seed "$i" -q -o "$w/logs/sim$i.parquet" >/dev/null 2>&1
+    "$bin" --threads 1 simulate "$here/fixtures/specs/adis16405_datasheet.toml" --duration "$secs" --seed "$i" -q -o "$w/logs/sim$i.parquet" >/dev/null 2>&1
   fi
+}
+# the logs, as many at once as the machine has cores
+jobs_at_once="$(nproc 2>/dev/null || echo 2)"
+for i in $(seq 1 "$n"); do
+  gen "$i" &
+  if (( i % jobs_at_once == 0 )); then wait; fi
 done
+wait
 cp "$here/fixtures/bad/nan_inf.csv" "$here/fixtures/bad/truncated.parquet" "$w/logs/"
 if [[ "$mode" == bar ]]; then
   cat >"$w/job.toml" <<JOB
