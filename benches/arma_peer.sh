@@ -26,9 +26,9 @@ best=""
 for r in $(seq 1 "$reps"); do
   t0=$(date +%s.%N)
   "$bin" fit "$w/arma21.parquet" --channel x --order 2,1,1 --no-cache -q -o "$w/fit" 2>"$w/fit.err"
-  t=$(echo "$(date +%s.%N) - $t0" | bc)
+  t=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.3f", b - a}')
   echo "farma fit (whole process, Parquet, no cache) run $r: $t s"
-  if [[ -z "$best" ]] || (( $(echo "$t < $best" | bc) )); then best="$t"; fi
+  if [[ -z "$best" ]] || awk -v t="$t" -v b="$best" 'BEGIN{exit !(t < b)}'; then best="$t"; fi
 done
 grep -E "fit x:|ladder|linear start|GCV" "$w/fit.err" | head -5 || true
 sm=$(python3 - "$w/arma21.parquet" <<'PY'
@@ -43,4 +43,4 @@ PY
 )
 read -r smt a1 a2 b1 <<<"$sm"
 echo "statsmodels ARIMA(2,0,1) fit: $smt s (ar $a1 $a2, ma $b1)"
-echo "ratio (statsmodels / best farma): $(echo "scale=1; $smt / $best" | bc)x"
+echo "ratio (statsmodels / best farma): $(awk -v s="$smt" -v b="$best" 'BEGIN{printf "%.1f", s / b}')x"

@@ -17,6 +17,8 @@
 #
 #     bash benches/batch_kill.sh [BIN]      # MODE NLOGS SECONDS_PER_LOG KILLS THREADS
 set -euo pipefail
+# seconds from $1 to $2 (default: now), without bc
+since() { awk -v a="$1" -v b="${2:-$(date +%s.%N)}" 'BEGIN{printf "%.2f", b - a}'; }
 bin="$(realpath "${1:-target/release/farma}")"
 here="$(cd "$(dirname "$0")/.." && pwd)"
 mode="${MODE:-small}"
@@ -121,7 +123,7 @@ else
   "$bin" "${threads[@]}" batch "$w/job.toml" -o "$w/clean" --json >"$w/clean.json" 2>"$w/clean.err" || true
 fi
 t1=$(date +%s.%N)
-tclean=$(echo "$t1 - $t0" | bc)
+tclean=$(since "$t0" "$t1")
 echo "clean run: $tclean s: $(cat "$w/clean.json")"
 units=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["units"])' "$w/clean.json" 2>/dev/null || echo 0)
 for k in $(seq 1 "$kills"); do
@@ -139,13 +141,13 @@ for k in $(seq 1 "$kills"); do
 done
 t2=$(date +%s.%N)
 "$bin" "${threads[@]}" batch "$w/job.toml" -o "$w/killed" --json >"$w/resume.json" 2>/dev/null || true
-echo "resume: $(echo "$(date +%s.%N) - $t2" | bc) s: $(cat "$w/resume.json")"
+echo "resume: $(since "$t2") s: $(cat "$w/resume.json")"
 t3=$(date +%s.%N)
 for s in 1 2 3 4; do
   "$bin" "${threads[@]}" batch "$w/job.toml" -o "$w/sharded" --shard "$s/4" >/dev/null 2>&1 &
 done
 wait || true
-echo "4 shards at once: $(echo "$(date +%s.%N) - $t3" | bc) s"
+echo "4 shards at once: $(since "$t3") s"
 "$bin" batch "$w/job.toml" -o "$w/sharded" --status
 same() {
   local a="$1" b="$2" bad=0

@@ -356,7 +356,9 @@ pub fn chi2_test(x: &[f64], farma: &FarmaParams) -> Result<Constancy> {
         },
     )?;
     let df = g.trace - farma.p as f64;
-    let p_value = chi2_p(g.t, df);
+    // a fit that returned its linear start is the null model itself: T is 0 up to
+    // rounding (its RSS is the start's, summed by another pass), and nothing is tested
+    let p_value = if g.linear { 1.0 } else { chi2_p(g.t, df) };
     if p_value.is_nan() {
         return Err(Error::Data(format!(
             "constancy test: the FARMA fit at bandwidth {h:.6e} has an undefined smoother trace ({}): no degrees of freedom to refer T = {:.4} to; run it with --constancy bootstrap",
