@@ -15,7 +15,7 @@
 # third root; compares every dataset file (the manifest aside) of the three with cmp,
 # and reports wall times, the clean run's peak RSS and whether each kill interrupted.
 #
-#     bash benches/batch_kill.sh [BIN]      # MODE NLOGS SECONDS_PER_LOG KILLS THREADS
+#     bash benches/batch_kill.sh [BIN]      # MODE NLOGS SECONDS_PER_LOG KILLS THREADS ONLY_CLEAN
 set -euo pipefail
 # seconds from $1 to $2 (default: now), without bc
 since() { awk -v a="$1" -v b="${2:-$(date +%s.%N)}" 'BEGIN{printf "%.2f", b - a}'; }
@@ -125,6 +125,7 @@ fi
 t1=$(date +%s.%N)
 tclean=$(since "$t0" "$t1")
 echo "clean run: $tclean s: $(cat "$w/clean.json")"
+if [[ -n "${ONLY_CLEAN:-}" ]]; then exit 0; fi
 units=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["units"])' "$w/clean.json" 2>/dev/null || echo 0)
 for k in $(seq 1 "$kills"); do
   rows=$( (ls "$w/killed/_manifest" 2>/dev/null || true) | wc -l)
