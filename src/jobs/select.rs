@@ -106,10 +106,15 @@ pub fn select_text(name: &str, s: &Selection, c: Option<&Constancy>) -> String {
                 c.bootstrap,
                 c.min_p()
             )
-        } else {
+        } else if c.df > 0.0 {
             format!(
                 "GLR at fixed bandwidth {:.4e}, 2T against chi2 on {:.2} df",
                 c.bandwidth, c.df
+            )
+        } else {
+            format!(
+                "GLR at fixed bandwidth {:.4e}: the FARMA fit there returned its linear start, the null model itself",
+                c.bandwidth
             )
         };
         o += &format!(
