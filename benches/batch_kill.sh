@@ -33,7 +33,12 @@ kills="${KILLS:-3}"
 threads=()
 if [[ -n "${THREADS:-}" ]]; then threads=(--threads "$THREADS"); fi
 w="${TMPDIR:-/tmp}/farma-batch-kill"
-rm -rf "$w"
+if [[ -n "${KEEP_LOGS:-}" && -d "$w/logs" ]]; then
+  # the logs of an earlier run of the same MODE, NLOGS and SECONDS_PER_LOG, kept
+  rm -rf "$w/clean" "$w/killed" "$w/sharded" "$w/cache"
+else
+  rm -rf "$w"
+fi
 mkdir -p "$w/logs" "$w/specs"
 export FARMA_CACHE_DIR="$w/cache"
 spec6() { # the bar's spec of log $1
@@ -87,6 +92,7 @@ gen() {
 # the logs, as many at once as the machine has cores
 jobs_at_once="$(nproc 2>/dev/null || echo 2)"
 for i in $(seq 1 "$n"); do
+  if [[ -n "${KEEP_LOGS:-}" && -s "$w/logs/sim$i.parquet" ]]; then continue; fi
   gen "$i" &
   if (( i % jobs_at_once == 0 )); then wait; fi
 done
