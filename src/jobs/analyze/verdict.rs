@@ -135,10 +135,10 @@ impl Verdict {
 }
 
 /// A p-value in summary lines: 3 decimals, or 2 significant digits below 0.001 (0 as
-/// `0`: below f64's reach).
+/// `0 (below 1e-300)`: the tail underflowed).
 pub fn fmt_p(p: f64) -> String {
     if p == 0.0 {
-        "0".into()
+        "0 (below 1e-300)".into()
     } else if p.is_finite() && p < 1e-3 {
         format!("{p:.1e}")
     } else {
