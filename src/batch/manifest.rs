@@ -1,6 +1,6 @@
 //! The manifest of a batch dataset: one row per unit (log, task) with the log's path
 //! and fingerprint, the task, the options hash, the status (`done`, `failed`,
-//! `skipped`), the error, the start and end times, the farma version and the dataset
+//! `skipped`), the error, the start and end times, the farma version and commit and the dataset
 //! files the unit wrote.
 //!
 //! Each unit's row is its own file, `ROOT/_manifest/<unit>.parquet`, written
@@ -47,6 +47,8 @@ pub struct Row {
     pub started_unix_s: f64,
     pub finished_unix_s: f64,
     pub farma_version: String,
+    /// The git commit the binary was built from ("unknown" outside a checkout).
+    pub farma_commit: String,
     /// The dataset files the unit wrote, relative to the root, `;`-separated.
     pub files: String,
 }
@@ -93,6 +95,7 @@ pub fn table(rows: &[&Row]) -> Result<RecordBatch> {
         ("started_unix_s", f(&|r| r.started_unix_s)),
         ("finished_unix_s", f(&|r| r.finished_unix_s)),
         ("farma_version", s(&|r| &r.farma_version)),
+        ("farma_commit", s(&|r| &r.farma_commit)),
         ("files", s(&|r| &r.files)),
     ])
 }
@@ -179,6 +182,10 @@ fn read_file(path: &Path) -> Result<Vec<Row>> {
             st("files")?,
         );
         let (t0, t1) = (fl("started_unix_s")?, fl("finished_unix_s")?);
+        // (rows written before the column existed have none)
+        let commit = b
+            .column_by_name("farma_commit")
+            .and_then(|c| c.as_any().downcast_ref::<StringArray>().cloned());
         for i in 0..b.num_rows() {
             out.push(Row {
                 unit: unit.value(i).into(),
@@ -195,6 +202,9 @@ fn read_file(path: &Path) -> Result<Vec<Row>> {
                 started_unix_s: t0.value(i),
                 finished_unix_s: t1.value(i),
                 farma_version: version.value(i).into(),
+                farma_commit: commit
+                    .as_ref()
+                    .map_or_else(String::new, |c| c.value(i).to_string()),
                 files: files.value(i).into(),
             });
         }
@@ -232,6 +242,7 @@ mod tests {
             started_unix_s: 1.5,
             finished_unix_s: 2.5,
             farma_version: "0".into(),
+            farma_commit: "abc".into(),
             files: "coef/task=fit/log_id=a/part-0.parquet".into(),
         };
         write_row(dir.path(), &row).unwrap();

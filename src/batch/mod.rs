@@ -164,6 +164,7 @@ impl BatchRun {
             started_unix_s: started,
             finished_unix_s: started,
             farma_version: env!("CARGO_PKG_VERSION").into(),
+            farma_commit: env!("FARMA_COMMIT").into(),
             files: String::new(),
         };
         let result = (|| -> Result<Ran> {

@@ -657,6 +657,9 @@ fn the_gap_task_diagnoses_the_specs_channels_with_the_temperature_role() {
                 .is_file()
         );
     }
+    // the manifest names the binary's version and commit
+    let commit = crate::common::parquet_strings(&root.join("manifest.parquet"), "farma_commit");
+    assert!(commit.len() == 1 && !commit[0].is_empty(), "{commit:?}");
     // unchanged: skipped; an edited spec: redone
     let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
     assert_eq!(json_of(&o)["done"].as_u64(), Some(0), "{}", stderr(&o));
