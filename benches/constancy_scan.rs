@@ -37,9 +37,12 @@ fn null_model() -> (Vec<f64>, Vec<f64>) {
 }
 
 fn simulate(n: usize, seed: u64, nonlinear: bool) -> Vec<f64> {
+    if nonlinear {
+        return common::farma211(n, seed);
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let burn = 500;
-    if !nonlinear {
+    {
         let (ar, ma) = null_model();
         let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
         for t in 0..n + burn {
@@ -57,24 +60,8 @@ fn simulate(n: usize, seed: u64, nonlinear: bool) -> Vec<f64> {
             }
             x[t] = s;
         }
-        return x.split_off(burn);
+        x.split_off(burn)
     }
-    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
-    for t in 0..n + burn {
-        e[t] = StandardNormal.sample(&mut rng);
-        let mut s = e[t];
-        if t >= 2 {
-            let z = x[t - 1];
-            let (a1, a2) = if nonlinear {
-                (0.2 + 0.6 * f64::exp(-z * z), -0.25 + 0.15 * z.tanh())
-            } else {
-                (0.5, -0.3)
-            };
-            s += a1 * x[t - 1] + a2 * x[t - 2] + 0.4 * e[t - 1];
-        }
-        x[t] = s;
-    }
-    x.split_off(burn)
 }
 
 fn env(name: &str, default: usize) -> usize {

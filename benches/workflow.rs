@@ -20,27 +20,6 @@ use farma::workflow::analyze::{AnalyzeParams, analyze_channel};
 use farma::workflow::constancy::{ConstancyTest, run_test};
 use farma::workflow::prep::{PrepParams, prep_channel};
 use farma::workflow::select::PAPER_ORDERS;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
-
-fn simulate(n: usize, seed: u64) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let burn = 500;
-    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
-    for t in 0..n + burn {
-        e[t] = StandardNormal.sample(&mut rng);
-        let mut s = e[t];
-        if t >= 2 {
-            let z = x[t - 1];
-            s += (0.2 + 0.6 * f64::exp(-z * z)) * x[t - 1]
-                + (-0.25 + 0.15 * z.tanh()) * x[t - 2]
-                + 0.4 * e[t - 1];
-        }
-        x[t] = s;
-    }
-    x.split_off(burn)
-}
 
 fn main() {
     let n: usize = std::env::var("FARMA_BENCH_N")
@@ -57,7 +36,7 @@ fn main() {
         _ => ConstancyTest::Chi2,
     };
     println!("machine: {}", common::machine());
-    let x = simulate(n, 77);
+    let x = common::farma211(n, 77);
     let t0 = Instant::now();
     let m = fit(&x, &FarmaParams::default().validate(n).unwrap()).unwrap();
     let single = t0.elapsed().as_secs_f64();

@@ -40,3 +40,26 @@ pub fn machine() -> String {
         .unwrap_or(1);
     format!("{cpu}, {cores} cores")
 }
+
+/// The FARMA(2,1,1) of tests/suite/workflow_select.rs: f_1(z) = 0.2 + 0.6 exp(-z^2),
+/// f_2(z) = -0.25 + 0.15 tanh z, b = 0.4, z = x_{t-1}, unit Gaussian innovations
+/// (ChaCha8, `seed`), 500 samples of burn-in dropped.
+pub fn farma211(n: usize, seed: u64) -> Vec<f64> {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let burn = 500;
+    let (mut x, mut e) = (vec![0.0; n + burn], vec![0.0; n + burn]);
+    for t in 0..n + burn {
+        e[t] = StandardNormal.sample(&mut rng);
+        let mut s = e[t];
+        if t >= 2 {
+            let z = x[t - 1];
+            s += (0.2 + 0.6 * f64::exp(-z * z)) * x[t - 1]
+                + (-0.25 + 0.15 * z.tanh()) * x[t - 2]
+                + 0.4 * e[t - 1];
+        }
+        x[t] = s;
+    }
+    x.split_off(burn)
+}

@@ -158,6 +158,27 @@ fn went_back(rss: f64, best_rss: f64, tol: f64) -> bool {
     !rss.is_finite() || rss - best_rss > tol * rss
 }
 
+/// The damped step's values f = f_old + alpha D + beta (D - mean D) at every grid point
+/// (D = f_new - f_old, its mean over the grid points per function; `p` functions
+/// interleaved per point) into `out`: the one combination of both indexes' smoothers.
+pub(super) fn combine_f(old: &[f64], new: &[f64], p: usize, (al, be): (f64, f64), out: &mut [f64]) {
+    let g = old.len() / p.max(1);
+    for m in 0..p {
+        let mean = (0..g).map(|k| new[k * p + m] - old[k * p + m]).sum::<f64>() / g as f64;
+        for k in 0..g {
+            let (o, d) = (old[k * p + m], new[k * p + m] - old[k * p + m]);
+            out[k * p + m] = o + al * d + be * (d - mean);
+        }
+    }
+}
+
+/// The damped step's slopes: old + (alpha + beta) (new - old), into `out`.
+pub(super) fn combine_slopes(old: &[f64], new: &[f64], w: f64, out: &mut [f64]) {
+    for ((v, o), n) in out.iter_mut().zip(old).zip(new) {
+        *v = o + w * (n - o);
+    }
+}
+
 /// One iterate of the alternation, kept while it has the least global RSS.
 pub(super) struct Iterate<C, H> {
     /// Its index in `rss_history` (0: the linear start).

@@ -304,22 +304,8 @@ impl Smoother for LagSmoother<'_> {
 
     fn combine(old: &GridFit, new: &GridFit, (al, be): (f64, f64)) -> GridFit {
         let mut out = new.clone();
-        let p = old.p;
-        let g = old.f.len() / p.max(1);
-        for m in 0..p {
-            // the mean of D_m over the grid points
-            let mean = (0..g)
-                .map(|k| new.f[k * p + m] - old.f[k * p + m])
-                .sum::<f64>()
-                / g as f64;
-            for k in 0..g {
-                let (o, d) = (old.f[k * p + m], new.f[k * p + m] - old.f[k * p + m]);
-                out.f[k * p + m] = o + al * d + be * (d - mean);
-            }
-        }
-        for ((v, o), n) in out.slope.iter_mut().zip(&old.slope).zip(&new.slope) {
-            *v = o + (al + be) * (n - o);
-        }
+        super::combine_f(&old.f, &new.f, old.p, (al, be), &mut out.f);
+        super::combine_slopes(&old.slope, &new.slope, al + be, &mut out.slope);
         out
     }
 

@@ -142,25 +142,9 @@ impl Smoother for Index2Smoother<'_> {
 
     fn combine(old: &Grid2Fit, new: &Grid2Fit, (al, be): (f64, f64)) -> Grid2Fit {
         let mut out = new.clone();
-        let p = old.p;
-        let g = old.f.len() / p.max(1);
-        for m in 0..p {
-            // the mean of D_m over the grid points
-            let mean = (0..g)
-                .map(|k| new.f[k * p + m] - old.f[k * p + m])
-                .sum::<f64>()
-                / g as f64;
-            for k in 0..g {
-                let (o, d) = (old.f[k * p + m], new.f[k * p + m] - old.f[k * p + m]);
-                out.f[k * p + m] = o + al * d + be * (d - mean);
-            }
-        }
-        for ((v, o), n) in out.slope1.iter_mut().zip(&old.slope1).zip(&new.slope1) {
-            *v = o + (al + be) * (n - o);
-        }
-        for ((v, o), n) in out.slope2.iter_mut().zip(&old.slope2).zip(&new.slope2) {
-            *v = o + (al + be) * (n - o);
-        }
+        super::combine_f(&old.f, &new.f, old.p, (al, be), &mut out.f);
+        super::combine_slopes(&old.slope1, &new.slope1, al + be, &mut out.slope1);
+        super::combine_slopes(&old.slope2, &new.slope2, al + be, &mut out.slope2);
         out
     }
 
