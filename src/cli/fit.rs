@@ -58,7 +58,9 @@ pub struct FitArgs {
     /// Also write residuals.parquet.
     #[arg(long)]
     pub residuals: bool,
-    /// Also write state.parquet, what `farma update` needs to continue the fit.
+    /// Also write state.parquet, what `farma update` needs to continue the fit (GCV then
+    /// keeps a finite bandwidth: the ladder's limit h -> infinity has no kernel windows
+    /// to update).
     #[arg(long)]
     pub save_state: bool,
     /// Index of the coefficient functions: `lag` (x_(t-d), default) or `lag,CHANNEL`
@@ -124,6 +126,8 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
             max_iter: a.max_iter,
             tol: a.tol,
             demean: !a.no_demean,
+            // the online state keeps kernel windows of a finite bandwidth
+            bandwidth_limit: !a.save_state,
             ..FarmaParams::default()
         },
         residuals: a.residuals,

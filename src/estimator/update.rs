@@ -211,9 +211,14 @@ impl Sums {
 /// [`state_from_fit_direct`], its slow twin, from a pass that adds each row to every
 /// grid point whose support holds it (`sums_direct`). Either way the result does not
 /// depend on the number of threads.
+///
+/// A model at GCV's limit h -> infinity (bandwidth +inf) has no kernel windows: its
+/// state holds zero sums, and [`update`] refuses it (`farma fit --save-state` keeps
+/// the bandwidth finite).
 pub fn state_from_fit(channel: &str, series: &[f64], m: &Farma, r: &FitReport) -> ChannelState {
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
     let sums = match r.path {
+        _ if m.bandwidth.is_infinite() => Sums::zeros(m.coef.grid.len(), m.p(), m.q()),
         FitPath::Fast => sums_from_tables(&x, m, r),
         FitPath::Direct => sums_direct(&x, m, r),
     };
@@ -229,7 +234,11 @@ pub fn state_from_fit_direct(
     r: &FitReport,
 ) -> ChannelState {
     let x: Vec<f64> = series.iter().map(|v| v - m.mean).collect();
-    let sums = sums_direct(&x, m, r);
+    let sums = if m.bandwidth.is_infinite() {
+        Sums::zeros(m.coef.grid.len(), m.p(), m.q())
+    } else {
+        sums_direct(&x, m, r)
+    };
     state_with(channel, x, m, r, sums)
 }
 
@@ -425,15 +434,26 @@ pub fn update(
             "--forgetting: {forgetting} is not in (0, 1]"
         )));
     }
+    let linear_start_refused = || {
+        Err(Error::Data(
+            "its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead".into(),
+        ))
+    };
+    if state.bandwidth.is_infinite() {
+        if state.linear_start {
+            return linear_start_refused();
+        }
+        return Err(Error::Data(
+            "its model is GCV's limit h -> infinity (the global fit, f_m linear in the index), which keeps no kernel windows to update; refit with `farma fit --save-state` (GCV then keeps a finite bandwidth) or a fixed --bandwidth".into(),
+        ));
+    }
     state
         .check()
         .and_then(|()| state.check_invertible())
         .and_then(|()| state.check_solvable())
         .map_err(Error::Data)?;
     if state.linear_start {
-        return Err(Error::Data(
-            "its fit returned the linear ARMA start (the local fits ended above it in RSS), so the state holds no fitted local model to continue; fit the concatenated log instead".into(),
-        ));
+        return linear_start_refused();
     }
     if new.is_empty() {
         return Err(Error::Data("no new samples".into()));

@@ -18,6 +18,7 @@ mod fit_cli;
 mod fit_index_cli;
 mod fixtures;
 mod gap;
+mod gcv_limit;
 mod ingest;
 mod noise_terms;
 mod psd_acf;

@@ -1,8 +1,13 @@
 //! The bandwidth choice: GCV over the ladder h_j = 1.1^-j range/2, extended while the
 //! minimum sits at an end. A rung where some grid point has no local fit has no GCV
 //! (infinite): the ladder's bottom is where the local systems lose their support, and
-//! a minimum right above it says so in a note.
+//! a minimum right above it says so in a note. At the top, the ladder's limit h ->
+//! infinity (the global fit, f_m linear in the index: [`super::global`]) is evaluated
+//! directly when the minimum sits at the largest rung: it is chosen when its GCV is
+//! lower, and the ladder is extended upwards only when it is not (the optimum then
+//! lies between).
 
+use super::global::GlobalFit;
 use super::params::FitPath;
 use super::smoother::{LagStep, StepCache};
 use crate::estimator::moments::Families;
@@ -69,7 +74,20 @@ impl LadderCache {
     }
 }
 
+/// The GCV table's rung of the limit h -> infinity: `j` is this (the rungs sort by
+/// decreasing h as by increasing j), written as null in gcv.parquet.
+pub const LIMIT_J: i32 = i32::MIN;
+
 impl<'a> LagStep<'a> {
+    /// The ladder's limit h -> infinity ([`super::global`]): the global fit in the
+    /// local fits' form (bandwidth +inf) with its RSS and trace; None when its
+    /// design is singular.
+    pub(super) fn limit_fit(&self) -> Option<RungFit> {
+        let centre_scale = ((self.umin + self.umax) / 2.0, (self.umax - self.umin) / 2.0);
+        let g = GlobalFit::fit(&self.prob, self.grid, centre_scale)?;
+        Some((g.grid_fit(self.grid), Some((g.rss, g.trace))))
+    }
+
     /// Fits (and RSS, trace) on the fast path for rungs `js`, through `cache`: a kept
     /// table covering them is brought up to date (`fresh`: it already is) with the
     /// y families only; otherwise one is built for the rungs plus [`ladder_ahead`].
@@ -179,14 +197,46 @@ impl<'a> LagStep<'a> {
     }
 }
 
-/// GCV over the ladder, extended at either end while the minimum sits there.
-/// Returns (table sorted by decreasing h, index of the minimum, extended?, notes).
+/// A rung's GCV row from its fit (and RSS, trace): GCV infinite where a grid point
+/// has no fit or the trace reaches the rows.
+fn gcv_row(j: i32, h: f64, (f, rt): &RungFit, m: f64) -> GcvRow {
+    let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
+    match rt {
+        Some((rss, tr)) if *tr < m => GcvRow {
+            j,
+            bandwidth: h,
+            bandwidth2: None,
+            rss: *rss,
+            trace: *tr,
+            gcv: (rss / m) / (1.0 - tr / m).powi(2),
+            n_failed,
+        },
+        _ => GcvRow {
+            j,
+            bandwidth: h,
+            bandwidth2: None,
+            rss: f64::NAN,
+            trace: f64::NAN,
+            gcv: f64::INFINITY,
+            n_failed,
+        },
+    }
+}
+
+/// GCV over the ladder, extended at either end while the minimum sits there; with
+/// `limit`, the limit h -> infinity is evaluated when the minimum is at the largest
+/// rung (module doc) and heads the table when it was. Returns (table sorted by
+/// decreasing h, index of the minimum, extended?, notes).
 pub(super) fn gcv_select(
     sm: &LagStep,
     range: f64,
     cache: &mut StepCache,
+    limit: bool,
 ) -> (Vec<GcvRow>, Vec<GridFit>, usize, bool, Vec<String>) {
     let m = sm.prob.n_rows() as f64;
+    // the limit's row and fit, once evaluated
+    let mut at_limit: Option<(GcvRow, GridFit)> = None;
+    let mut limit_tried = !limit;
     let mut js: Vec<i32> = (0..=20).collect();
     let mut notes = Vec::new();
     let mut extended = false;
@@ -210,34 +260,19 @@ pub(super) fn gcv_select(
                 js.iter().map(|j| direct_fits[j].clone()).collect()
             }
         };
-        let rows: Vec<GcvRow> = hs
+        let mut rows: Vec<GcvRow> = hs
             .iter()
             .zip(&fits)
             .zip(&js)
-            .map(|((&h, (f, rt)), &j)| {
-                let n_failed = f.status.iter().filter(|s| **s != PointStatus::Ok).count();
-                match rt {
-                    Some((rss, tr)) if *tr < m => GcvRow {
-                        j,
-                        bandwidth: h,
-                        bandwidth2: None,
-                        rss: *rss,
-                        trace: *tr,
-                        gcv: (rss / m) / (1.0 - tr / m).powi(2),
-                        n_failed,
-                    },
-                    _ => GcvRow {
-                        j,
-                        bandwidth: h,
-                        bandwidth2: None,
-                        rss: f64::NAN,
-                        trace: f64::NAN,
-                        gcv: f64::INFINITY,
-                        n_failed,
-                    },
-                }
-            })
+            .map(|((&h, fit), &j)| gcv_row(j, h, fit, m))
             .collect();
+        let mut fits: Vec<RungFit> = fits;
+        // the limit heads the table (index 0) once evaluated; `top` is the largest rung's
+        let top = usize::from(at_limit.is_some());
+        if let Some((row, fit)) = &at_limit {
+            rows.insert(0, row.clone());
+            fits.insert(0, (fit.clone(), None));
+        }
         let best = rows
             .iter()
             .enumerate()
@@ -246,6 +281,18 @@ pub(super) fn gcv_select(
             .map(|(i, _)| i);
         let last = rows.len() - 1;
         match best {
+            // the minimum at the largest rung: the limit h -> infinity, once
+            Some(i) if i == top && !limit_tried => {
+                limit_tried = true;
+                if let Some(fit) = sm.limit_fit() {
+                    let row = gcv_row(LIMIT_J, f64::INFINITY, &fit, m);
+                    if row.gcv.is_finite() {
+                        at_limit = Some((row, fit.0));
+                    }
+                }
+                // the ladder's rungs are kept (their fits cached): the next round
+                // compares them with the limit
+            }
             Some(i) if i == last && js[last] < 80 && rows.len() < 120 => {
                 let next = js[last] + 1;
                 notes.push(format!(
@@ -260,30 +307,49 @@ pub(super) fn gcv_select(
             // the minimum at the largest bandwidth, or no rung that fits every grid
             // point (a quantised channel whose levels are as far apart as the largest
             // bandwidth, say): wider bandwidths
-            Some(0) | None if js[0] > -20 => {
+            Some(i) if i == 0 && at_limit.is_some() => {
+                let (lim, h0) = (&rows[0], &rows[1]);
+                notes.push(format!(
+                    "GCV minimum at the ladder's limit h -> infinity (the global fit, f_m linear in the index): GCV {:.9e} against {:.9e} at the largest bandwidth h_{} = {:.6e}; the trace is {:.4}",
+                    lim.gcv, h0.gcv, h0.j, h0.bandwidth, lim.trace
+                ));
+                let fits: Vec<GridFit> = fits.into_iter().map(|(f, _)| f).collect();
+                return (rows, fits, 0, extended, notes);
+            }
+            Some(i) if i == top && js[0] > -20 => {
                 let first = js[0];
-                notes.push(if best.is_some() {
-                    format!(
+                notes.push(match &at_limit {
+                    Some((lim, _)) => format!(
+                        "GCV minimum at the largest bandwidth h_{first} = {:.6e}, below the limit h -> infinity's ({:.9e} against {:.9e}): ladder extended upwards",
+                        rows[top].bandwidth, rows[top].gcv, lim.gcv
+                    ),
+                    None => format!(
                         "GCV minimum at the largest bandwidth h_{first} = {:.6e}: ladder extended upwards",
-                        rows[0].bandwidth
-                    )
-                } else {
-                    format!(
-                        "GCV: no bandwidth from h_{first} = {:.6e} down gives a fit at every grid point: ladder extended upwards",
-                        rows[0].bandwidth
-                    )
+                        rows[top].bandwidth
+                    ),
                 });
                 let mut more: Vec<i32> = (first - 5..first).collect();
                 more.extend(js);
                 js = more;
                 extended = true;
             }
+            None if js[0] > -20 => {
+                let first = js[0];
+                notes.push(format!(
+                    "GCV: no bandwidth from h_{first} = {:.6e} down gives a fit at every grid point: ladder extended upwards",
+                    rows[0].bandwidth
+                ));
+                let mut more: Vec<i32> = (first - 5..first).collect();
+                more.extend(js);
+                js = more;
+                extended = true;
+            }
             Some(i) => {
-                if i == 0 || i == last {
+                if i == top || i == last {
                     // at an end no further extension reaches
                     notes.push(format!(
                         "GCV minimum at the {} bandwidth h_{} = {:.6e}, the end of the ladder's extensions: the optimum may lie beyond it",
-                        if i == 0 { "largest" } else { "smallest" },
+                        if i == top { "largest" } else { "smallest" },
                         js[i],
                         rows[i].bandwidth
                     ));

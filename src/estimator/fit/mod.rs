@@ -108,6 +108,7 @@
 
 mod bstep;
 mod gcv;
+mod global;
 mod grid;
 pub(crate) mod grid2;
 mod notes;
@@ -970,7 +971,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         prm.path,
         prm.init,
         (xmin, xmax),
-        prm.bandwidth.is_some(),
+        (prm.bandwidth.is_some(), prm.bandwidth_limit),
     );
     let ctl = Control {
         p,
@@ -1004,6 +1005,15 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
             // errors of a_m
             return (Some(p as f64), linear_se_factors(&x, p, pp).repeat(g));
         };
+        if h.is_infinite() {
+            // the ladder's limit: the global fit's trace and standard errors (its
+            // design is the one the alternation fitted with)
+            let sm = LagStep::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+            return match sm.limit_fit() {
+                Some((f, rt)) => (rt.map(|(_, tr)| tr), global::GlobalFit::se_factors(&f)),
+                None => (None, vec![f64::NAN; g * p]),
+            };
+        }
         match prm.path {
             FitPath::Fast => {
                 // one table of the design's families to degree 10 (K^2 for the standard

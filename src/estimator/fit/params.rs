@@ -42,6 +42,10 @@ pub struct FarmaParams {
     pub tol: f64,
     /// Subtract the mean before fitting (recorded in the model).
     pub demean: bool,
+    /// GCV may choose the ladder's limit h -> infinity, the global fit with f_m linear
+    /// in the index (`fit::global`). Off for a fit whose online state is kept
+    /// (`farma fit --save-state`): the state holds kernel windows of a finite h.
+    pub bandwidth_limit: bool,
 }
 
 impl Default for FarmaParams {
@@ -58,6 +62,7 @@ impl Default for FarmaParams {
             max_iter: 50,
             tol: 1e-6,
             demean: true,
+            bandwidth_limit: true,
         }
     }
 }

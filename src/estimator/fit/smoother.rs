@@ -219,6 +219,8 @@ pub(super) struct LagSmoother<'a> {
     range: f64,
     /// Whether --bandwidth fixed the bandwidth (for the message of a grid without fits).
     fixed: bool,
+    /// Whether GCV may choose the ladder's limit h -> infinity (`super::global`).
+    limit: bool,
     pub(super) cache: StepCache,
     /// `Init::Literal`: (first alternation, its least-squares b, alternations) where the
     /// least-squares b was not invertible and the previous b was kept.
@@ -235,7 +237,7 @@ impl<'a> LagSmoother<'a> {
         path: FitPath,
         init: Init,
         span: (f64, f64),
-        fixed: bool,
+        (fixed, limit): (bool, bool),
     ) -> Self {
         LagSmoother {
             x,
@@ -247,6 +249,7 @@ impl<'a> LagSmoother<'a> {
             span,
             range: span.1 - span.0,
             fixed,
+            limit,
             cache: StepCache::default(),
             not_invertible_kept: None,
         }
@@ -279,7 +282,8 @@ impl Smoother for LagSmoother<'_> {
 
     fn select(&mut self, e: &[f64], b: &[f64]) -> Selection<Self> {
         let sm = self.step(e, b);
-        let (rows, mut fits, best, extended, notes) = gcv_select(&sm, self.range, &mut self.cache);
+        let (rows, mut fits, best, extended, notes) =
+            gcv_select(&sm, self.range, &mut self.cache, self.limit);
         Selection {
             h: rows[best].bandwidth,
             fit: fits.swap_remove(best),
@@ -292,13 +296,25 @@ impl Smoother for LagSmoother<'_> {
     /// The next f-steps' left-hand sides, from the ladder's table (they depend on X
     /// and U only).
     fn chose(&mut self, h: f64) {
-        if let Some(lad) = &self.cache.ladder {
+        if let Some(lad) = self.cache.ladder.as_ref().filter(|_| h.is_finite()) {
             self.cache.systems = Some(lad.systems_at(self.grid, h));
         }
     }
 
+    /// At h = +inf the global fit (`super::global`), a grid without fits when its
+    /// design is singular.
     fn fit_at(&mut self, e: &[f64], b: &[f64], h: f64) -> GridFit {
         let sm = self.step(e, b);
+        if h.is_infinite() {
+            return match sm.limit_fit() {
+                Some((fit, _)) => fit,
+                None => {
+                    let mut fit = GridFit::new(self.grid.len(), self.pqd.0, h);
+                    fit.status.fill(PointStatus::Singular);
+                    fit
+                }
+            };
+        }
         sm.fit_at(h, &mut self.cache)
     }
 

@@ -146,12 +146,13 @@ fn sorted_breaks(mut breaks: Vec<f64>) -> Vec<f64> {
     breaks
 }
 
-/// The breakpoints for grid `grid` and bandwidths `hs`: every u_g, u_g - h, u_g + h.
+/// The breakpoints for grid `grid` and bandwidths `hs`: every u_g, u_g - h, u_g + h
+/// (u_g alone for an infinite h, whose window is every row).
 pub fn breakpoints(grid: &[f64], hs: &[f64]) -> Vec<f64> {
     let mut b = Vec::with_capacity(grid.len() * (2 * hs.len() + 1));
     for &g in grid {
         b.push(g);
-        for &h in hs {
+        for &h in hs.iter().filter(|h| h.is_finite()) {
             b.push(g - h);
             b.push(g + h);
         }

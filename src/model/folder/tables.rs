@@ -214,7 +214,8 @@ pub fn params_table(models: &[ModelRow]) -> Result<RecordBatch> {
     batch(cols)
 }
 
-/// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2), bandwidth, rss,
+/// The GCV ladder: channel, j (the rung, h_j = 1.1^-j range/2; null for the ladder's
+/// limit h -> infinity, whose bandwidth is +inf: the global fit), bandwidth, rss,
 /// trace, gcv, n_failed, chosen; on a 2-D index `bandwidth` is h_1 and `bandwidth2`
 /// follows it (h_j = 1.1^-j (range_1/2, range_2/2)).
 pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
@@ -232,7 +233,7 @@ pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
     for (name, m, rep) in models {
         for r in rep.gcv_table() {
             ch.push(name.clone());
-            j.push(r.j as i64);
+            j.push(r.bandwidth.is_finite().then_some(r.j as i64));
             h.push(r.bandwidth);
             h2.extend(r.bandwidth2);
             rss.push(r.rss);
@@ -242,7 +243,8 @@ pub fn gcv_table(models: &[ModelRow]) -> Result<RecordBatch> {
             chosen.push((r.bandwidth, r.bandwidth2) == m.bandwidths());
         }
     }
-    let mut cols = vec![("channel", s(ch)), ("j", i(j)), ("bandwidth", f(h))];
+    let j = Arc::new(Int64Array::from(j)) as ArrayRef;
+    let mut cols = vec![("channel", s(ch)), ("j", j), ("bandwidth", f(h))];
     if on_2d_index(models) {
         cols.push(("bandwidth2", f(h2)));
     }
