@@ -7,7 +7,7 @@
 //! lower, and the ladder is extended upwards only when it is not (the optimum then
 //! lies between).
 
-use super::global::GlobalFit;
+use super::global::GlobalDesign;
 use super::params::FitPath;
 use super::smoother::{LagStep, StepCache};
 use crate::estimator::moments::Families;
@@ -82,9 +82,17 @@ impl<'a> LagStep<'a> {
     /// The ladder's limit h -> infinity ([`super::global`]): the global fit in the
     /// local fits' form (bandwidth +inf) with its RSS and trace; None when its
     /// design is singular.
-    pub(super) fn limit_fit(&self) -> Option<RungFit> {
-        let centre_scale = ((self.umin + self.umax) / 2.0, (self.umax - self.umin) / 2.0);
-        let g = GlobalFit::fit(&self.prob, self.grid, centre_scale)?;
+    /// The design's sums are kept in `cache` (X and U are the same for every f-step).
+    pub(super) fn limit_fit(&self, cache: &mut StepCache) -> Option<RungFit> {
+        if cache.global.is_none() {
+            let centre_scale = ((self.umin + self.umax) / 2.0, (self.umax - self.umin) / 2.0);
+            cache.global = Some(GlobalDesign::new(&self.prob, self.grid, centre_scale));
+        }
+        let g = cache
+            .global
+            .as_ref()
+            .and_then(|d| d.as_ref())?
+            .fit(&self.prob);
         Some((g.grid_fit(self.grid), Some((g.rss, g.trace))))
     }
 
@@ -284,7 +292,7 @@ pub(super) fn gcv_select(
             // the minimum at the largest rung: the limit h -> infinity, once
             Some(i) if i == top && !limit_tried => {
                 limit_tried = true;
-                if let Some(fit) = sm.limit_fit() {
+                if let Some(fit) = sm.limit_fit(cache) {
                     let row = gcv_row(LIMIT_J, f64::INFINITY, &fit, m);
                     if row.gcv.is_finite() {
                         at_limit = Some((row, fit.0));

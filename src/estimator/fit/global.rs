@@ -20,7 +20,8 @@
 //! - the standard error of f_m(u_g): sigma sqrt(v' S^-1 v), v = e_m + w_g e_(p+m) (the
 //!   sandwich S^-1 S2 S^-1 of the local fits with K^2 = K = 1).
 //!
-//! One pass over the rows gives every sum. [`GlobalFit::grid_fit`] writes the fit in
+//! One pass over the rows gives the design's sums ([`GlobalDesign`], kept for the
+//! whole fit: X and U do not change) and one more each response's. [`GlobalFit::grid_fit`] writes the fit in
 //! the local fits' form (bandwidth +inf): each grid point's inverse is S^-1 carried to
 //! the parametrisation centred at u_g, (X, (U - u_g)/s X), as the local fits keep
 //! theirs centred at u_g.
@@ -33,50 +34,173 @@ use crate::estimator::problem::{GridFit, PointStatus, VcProblem};
 /// Rows summed per parallel block.
 const BLOCK: usize = 1 << 15;
 
-/// The sums of one pass (module doc), 2p = n.
-#[derive(Clone)]
-struct Sums {
-    /// sum Z Z' (n x n).
-    s: Vec<f64>,
-    /// sum Z y.
-    t: Vec<f64>,
-    /// sum Z Z^c' (n x n).
-    zc: Vec<f64>,
-    /// sum Z^c Z^c' (n x n).
-    cc: Vec<f64>,
-    /// sum Z^c y.
-    cy: Vec<f64>,
-    yy: f64,
-    rows: u64,
+/// Sums `add(s0, s1, acc)` over blocks of the rows `start..end` in parallel, block
+/// order fixed (the same bits at any thread count).
+fn blocks<A: Send>(
+    (start, end): (usize, usize),
+    zero: impl Fn() -> A + Sync + Send,
+    add: impl Fn(usize, usize, &mut A) + Sync + Send,
+    merge: impl Fn(A, A) -> A + Sync + Send,
+) -> A {
+    let starts: Vec<usize> = (start..end).step_by(BLOCK).collect();
+    let parts: Vec<A> = starts
+        .par_iter()
+        .map(|&s0| {
+            let mut acc = zero();
+            add(s0, (s0 + BLOCK).min(end), &mut acc);
+            acc
+        })
+        .collect();
+    parts.into_iter().fold(zero(), merge)
 }
 
-impl Sums {
-    fn zeros(n: usize) -> Self {
-        Sums {
-            s: vec![0.0; n * n],
-            t: vec![0.0; n],
-            zc: vec![0.0; n * n],
-            cc: vec![0.0; n * n],
-            cy: vec![0.0; n],
-            yy: 0.0,
-            rows: 0,
-        }
+fn add_into(mut a: Vec<f64>, b: Vec<f64>) -> Vec<f64> {
+    a.iter_mut().zip(&b).for_each(|(a, b)| *a += b);
+    a
+}
+
+/// What the global fit needs of the design (X and U, the same for every response of
+/// one fit): S^-1, its condition number, sum Z Z^c' and sum Z^c Z^c', the trace.
+#[derive(Clone, Debug)]
+pub(super) struct GlobalDesign {
+    p: usize,
+    centre: f64,
+    scale: f64,
+    /// The outer grid points, where U is clamped.
+    clamp: (f64, f64),
+    s_inv: Vec<f64>,
+    cond: f64,
+    /// sum Z^c Z^c' (n x n).
+    cc: Vec<f64>,
+    rows: u64,
+    trace: f64,
+}
+
+impl GlobalDesign {
+    /// The design's sums of `prob` with f evaluated on `grid` (constant beyond its
+    /// ends), w = (U - centre)/scale: one pass; None when S is singular (collinear
+    /// regressors).
+    pub(super) fn new(prob: &VcProblem, grid: &[f64], (centre, scale): (f64, f64)) -> Option<Self> {
+        let p = prob.p;
+        let n = 2 * p;
+        let clamp = (grid[0], grid[grid.len() - 1]);
+        // (sum Z Z' upper triangle, sum Z Z^c', sum Z^c Z^c' upper triangle, rows) in one
+        // vector: n*n + n*n + n*n + 1
+        let sums = blocks(
+            (prob.start, prob.x.len()),
+            || vec![0.0; 3 * n * n + 1],
+            |s0, s1, acc| {
+                let (mut z, mut zc) = ([0.0f64; 12], [0.0f64; 12]);
+                let (s, rest) = acc.split_at_mut(n * n);
+                let (zcs, rest) = rest.split_at_mut(n * n);
+                let (cc, rows) = rest.split_at_mut(n * n);
+                for t in s0..s1 {
+                    let u = prob.u(t);
+                    let w = (u - centre) / scale;
+                    let wc = (u.clamp(clamp.0, clamp.1) - centre) / scale;
+                    for m in 0..p {
+                        let xm = prob.xr(t, m);
+                        z[m] = xm;
+                        z[p + m] = w * xm;
+                        zc[m] = xm;
+                        zc[p + m] = wc * xm;
+                    }
+                    for a in 0..n {
+                        for b in a..n {
+                            s[a * n + b] += z[a] * z[b];
+                            cc[a * n + b] += zc[a] * zc[b];
+                        }
+                        for b in 0..n {
+                            zcs[a * n + b] += z[a] * zc[b];
+                        }
+                    }
+                }
+                rows[0] += (s1 - s0) as f64;
+            },
+            add_into,
+        );
+        let sym = |m: &[f64]| -> Vec<f64> {
+            let mut out = m.to_vec();
+            for a in 0..n {
+                for b in 0..a {
+                    out[a * n + b] = m[b * n + a];
+                }
+            }
+            out
+        };
+        let s = sym(&sums[..n * n]);
+        let zc = &sums[n * n..2 * n * n];
+        let cc = sym(&sums[2 * n * n..3 * n * n]);
+        let (_, s_inv, cond) = spd_solve_inverse(&s, &vec![0.0; n], n)?;
+        // tr(S^-1 sum Z Z^c') = sum_ab S^-1[a][b] (sum Z Z^c')[b][a]
+        let trace = (0..n)
+            .map(|a| {
+                (0..n)
+                    .map(|b| s_inv[a * n + b] * zc[b * n + a])
+                    .sum::<f64>()
+            })
+            .sum();
+        Some(GlobalDesign {
+            p,
+            centre,
+            scale,
+            clamp,
+            s_inv,
+            cond,
+            cc,
+            rows: sums[3 * n * n] as u64,
+            trace,
+        })
     }
 
-    fn add(mut self, o: Sums) -> Sums {
-        let pairs = [
-            (&mut self.s, &o.s),
-            (&mut self.t, &o.t),
-            (&mut self.zc, &o.zc),
-            (&mut self.cc, &o.cc),
-            (&mut self.cy, &o.cy),
-        ];
-        for (a, b) in pairs {
-            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+    /// The global fit of `prob`'s response (its design this one's): one pass for sum
+    /// Z y, sum Z^c y and y'y.
+    pub(super) fn fit(&self, prob: &VcProblem) -> GlobalFit {
+        let (p, n) = (self.p, 2 * self.p);
+        let (centre, scale, clamp) = (self.centre, self.scale, self.clamp);
+        // (sum Z y, sum Z^c y, y'y)
+        let sums = blocks(
+            (prob.start, prob.x.len()),
+            || vec![0.0; 2 * n + 1],
+            |s0, s1, acc| {
+                let mut v = [0.0f64; 7];
+                for t in s0..s1 {
+                    prob.row(t, &mut v[..p + 1]);
+                    let y = v[p];
+                    let u = prob.u(t);
+                    let w = (u - centre) / scale;
+                    let wc = (u.clamp(clamp.0, clamp.1) - centre) / scale;
+                    for m in 0..p {
+                        let xy = v[m] * y;
+                        acc[m] += xy;
+                        acc[p + m] += w * xy;
+                        acc[n + m] += xy;
+                        acc[n + p + m] += wc * xy;
+                    }
+                    acc[2 * n] += y * y;
+                }
+            },
+            add_into,
+        );
+        let (t, cy, yy) = (&sums[..n], &sums[n..2 * n], sums[2 * n]);
+        let beta: Vec<f64> = (0..n)
+            .map(|a| (0..n).map(|b| self.s_inv[a * n + b] * t[b]).sum())
+            .collect();
+        let quad: f64 = (0..n)
+            .map(|a| beta[a] * (0..n).map(|b| self.cc[a * n + b] * beta[b]).sum::<f64>())
+            .sum();
+        let cross: f64 = beta.iter().zip(cy).map(|(b, c)| b * c).sum();
+        GlobalFit {
+            p,
+            centre,
+            scale,
+            beta,
+            s_inv: self.s_inv.clone(),
+            cond: self.cond,
+            rows: self.rows,
+            rss: (yy - 2.0 * cross + quad).max(0.0),
+            trace: self.trace,
         }
-        self.yy += o.yy;
-        self.rows += o.rows;
-        self
     }
 }
 
@@ -97,72 +221,11 @@ pub(super) struct GlobalFit {
 
 impl GlobalFit {
     /// The global fit of `prob` with f evaluated on `grid` (constant beyond its ends),
-    /// w = (U - centre)/scale; None when S is singular (collinear regressors).
-    pub(super) fn fit(prob: &VcProblem, grid: &[f64], (centre, scale): (f64, f64)) -> Option<Self> {
-        let p = prob.p;
-        let n = 2 * p;
-        let (g0, g1) = (grid[0], grid[grid.len() - 1]);
-        let starts: Vec<usize> = (prob.start..prob.x.len()).step_by(BLOCK).collect();
-        let sums = starts
-            .par_iter()
-            .map(|&s0| {
-                let mut acc = Sums::zeros(n);
-                let mut v = vec![0.0; p + 1];
-                let (mut z, mut zc) = (vec![0.0; n], vec![0.0; n]);
-                for t in s0..(s0 + BLOCK).min(prob.x.len()) {
-                    prob.row(t, &mut v);
-                    let u = prob.u(t);
-                    let w = (u - centre) / scale;
-                    let wc = (u.clamp(g0, g1) - centre) / scale;
-                    for m in 0..p {
-                        z[m] = v[m];
-                        z[p + m] = w * v[m];
-                        zc[m] = v[m];
-                        zc[p + m] = wc * v[m];
-                    }
-                    let y = v[p];
-                    for a in 0..n {
-                        for b in 0..n {
-                            acc.s[a * n + b] += z[a] * z[b];
-                            acc.zc[a * n + b] += z[a] * zc[b];
-                            acc.cc[a * n + b] += zc[a] * zc[b];
-                        }
-                        acc.t[a] += z[a] * y;
-                        acc.cy[a] += zc[a] * y;
-                    }
-                    acc.yy += y * y;
-                    acc.rows += 1;
-                }
-                acc
-            })
-            .reduce(|| Sums::zeros(n), Sums::add);
-        let (beta, s_inv, cond) = spd_solve_inverse(&sums.s, &sums.t, n)?;
-        let quad = |m: &[f64], x: &[f64]| -> f64 {
-            (0..n)
-                .map(|a| x[a] * (0..n).map(|b| m[a * n + b] * x[b]).sum::<f64>())
-                .sum()
-        };
-        let cross: f64 = beta.iter().zip(&sums.cy).map(|(b, c)| b * c).sum();
-        let rss = (sums.yy - 2.0 * cross + quad(&sums.cc, &beta)).max(0.0);
-        // tr(S^-1 sum Z Z^c') = sum_ab S^-1[a][b] (sum Z Z^c')[b][a]
-        let trace = (0..n)
-            .map(|a| {
-                (0..n)
-                    .map(|b| s_inv[a * n + b] * sums.zc[b * n + a])
-                    .sum::<f64>()
-            })
-            .sum();
-        Some(GlobalFit {
-            p,
-            centre,
-            scale,
-            beta,
-            s_inv,
-            cond,
-            rows: sums.rows,
-            rss,
-            trace,
-        })
+    /// w = (U - centre)/scale ([`GlobalDesign::new`], then [`GlobalDesign::fit`]);
+    /// None when S is singular.
+    #[cfg(test)]
+    pub(super) fn fit(prob: &VcProblem, grid: &[f64], cs: (f64, f64)) -> Option<Self> {
+        Some(GlobalDesign::new(prob, grid, cs)?.fit(prob))
     }
 
     /// The fit in the local fits' form at `grid` (bandwidth +inf): f_m(u_g) = beta_m +

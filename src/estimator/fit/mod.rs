@@ -1009,7 +1009,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
             // the ladder's limit: the global fit's trace and standard errors (its
             // design is the one the alternation fitted with)
             let sm = LagStep::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
-            return match sm.limit_fit() {
+            return match sm.limit_fit(&mut cache) {
                 Some((f, rt)) => (rt.map(|(_, tr)| tr), global::GlobalFit::se_factors(&f)),
                 None => (None, vec![f64::NAN; g * p]),
             };

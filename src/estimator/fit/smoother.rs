@@ -151,6 +151,9 @@ pub(super) struct StepCache {
     /// The direct path's KD-tree over the index values U_t = x_(t-d), which do not
     /// change during a fit: built once.
     pub(super) direct: Option<DirectIndex>,
+    /// The design's sums of the ladder's limit h -> infinity (`super::global`), built
+    /// on first use (inner None: a singular design).
+    pub(super) global: Option<Option<super::global::GlobalDesign>>,
 }
 
 impl StepCache {
@@ -306,7 +309,7 @@ impl Smoother for LagSmoother<'_> {
     fn fit_at(&mut self, e: &[f64], b: &[f64], h: f64) -> GridFit {
         let sm = self.step(e, b);
         if h.is_infinite() {
-            return match sm.limit_fit() {
+            return match sm.limit_fit(&mut self.cache) {
                 Some((fit, _)) => fit,
                 None => {
                     let mut fit = GridFit::new(self.grid.len(), self.pqd.0, h);
