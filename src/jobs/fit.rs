@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::estimator::fit::fit_then_release;
 use crate::estimator::update::state_from_fit;
-use crate::estimator::{FarmaParams, FitPath, fit};
+use crate::estimator::{FarmaParams, FitPath};
 use crate::log::Progress;
 use crate::model::folder::state_file::{state_metadata, state_table};
 use crate::model::folder::tables::{
@@ -140,7 +141,7 @@ impl FitJob {
         let fitted: Vec<(ChannelFit, Option<ChannelState>)> =
             super::map_channels(&self.log, &self.channels, FIT_CHANNELS_HINT, |n| {
                 let x = store.column(n)?;
-                let (model, mut report) = fit(x, &valid)?;
+                let (model, mut report) = fit_then_release(x, &valid, || store.release(x))?;
                 let state = t_last.map(|t| {
                     let mut s = state_from_fit(n, x, &model, &report);
                     s.t_last = t;

@@ -26,6 +26,8 @@ pub struct Store {
     /// The checksum recorded for each column (see [`CHECKSUM_KEY`]), in file order;
     /// None for a store written before format version 3.
     checksums: Option<Vec<u64>>,
+    /// The map the columns borrow (for [`Store::release`]).
+    map: Arc<Mmap>,
 }
 
 impl std::fmt::Debug for Store {
@@ -118,6 +120,7 @@ impl Store {
             batch,
             meta,
             checksums,
+            map,
         })
     }
 
@@ -166,6 +169,7 @@ impl Store {
                     .as_any()
                     .downcast_ref::<Float64Array>()?;
                 let got = column_checksum(values.values());
+                self.release(values.values());
                 (got != sums[i]).then_some((i, got))
             })
             .collect();
@@ -184,6 +188,40 @@ impl Store {
                 sums[i]
             ),
         ))
+    }
+
+    /// Drops this process's resident pages of `values`, a slice of this store's map
+    /// (a column), with madvise(MADV_DONTNEED) over the whole pages it covers: the
+    /// resident set no longer counts them once a column has been copied or checksummed.
+    /// The map is read-only and backed by the file, so a later read faults the same
+    /// bytes back in (from the page cache, or the file). A slice outside the map is
+    /// left alone.
+    pub fn release(&self, values: &[f64]) {
+        const PAGE: usize = 4096;
+        let base = self.map.as_ptr() as usize;
+        let (lo, hi) = (
+            values.as_ptr() as usize,
+            values.as_ptr() as usize + std::mem::size_of_val(values),
+        );
+        if lo < base || hi > base + self.map.len() {
+            return;
+        }
+        // whole pages inside the slice only: its neighbours' bytes stay resident
+        let start = (lo - base).div_ceil(PAGE) * PAGE;
+        let end = (hi - base) / PAGE * PAGE;
+        if end > start {
+            // SAFETY: MADV_DONTNEED discards a private or anonymous mapping's data; this
+            // map is a read-only mapping of the store file, never written, so the pages
+            // read back after it hold the file's bytes unchanged. Failure only leaves the
+            // pages resident.
+            let _ = unsafe {
+                self.map.unchecked_advise_range(
+                    memmap2::UncheckedAdvice::DontNeed,
+                    start,
+                    end - start,
+                )
+            };
+        }
     }
 
     /// The file this store was opened from.

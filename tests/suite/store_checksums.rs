@@ -214,3 +214,48 @@ fn concurrent_conversions_into_one_cache_both_end_good() {
             .unwrap();
     }
 }
+
+/// `Store::release` drops a column's resident pages and nothing else: the column reads
+/// back the same bytes, its neighbours and the checksums are untouched, and a slice
+/// that is not the store's is left alone.
+#[test]
+fn a_released_column_reads_back_the_same_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.arrow");
+    let n = 200_000;
+    let x: Vec<f64> = (0..n).map(|i| ((i as f64) * 0.37).sin() * 1e3).collect();
+    let t: Vec<f64> = (0..n).map(|i| i as f64 / 100.0).collect();
+    let csv = dir.path().join("s.csv");
+    let mut text = String::from("time_s,x\n");
+    for i in 0..n {
+        text.push_str(&format!("{},{}\n", t[i], x[i]));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let o = farma(
+        &[
+            "ingest",
+            csv.to_str().unwrap(),
+            "-o",
+            path.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let store = Store::open(&path).unwrap();
+    let col = store.column("x").unwrap();
+    let before: Vec<f64> = col.to_vec();
+    let time_before: Vec<f64> = store.column_with_nonfinite("time_s").unwrap().to_vec();
+    store.release(col);
+    store.release(&before); // not the store's: ignored
+    assert!(
+        col.iter()
+            .zip(&before)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+    assert_eq!(
+        store.column_with_nonfinite("time_s").unwrap(),
+        &time_before[..]
+    );
+    store.verify().unwrap();
+    assert_eq!(before[12_345], x[12_345]);
+}

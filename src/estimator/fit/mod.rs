@@ -838,6 +838,18 @@ pub(super) fn mix_parts<H: Copy>(
 
 /// Fits a FARMA model to `series`.
 pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
+    fit_then_release(series, params, || {})
+}
+
+/// [`fit`], calling `release` once the centred copy of `series` is made and `series`
+/// is no longer read: a caller whose series is a store's mapped column drops its pages
+/// from the resident set there ([`crate::store::Store::release`]), so that the fit holds
+/// the copy, not both.
+pub fn fit_then_release(
+    series: &[f64],
+    params: &ValidParams,
+    release: impl FnOnce(),
+) -> Result<(Farma, FitReport)> {
     let prm = params.params();
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = series.len();
@@ -874,6 +886,7 @@ pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
         (f64::INFINITY, f64::NEG_INFINITY, false),
         |(a, b, nan), (lo, hi, n)| (a.min(lo), b.max(hi), nan | n),
     );
+    release();
     if nan || !xmin.is_finite() || !xmax.is_finite() {
         return Err(Error::Data(
             "the channel holds NaN or infinite values".into(),
