@@ -10,7 +10,9 @@
 //! 2. f-step: with e and b fixed, y_t = x_t - sum b_m e_{t-m}; local-linear Biweight
 //!    fits at the grid points; the bandwidth by GCV over the ladder
 //!    h_j = 1.1^-j range/2 on the first f-step and again after convergence, extended
-//!    when the minimum sits at an end of the ladder;
+//!    when the minimum sits at an end of the ladder; at the top, the limit
+//!    h -> infinity (`global`: f_m linear in the index) is evaluated first and chosen
+//!    when its GCV is lower;
 //! 3. b-step: with f fixed, w_t = x_t - sum f_m(U_t) x_{t-m} and b minimises
 //!    sum e_t^2, e_t = w_t - sum b_m e_{t-m}, by Gauss-Newton from the b of the
 //!    f-step's response (`Arma`). One pass (`gn_b_step`, q <= 2) computes w, the
