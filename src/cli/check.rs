@@ -48,6 +48,29 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
+/// A warning when the model folder records LOG itself as the log it was fitted on (the
+/// same file: size and modification time equal, and the same path once resolved, or
+/// the same name when a path no longer resolves): its hold-out was in the fit.
+fn fitted_on_this_log(dir: &crate::model::folder::ModelDir, a: &CheckArgs) -> Option<String> {
+    let (source, size, mtime) = dir.source()?;
+    let (log_size, log_mtime) = crate::log::source_identity(&a.log).ok()?;
+    let same_path = match (
+        std::fs::canonicalize(&source),
+        std::fs::canonicalize(&a.log),
+    ) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => std::path::Path::new(&source).file_name() == a.log.file_name(),
+    };
+    (same_path && size == log_size && mtime == log_mtime).then(|| {
+        format!(
+            "{} was fitted on {} itself (the same file: path, size and modification time), so the hold-out's last {} s were in the fit: the FARMA prediction there is in-sample while the ARMA baseline is fitted before the hold-out; check on a log the model has not seen, or run `farma analyze`, which fits without the hold-out",
+            a.model.display(),
+            a.log.display(),
+            a.holdout_s
+        )
+    })
+}
+
 pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
     if let Some(dir) = &a.output {
         OutputSet::check(dir)?;
@@ -83,6 +106,9 @@ pub fn run(a: CheckArgs, progress: &Progress) -> Result<()> {
             "--holdout-s: {} is not a non-negative number",
             a.holdout_s
         )));
+    }
+    if let Some(warning) = fitted_on_this_log(&dir, &a) {
+        eprintln!("farma: warning: {warning}");
     }
     for c in job.run(&dir, &store, &names)? {
         let (name, model, holdout, report) = (&c.channel, &c.model, c.holdout, &c.report);

@@ -136,8 +136,8 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
     let done = job.run(&store, progress)?;
     for c in &done.fits {
         let (n, m, r) = (&c.channel, &c.model, &c.report);
-        eprintln!(
-            "farma: fit {n}: FARMA({p},{q},{d}) b = {:?} sigma2 = {:.6e} h = {:.6e} trace = {:.2} iterations {} {}",
+        let line = format!(
+            "fit {n}: FARMA({p},{q},{d}) b = {:?} sigma2 = {:.6e} h = {:.6e} trace = {:.2} iterations {} {}",
             m.b,
             m.sigma2,
             m.bandwidth,
@@ -149,6 +149,12 @@ pub fn run(a: FitArgs, progress: &Progress) -> Result<()> {
                 "NOT converged (raise --max-iter or --tol)"
             }
         );
+        // the result on stdout; with --json stdout holds the JSON alone
+        if a.json {
+            eprintln!("farma: {line}");
+        } else {
+            outln!("{line}");
+        }
         for note in &r.notes {
             eprintln!("farma: note: {n}: {note}");
         }
@@ -261,8 +267,8 @@ fn run_index2(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
     let (fits, coef_path, secs) = (&done.fits, &done.coef_path, done.secs);
     for (n, (m, r)) in fits {
         let second = m.second().expect("a 2-D index");
-        eprintln!(
-            "farma: fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",
+        let line = format!(
+            "fit {n}: FARMA({p},{q},{d}) on (x_(t-{d}), {index2}_(t-{d2})): b = {:?} sigma2 = {:.6e} h = ({:.6e}, {:.6e}) trace = {:.2} iterations {} {}",
             m.b,
             m.sigma2,
             m.bandwidth,
@@ -275,6 +281,11 @@ fn run_index2(a: FitArgs, index2: String, progress: &Progress) -> Result<()> {
                 "NOT converged (raise --max-iter or --tol)"
             }
         );
+        if a.json {
+            eprintln!("farma: {line}");
+        } else {
+            outln!("{line}");
+        }
         for note in &r.notes {
             eprintln!("farma: note: {n}: {note}");
         }

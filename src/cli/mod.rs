@@ -49,7 +49,13 @@ use choices::{GapArg, NanArg};
 
 /// farma: nonparametric ARMA models of gyro drift, and where a simulator differs from the real sensor.
 #[derive(Parser, Debug)]
-#[command(name = "farma", version, about, long_about = None)]
+#[command(
+    name = "farma",
+    version,
+    about,
+    long_about = None,
+    after_help = "Formats and contracts (the log, the simulation spec with every component and unit, the gap JSON, the --json keys): docs/contracts.md in the repository; every table's columns: README.md."
+)]
 pub struct Cli {
     /// Worker threads (default: all cores; at most 4 per core).
     #[arg(long, global = true, value_name = "N")]

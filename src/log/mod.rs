@@ -5,7 +5,7 @@
 //! [`ingest`] converts a file into a store; [`open_log`] gives any command a store for
 //! any input, converting CSV / Parquet / foreign Arrow files through a cache so that a
 //! user never has to ingest by hand. The input contract is section 1 of
-//! `shared/design/contracts.md`.
+//! `docs/contracts.md`.
 
 pub mod cache;
 mod columnar;

@@ -1,7 +1,7 @@
 //! The gyro drift simulator: a spec of noise components per channel, and the generator
 //! that turns it into simulated channels.
 //!
-//! - [`spec`]: the simulation spec of `../shared/design/contracts.md` section 2 (TOML):
+//! - [`spec`]: the simulation spec of `docs/contracts.md` section 2 (TOML):
 //!   parsing, validation with errors that name the key, and writing a spec back out.
 //! - [`generate`]: the generator, every component kind, deterministic per seed and
 //!   independent of the thread count.

@@ -842,3 +842,98 @@ fn a_confirmed_or_fixed_bandwidth_has_no_reselection_limit_note() {
     let err = run(&["--bandwidth", "0.01"], "fixed");
     assert!(!err.contains("re-selection"), "{err}");
 }
+
+/// `fit` prints each channel's result on stdout (notes on stderr); with `--json` stdout
+/// holds the JSON alone and the line goes to stderr.
+#[test]
+fn fit_results_go_to_stdout_and_json_stays_pure() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = fixture("multiaxis.csv");
+    let args = |out: &str, json: bool| {
+        let mut v = vec![
+            "fit".to_string(),
+            log.to_string_lossy().into_owned(),
+            "--channel".into(),
+            "gyro_x,gyro_y".into(),
+            "--grid".into(),
+            "41".into(),
+            "-o".into(),
+            dir.path().join(out).to_string_lossy().into_owned(),
+        ];
+        if json {
+            v.push("--json".into());
+        }
+        v
+    };
+    let a = args("plain", false);
+    let o = farma(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    for ch in ["gyro_x", "gyro_y"] {
+        assert!(
+            out.lines()
+                .any(|l| l.starts_with(&format!("fit {ch}: FARMA(2,1,1) b = "))),
+            "{out}"
+        );
+        assert!(
+            !stderr(&o).contains(&format!("fit {ch}: FARMA")),
+            "{}",
+            stderr(&o)
+        );
+    }
+    let a = args("json", true);
+    let o = farma(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for l in stdout(&o).lines() {
+        serde_json::from_str::<serde_json::Value>(l).unwrap_or_else(|e| panic!("{l}: {e}"));
+    }
+    assert!(stderr(&o).contains("farma: fit gyro_x: FARMA(2,1,1)"));
+}
+
+/// `check` on the very log a model was fitted on warns that its hold-out was in the fit;
+/// on another file (a copy: another path and modification time) it does not.
+#[test]
+fn check_warns_when_the_model_was_fitted_on_the_log_it_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("log.csv");
+    std::fs::copy(fixture("multiaxis.csv"), &log).unwrap();
+    let model = dir.path().join("model");
+    let o = farma(
+        &[
+            "fit",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+            "--grid",
+            "41",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = farma(
+        &["check", model.to_str().unwrap(), log.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("was fitted on") && stderr(&o).contains("in-sample"),
+        "{}",
+        stderr(&o)
+    );
+    let other = dir.path().join("later.csv");
+    std::fs::copy(&log, &other).unwrap();
+    let o = farma(
+        &["check", model.to_str().unwrap(), other.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("was fitted on"), "{}", stderr(&o));
+}

@@ -24,6 +24,7 @@ mod noise_terms;
 mod psd_acf;
 mod simulate;
 mod spec;
+mod spec_examples;
 mod store_checksums;
 mod unit_root;
 mod update_cli;

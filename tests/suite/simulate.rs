@@ -633,7 +633,7 @@ fn everything() -> (Spec, Vec<f64>) {
         "p = 1\nq = 0\nd = 1\nf = [[0.3, 0.05]]\nma = []\nsigma = 0.002",
     );
     assert!(
-        !text.contains("fits/gyro_y"),
+        !text.contains("model = \"fits/gyro_y\""),
         "fixture changed; update this test"
     );
     let s = spec(&text);

@@ -37,6 +37,21 @@ impl ModelDir {
             .and_then(|e| e.value.clone())
     }
 
+    /// The log the folder's models were fitted on, as params.parquet's metadata records
+    /// it (`source`, `source_size`, `source_mtime_ns`): (path, size, modification time
+    /// in ns); None when it does not (a folder of an older farma, or unreadable).
+    pub fn source(&self) -> Option<(String, u64, u128)> {
+        let file = std::fs::File::open(self.params_path()).ok()?;
+        let builder = ParquetRecordBatchReaderBuilder::try_new(file).ok()?;
+        let kv = builder.metadata().file_metadata().key_value_metadata()?;
+        let get = |k: &str| kv.iter().find(|e| e.key == k).and_then(|e| e.value.clone());
+        Some((
+            get("source")?,
+            get("source_size")?.parse().ok()?,
+            get("source_mtime_ns")?.parse().ok()?,
+        ))
+    }
+
     /// One channel's model: `channel`, or the only channel fitted when `None`; with the
     /// channel's name. Errors name the file and what is wrong: an unknown channel, a
     /// missing column, d = 0, non-finite values, a `b` whose length is not q, an f_m

@@ -2,7 +2,7 @@
 //! parameters, the GCV table and the residuals, one row per channel and item, for the
 //! lag index and the 2-D index (whose tables add the second coordinate's columns:
 //! models of one table share their index).
-//! Column names are the contract of `shared/design/contracts.md` section 4.
+//! Column names are the contract of `docs/contracts.md` section 4.
 
 use std::sync::Arc;
 

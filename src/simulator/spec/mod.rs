@@ -1,4 +1,4 @@
-//! The simulation spec: `../shared/design/contracts.md` section 2.
+//! The simulation spec: `docs/contracts.md` section 2.
 //!
 //! A spec is a TOML file: top-level `sample_rate_hz`, optional `temperature_channel` and
 //! `seed`, then one `[[channel]]` table per simulated channel, each with a `name` and
