@@ -356,6 +356,7 @@ fn run_task(
                     alpha: 0,
                 },
                 fit_tau_min: opt_f64(task, "fit_tau_min")?,
+                unit: None,
             };
             let segment = crate::jobs::longest_segment(store, log);
             let done = job.run(store, segment)?;

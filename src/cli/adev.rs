@@ -8,11 +8,12 @@ use serde_json::{Map, Value, json};
 
 use super::LogArgs;
 use crate::error::{Error, Result};
-use crate::jobs::adev::{AdevJob, ChannelAdev, allan_table};
+use crate::jobs::adev::{AdevJob, ChannelAdev, allan_table, noise_terms_table};
 use crate::log::Progress;
 use crate::output::{write_parquet, write_text};
 use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid};
 use crate::stats::noise_terms::{Identification, to_spec};
+use crate::stats::rate_unit::{RateUnit, datasheet, gyroparams};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum KindArg {
@@ -78,6 +79,16 @@ pub struct AdevArgs {
     /// Write the identified noise terms as a simulation spec (TOML, contracts.md section 2).
     #[arg(long, value_name = "FILE.toml")]
     pub spec_out: Option<PathBuf>,
+    /// The channels' rate unit, for the noise terms in datasheet units (deg/sqrt(h),
+    /// deg/h, deg/h/sqrt(h)) and MATLAB gyroparams' SI ones: deg/s, rad/s or deg/h
+    /// (default: from each channel's name, `_dps`, `_rps`, `_dph`; none otherwise).
+    #[arg(long, value_name = "UNIT")]
+    pub unit: Option<String>,
+    /// Also write the noise terms as a Parquet table (one row per channel and term: the
+    /// IEEE 952 coefficient with its uncertainty and unit, the taus fitted, and the
+    /// datasheet and gyroparams forms; the table of the batch task `adev`).
+    #[arg(long, value_name = "TERMS.parquet")]
+    pub terms_out: Option<PathBuf>,
 }
 
 impl AdevArgs {
@@ -142,6 +153,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
         grid,
         ci,
         fit_tau_min: a.fit_tau_min,
+        unit: a.unit.as_deref().map(RateUnit::from_flag).transpose()?,
     };
     let done = job.run(&store, (start, len))?;
     for r in &done {
@@ -188,6 +200,17 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             ],
         )?;
     }
+    if let Some(out) = &a.terms_out {
+        write_parquet(
+            out,
+            &noise_terms_table(&done)?,
+            &[
+                ("log", a.log.display().to_string()),
+                ("sample_rate_hz", rate_hz.to_string()),
+                ("farma.command", "adev".to_string()),
+            ],
+        )?;
+    }
     let n = len;
     if a.json {
         for (name, cs) in &results {
@@ -217,10 +240,12 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             if let Some(out) = &a.output {
                 o.insert("output".into(), json!(out.display().to_string()));
             }
-            let id = done.iter().find(|r| r.channel == *name).map(|r| &r.terms);
+            let done_ch = done.iter().find(|r| r.channel == *name);
+            let unit = done_ch.and_then(|r| r.unit);
+            let id = done_ch.map(|r| &r.terms);
             match id {
                 Some(Ok(id)) => {
-                    o.insert("terms".into(), terms_json(id));
+                    o.insert("terms".into(), terms_json(id, unit));
                     o.insert("terms_fit".into(), terms_fit_json(id));
                 }
                 Some(Err(e)) => {
@@ -283,7 +308,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
 
 /// `terms` of the JSON line: {kind: {coef: value, coef_unc: u, unit: ...}} for each
 /// selected term (contracts.md section 4); gauss_markov also has tau_s, tau_s_unc.
-fn terms_json(id: &Identification) -> Value {
+fn terms_json(id: &Identification, unit: Option<RateUnit>) -> Value {
     let mut o = Map::new();
     for t in &id.terms {
         let c = t.term.coef_name();
@@ -295,7 +320,25 @@ fn terms_json(id: &Identification) -> Value {
             e.insert("tau_s_unc".into(), json!(ct.unc));
         }
         e.insert("unit".into(), json!(t.term.coef_unit()));
-        o.insert(t.term.kind_name().into(), Value::Object(e));
+        let kind = t.term.kind_name();
+        let conv = |c: Option<crate::stats::rate_unit::Converted>| {
+            c.map_or(
+                Value::Null,
+                |c| json!({"name": c.name, "value": c.value, "unc": c.unc, "unit": c.unit}),
+            )
+        };
+        if let Some(u) = unit {
+            e.insert("rate_unit".into(), json!(u.name()));
+            e.insert(
+                "datasheet".into(),
+                conv(datasheet(kind, t.coef.value, t.coef.unc, u)),
+            );
+            e.insert(
+                "gyroparams".into(),
+                conv(gyroparams(kind, t.coef.value, t.coef.unc, u)),
+            );
+        }
+        o.insert(kind.into(), Value::Object(e));
     }
     Value::Object(o)
 }
@@ -323,7 +366,7 @@ fn print_terms(done: &[ChannelAdev]) -> Result<()> {
         "noise terms (IEEE Std 952) fitted to the octave Allan variance; uncertainty: one standard uncertainty; u = the channel's unit"
     );
     outln!(
-        "{:<16} {:<18} {:<6} {:>14} {:>12} {:<10}",
+        "{:<16} {:<18} {:<6} {:>14} {:>12} {:<10} datasheet (gyroparams)",
         "channel",
         "kind",
         "param",
@@ -338,14 +381,26 @@ fn print_terms(done: &[ChannelAdev]) -> Result<()> {
             continue;
         };
         for t in &id.terms {
+            let kind = t.term.kind_name();
+            let sheet = match r.unit {
+                Some(u) => {
+                    let ds = datasheet(kind, t.coef.value, t.coef.unc, u)
+                        .map(|c| format!("{} {:.4e} +- {:.2e} {}", c.name, c.value, c.unc, c.unit));
+                    let gp = gyroparams(kind, t.coef.value, t.coef.unc, u)
+                        .map(|c| format!(" ({} {:.4e} {})", c.name, c.value, c.unit));
+                    format!("{}{}", ds.unwrap_or_default(), gp.unwrap_or_default())
+                }
+                None => "(no rate unit: --unit deg/s|rad/s|deg/h)".into(),
+            };
             outln!(
-                "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10}",
+                "{:<16} {:<18} {:<6} {:>14.6e} {:>12.3e} {:<10} {}",
                 name,
-                t.term.kind_name(),
+                kind,
                 t.term.coef_name(),
                 t.coef.value,
                 t.coef.unc,
-                t.term.coef_unit()
+                t.term.coef_unit(),
+                sheet
             );
             if let Some(ct) = t.corr_time_s {
                 outln!(

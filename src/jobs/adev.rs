@@ -14,6 +14,7 @@ use crate::error::Result;
 use crate::output::{OutputSet, batch};
 use crate::stats::adev::{CiOptions, Curve, Kind, TauGrid, curves, phase};
 use crate::stats::noise_terms::{AvarPoint, Identification, Options, identify_from, octave_avar};
+use crate::stats::rate_unit::{RateUnit, datasheet, gyroparams};
 use crate::store::Store;
 
 /// The files an Allan-deviation folder holds.
@@ -29,6 +30,9 @@ pub struct AdevJob {
     pub ci: CiOptions,
     /// Fit the noise terms to taus >= this only (seconds).
     pub fit_tau_min: Option<f64>,
+    /// The channels' rate unit (`--unit`); None: each from its name (`_dps`, ...), the
+    /// datasheet figures left out where that finds none.
+    pub unit: Option<RateUnit>,
 }
 
 /// One channel's curves and noise terms.
@@ -40,6 +44,8 @@ pub struct ChannelAdev {
     pub terms: Result<Identification>,
     /// The channel's mean over the segment (the spec's bias when written as one).
     pub mean: f64,
+    /// Its rate unit: `--unit`, else from its name; None when neither gives one.
+    pub unit: Option<RateUnit>,
 }
 
 impl AdevJob {
@@ -77,6 +83,7 @@ impl AdevJob {
                         curves: c,
                         terms,
                         mean: phase::mean(y),
+                        unit: self.unit.or_else(|| RateUnit::from_channel_name(name)),
                     })
                 })
                 .collect(),
@@ -135,15 +142,45 @@ pub fn allan_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
 /// (quantization, white_noise, bias_instability, rate_random_walk, rate_ramp,
 /// gauss_markov), coef (q, n, b, k, r, sigma), value, unc (one standard uncertainty),
 /// unit (u the channel's unit), corr_time_s and corr_time_s_unc (Gauss-Markov; NaN
-/// otherwise), and the fit's n_taus, deviance and dispersion. A channel whose terms
-/// could not be fitted has no row.
+/// otherwise), and the fit's n_taus, deviance and dispersion, the taus it used
+/// (fit_tau_min_s, fit_tau_max_s); rate_unit (the channel's, null when unknown) and the
+/// term as a datasheet prints it (datasheet_name, datasheet_value, datasheet_unc,
+/// datasheet_unit) and as MATLAB's gyroparams names it (gyroparams_name,
+/// gyroparams_value, gyroparams_unc, gyroparams_unit, SI), null without a rate unit or
+/// a gyroparams property ([`crate::stats::rate_unit`]). A channel whose terms could not
+/// be fitted has no row.
 pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
     let (mut channel, mut term, mut coef, mut unit) = (vec![], vec![], vec![], vec![]);
     let (mut value, mut unc, mut ct, mut ct_unc) = (vec![], vec![], vec![], vec![]);
     let (mut n_taus, mut deviance, mut dispersion) = (vec![], vec![], vec![]);
+    let (mut tau_lo, mut tau_hi, mut rate_unit) = (vec![], vec![], vec![]);
+    let (mut ds_name, mut ds_value, mut ds_unc, mut ds_unit) = (vec![], vec![], vec![], vec![]);
+    let (mut gp_name, mut gp_value, mut gp_unc, mut gp_unit) = (vec![], vec![], vec![], vec![]);
     for r in done {
         let Ok(id) = &r.terms else { continue };
+        let taus = id.points.iter().map(|p| p.tau_s);
+        let (lo, hi) = taus.fold((f64::INFINITY, f64::NEG_INFINITY), |a, t| {
+            (a.0.min(t), a.1.max(t))
+        });
         for t in &id.terms {
+            tau_lo.push(lo);
+            tau_hi.push(hi);
+            rate_unit.push(r.unit.map(RateUnit::name));
+            let kind = t.term.kind_name();
+            let ds = r
+                .unit
+                .and_then(|u| datasheet(kind, t.coef.value, t.coef.unc, u));
+            ds_name.push(ds.as_ref().map(|c| c.name));
+            ds_value.push(ds.as_ref().map(|c| c.value));
+            ds_unc.push(ds.as_ref().map(|c| c.unc));
+            ds_unit.push(ds.as_ref().map(|c| c.unit));
+            let gp = r
+                .unit
+                .and_then(|u| gyroparams(kind, t.coef.value, t.coef.unc, u));
+            gp_name.push(gp.as_ref().map(|c| c.name));
+            gp_value.push(gp.as_ref().map(|c| c.value));
+            gp_unc.push(gp.as_ref().map(|c| c.unc));
+            gp_unit.push(gp.as_ref().map(|c| c.unit));
             channel.push(r.channel.clone());
             term.push(t.term.kind_name());
             coef.push(t.term.coef_name());
@@ -159,6 +196,8 @@ pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatc
     }
     let s = |v: Vec<&str>| Arc::new(StringArray::from(v)) as ArrayRef;
     let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
+    let os = |v: Vec<Option<&str>>| Arc::new(StringArray::from(v)) as ArrayRef;
+    let of = |v: Vec<Option<f64>>| Arc::new(Float64Array::from(v)) as ArrayRef;
     batch(vec![
         ("channel", Arc::new(StringArray::from(channel)) as ArrayRef),
         ("term", s(term)),
@@ -171,5 +210,16 @@ pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatc
         ("n_taus", Arc::new(Int64Array::from(n_taus)) as ArrayRef),
         ("deviance", f(deviance)),
         ("dispersion", f(dispersion)),
+        ("fit_tau_min_s", f(tau_lo)),
+        ("fit_tau_max_s", f(tau_hi)),
+        ("rate_unit", os(rate_unit)),
+        ("datasheet_name", os(ds_name)),
+        ("datasheet_value", of(ds_value)),
+        ("datasheet_unc", of(ds_unc)),
+        ("datasheet_unit", os(ds_unit)),
+        ("gyroparams_name", os(gp_name)),
+        ("gyroparams_value", of(gp_value)),
+        ("gyroparams_unc", of(gp_unc)),
+        ("gyroparams_unit", os(gp_unit)),
     ])
 }

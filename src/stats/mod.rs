@@ -5,6 +5,7 @@ pub mod acf;
 pub mod adev;
 pub mod noise_terms;
 pub mod psd;
+pub mod rate_unit;
 pub mod special;
 pub mod summary;
 

@@ -400,3 +400,96 @@ fn adev_cli_terms_text_and_spec_out() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!bad.exists());
 }
+
+/// `adev --terms-out`: the noise terms with their datasheet and gyroparams forms, the
+/// rate unit from the channel's name (`_dps`) or `--unit`, none (nulls) without either.
+#[test]
+fn terms_out_holds_datasheet_units_from_the_name_or_the_flag() {
+    use arrow_array::{Array, Float64Array, StringArray};
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(crate::common::fixture("multiaxis.csv")).unwrap();
+    let log = dir.path().join("named.csv");
+    std::fs::write(&log, text.replace("gyro_z,", "gyro_z_dps,")).unwrap();
+    let read = |path: &std::path::Path| {
+        let f = std::fs::File::open(path).unwrap();
+        let mut r = ParquetRecordBatchReaderBuilder::try_new(f)
+            .unwrap()
+            .build()
+            .unwrap();
+        r.next().unwrap().unwrap()
+    };
+    let run = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            "adev",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_z_dps,gyro_y",
+            "--terms-out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = crate::common::farma(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", crate::common::stderr(&o));
+        read(&out)
+    };
+    let b = run(&[], "named.parquet");
+    let col_s = |name: &str| {
+        b.column_by_name(name)
+            .unwrap()
+            .as_any()
+            .downcast_ref::<StringArray>()
+            .unwrap()
+            .clone()
+    };
+    let col_f = |name: &str| {
+        b.column_by_name(name)
+            .unwrap()
+            .as_any()
+            .downcast_ref::<Float64Array>()
+            .unwrap()
+            .clone()
+    };
+    let (ch, term, unit) = (col_s("channel"), col_s("term"), col_s("rate_unit"));
+    let (value, ds, gp) = (
+        col_f("value"),
+        col_f("datasheet_value"),
+        col_f("gyroparams_value"),
+    );
+    let (ds_unit, lo, hi) = (
+        col_s("datasheet_unit"),
+        col_f("fit_tau_min_s"),
+        col_f("fit_tau_max_s"),
+    );
+    let mut seen_wn = false;
+    for r in 0..b.num_rows() {
+        assert!(lo.value(r) > 0.0 && hi.value(r) > lo.value(r));
+        if ch.value(r) == "gyro_y" {
+            // no unit in its name and no --unit: no datasheet figures
+            assert!(unit.is_null(r) && ds.is_null(r) && gp.is_null(r));
+            continue;
+        }
+        assert_eq!(unit.value(r), "deg/s");
+        if term.value(r) == "white_noise" {
+            seen_wn = true;
+            assert!((ds.value(r) - 60.0 * value.value(r)).abs() <= 1e-12 * ds.value(r));
+            assert_eq!(ds_unit.value(r), "deg/sqrt(h)");
+            assert!((gp.value(r) - value.value(r) * std::f64::consts::PI / 180.0).abs() <= 1e-15);
+        }
+        if term.value(r) == "bias_instability" {
+            assert!((ds.value(r) - 3600.0 * value.value(r)).abs() <= 1e-12 * ds.value(r));
+        }
+    }
+    assert!(seen_wn);
+    // --unit overrides the name for every channel
+    let b = run(&["--unit", "rad/s"], "flag.parquet");
+    let unit = b
+        .column_by_name("rate_unit")
+        .unwrap()
+        .as_any()
+        .downcast_ref::<StringArray>()
+        .unwrap()
+        .clone();
+    assert!((0..b.num_rows()).all(|r| unit.value(r) == "rad/s"));
+}
