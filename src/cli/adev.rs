@@ -163,6 +163,11 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             }
             eprintln!("farma: warning: no noise terms: {e}");
         }
+        if let Ok(id) = &r.terms {
+            for w in fit_warnings(id, a.fit_tau_min) {
+                eprintln!("farma: warning: {}: {w}", r.channel);
+            }
+        }
     }
     let results: Vec<(&str, &[Curve])> = done
         .iter()
@@ -341,6 +346,39 @@ fn terms_json(id: &Identification, unit: Option<RateUnit>) -> Value {
         o.insert(kind.into(), Value::Object(e));
     }
     Value::Object(o)
+}
+
+/// A dispersion above this (the Pearson X^2 per degree of freedom of the fit) is
+/// warned about: the model of the selected terms misses the curve's shape somewhere.
+pub const POOR_DISPERSION: f64 = 3.0;
+
+/// Warnings on a poor noise-term fit, each with what to try: a dispersion above
+/// [`POOR_DISPERSION`], and every term whose uncertainty exceeds its value.
+fn fit_warnings(id: &Identification, fit_tau_min: Option<f64>) -> Vec<String> {
+    let hint = match fit_tau_min {
+        None => {
+            "the shortest taus of a real sensor are bent by its output filter and quantization: try --fit-tau-min at the tau where the curve's short-tau bend ends (e.g. 0.08 s on the ADIS16405)"
+        }
+        Some(_) => "try a larger --fit-tau-min, or a longer log for the long-tau terms",
+    };
+    let mut out = Vec::new();
+    if id.dispersion > POOR_DISPERSION {
+        out.push(format!(
+            "the noise-term fit is poor: dispersion {:.2} (X^2 per degree of freedom over {} taus; above {POOR_DISPERSION} the selected terms miss the curve's shape); {hint}",
+            id.dispersion,
+            id.points.len()
+        ));
+    }
+    for t in id.terms.iter().filter(|t| t.coef.unc > t.coef.value.abs()) {
+        out.push(format!(
+            "{} {} = {:.3e} +- {:.3e}: its uncertainty exceeds its value, so the log does not determine it; {hint}",
+            t.term.kind_name(),
+            t.term.coef_name(),
+            t.coef.value,
+            t.coef.unc
+        ));
+    }
+    out
 }
 
 /// `terms_fit`: how the terms were chosen and how well they fit.

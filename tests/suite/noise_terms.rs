@@ -493,3 +493,47 @@ fn terms_out_holds_datasheet_units_from_the_name_or_the_flag() {
         .clone();
     assert!((0..b.num_rows()).all(|r| unit.value(r) == "rad/s"));
 }
+
+/// A curve no IEEE 952 term describes (white noise plus a strong sinusoid) gets a
+/// warning on stderr naming the dispersion and what to try; the fixture's gyro_z (white
+/// noise and a rate random walk, fitted well) gets none.
+#[test]
+fn a_poor_noise_term_fit_is_warned_about_with_a_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("sine.csv");
+    let mut s = 12345u64;
+    let mut text = String::from("time_s,rate\n");
+    for k in 0..20_000 {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        let t = k as f64 / 10.0;
+        text.push_str(&format!(
+            "{t},{}\n",
+            0.01 * u + 0.05 * (t * std::f64::consts::TAU / 40.0).sin()
+        ));
+    }
+    std::fs::write(&log, text).unwrap();
+    let o = crate::common::farma(
+        &["adev", log.to_str().unwrap(), "--channel", "rate"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", crate::common::stderr(&o));
+    let err = crate::common::stderr(&o);
+    assert!(
+        err.contains("the noise-term fit is poor: dispersion") && err.contains("--fit-tau-min"),
+        "{err}"
+    );
+    let fixture = crate::common::fixture("multiaxis.csv");
+    let o = crate::common::farma(
+        &["adev", fixture.to_str().unwrap(), "--channel", "gyro_z"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert!(
+        !crate::common::stderr(&o).contains("fit is poor"),
+        "{}",
+        crate::common::stderr(&o)
+    );
+}
