@@ -68,8 +68,11 @@ pub struct AdevArgs {
     /// One JSON object per channel on stdout (JSON Lines) instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Also write the curves as a Parquet table (one row per channel, kind and tau).
-    #[arg(long, short, value_name = "OUT.parquet")]
+    /// Also write the curves as a Parquet table (one row per channel, kind and tau);
+    /// a folder (a path that is a folder, or one without an extension that does not
+    /// exist) gets allan.parquet, noise_terms.parquet and report.html (the Allan plot
+    /// with the noise terms, the PSD; open it in a browser).
+    #[arg(long, short, value_name = "OUT.parquet|OUTDIR")]
     pub output: Option<PathBuf>,
     /// Fit the noise terms to taus >= this only (seconds; default: every octave tau).
     /// Use it when the sensor's internal filtering bends the curve at the shortest taus.
@@ -175,7 +178,14 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
         write_text(path, &text)?;
     }
 
-    if let Some(out) = &a.output {
+    if let Some(out) = a.output.as_ref().filter(|o| is_folder_output(o)) {
+        job.write(out, &store, &done)?;
+        eprintln!(
+            "farma: wrote {} (open {} in a browser)",
+            crate::jobs::adev::ADEV_OUTPUTS.join(", "),
+            out.join(crate::report::REPORT).display()
+        );
+    } else if let Some(out) = &a.output {
         write_parquet(
             out,
             &allan_table(&done)?,
@@ -375,4 +385,10 @@ fn grid_name(g: TauGrid) -> String {
         TauGrid::Octave => "octave".into(),
         TauGrid::Dense { per_decade } => format!("dense ({per_decade} per decade)"),
     }
+}
+
+/// Whether `-o PATH` names a folder: one that exists, or a path without an extension
+/// that does not exist (`-o OUT.parquet` stays a table).
+fn is_folder_output(path: &std::path::Path) -> bool {
+    path.is_dir() || (!path.exists() && path.extension().is_none())
 }

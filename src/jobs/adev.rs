@@ -17,7 +17,7 @@ use crate::stats::noise_terms::{AvarPoint, Identification, Options, identify_fro
 use crate::store::Store;
 
 /// The files an Allan-deviation folder holds.
-pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet"];
+pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet", "report.html"];
 
 /// Deviation curves and noise terms of channels of one log.
 #[derive(Clone, Debug)]
@@ -40,6 +40,8 @@ pub struct ChannelAdev {
     pub terms: Result<Identification>,
     /// The channel's mean over the segment (the spec's bias when written as one).
     pub mean: f64,
+    /// Welch's PSD of the segment (for the report), None where it cannot be had.
+    pub psd: Option<crate::stats::psd::Psd>,
 }
 
 impl AdevJob {
@@ -72,11 +74,20 @@ impl AdevJob {
                         ..Options::default()
                     };
                     let terms = identify_from(&what, y, rate_hz, &octave, &opts);
+                    let psd = crate::stats::psd::welch(
+                        &what,
+                        y,
+                        rate_hz,
+                        crate::stats::psd::default_segment_len(y.len()),
+                        crate::stats::psd::Detrend::Constant,
+                    )
+                    .ok();
                     Ok(ChannelAdev {
                         channel: name.clone(),
                         curves: c,
                         terms,
                         mean: phase::mean(y),
+                        psd,
                     })
                 })
                 .collect(),
@@ -84,12 +95,21 @@ impl AdevJob {
         )
     }
 
-    /// Writes `allan.parquet` and `noise_terms.parquet` into the folder `dir`.
+    /// Writes `allan.parquet`, `noise_terms.parquet` and `report.html` into the
+    /// folder `dir`.
     pub fn write(&self, dir: &Path, store: &Store, done: &[ChannelAdev]) -> Result<()> {
         let mut set = OutputSet::new(dir)?;
         let md = super::source_metadata(&self.log, store)?;
         set.parquet("allan.parquet", &allan_table(done)?, &md)?;
         set.parquet("noise_terms.parquet", &noise_terms_table(done)?, &md)?;
+        let page = crate::report::allan::adev_page(
+            &self.log.display().to_string(),
+            store.sample_rate_hz(),
+            done,
+        )?;
+        set.file(crate::report::REPORT, |p| {
+            crate::output::write_text(p, &page)
+        })?;
         super::commit_outputs(set, ADEV_OUTPUTS)
     }
 }
