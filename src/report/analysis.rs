@@ -483,7 +483,7 @@ pub fn histogram_svg(channel: &str, residuals: &[f64], unit: &str) -> Result<Str
     let n = r.len() as f64;
     let mean = r.iter().sum::<f64>() / n.max(1.0);
     let sd = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
-    let title = format!("{channel}: residuals' histogram ({} values)", r.len());
+    let title = format!("{channel}: histogram of the residuals ({} values)", r.len());
     svg(560, 360, &title, |root| {
         if r.len() < 2 || sd.is_nan() || sd <= 0.0 {
             return Ok(());

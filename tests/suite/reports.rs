@@ -256,7 +256,7 @@ fn analyze_writes_a_self_contained_report_with_every_plot() {
         "AICc per order",
         "RSS per order",
         "residual ACF",
-        "residuals' histogram",
+        "histogram of the residuals",
         "one step ahead",
         "hold-out RMSE per horizon",
         ": f_1",
