@@ -26,6 +26,7 @@ pub mod jobs;
 pub mod log;
 pub mod model;
 pub mod output;
+pub mod report;
 pub mod simulator;
 pub mod stats;
 pub mod store;

@@ -69,8 +69,11 @@ pub struct AdevArgs {
     /// One JSON object per channel on stdout (JSON Lines) instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Also write the curves as a Parquet table (one row per channel, kind and tau).
-    #[arg(long, short, value_name = "OUT.parquet")]
+    /// Also write the curves as a Parquet table (one row per channel, kind and tau);
+    /// a folder (a path that is a folder, or one without an extension that does not
+    /// exist) gets allan.parquet, noise_terms.parquet and report.html (the Allan plot
+    /// with the noise terms, the PSD; open it in a browser).
+    #[arg(long, short, value_name = "OUT.parquet|OUTDIR")]
     pub output: Option<PathBuf>,
     /// Fit the noise terms to taus >= this only (seconds; default: every octave tau).
     /// Use it when the sensor's internal filtering bends the curve at the shortest taus.
@@ -192,7 +195,14 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
         write_text(path, &text)?;
     }
 
-    if let Some(out) = &a.output {
+    if let Some(out) = a.output.as_ref().filter(|o| is_folder_output(o)) {
+        job.write(out, &store, &done)?;
+        eprintln!(
+            "farma: wrote {} (open {} in a browser)",
+            crate::jobs::adev::ADEV_OUTPUTS.join(", "),
+            out.join(crate::report::REPORT).display()
+        );
+    } else if let Some(out) = &a.output {
         write_parquet(
             out,
             &allan_table(&done)?,
@@ -348,12 +358,8 @@ fn terms_json(id: &Identification, unit: Option<RateUnit>) -> Value {
     Value::Object(o)
 }
 
-/// A dispersion above this (the Pearson X^2 per degree of freedom of the fit) is
-/// warned about: the model of the selected terms misses the curve's shape somewhere.
-pub const POOR_DISPERSION: f64 = 3.0;
-
 /// Warnings on a poor noise-term fit, each with what to try: a dispersion above
-/// [`POOR_DISPERSION`], and every term whose uncertainty exceeds its value.
+/// [`crate::jobs::adev::POOR_DISPERSION`], and every term whose uncertainty exceeds its value.
 fn fit_warnings(id: &Identification, fit_tau_min: Option<f64>) -> Vec<String> {
     let hint = match fit_tau_min {
         None => {
@@ -362,11 +368,12 @@ fn fit_warnings(id: &Identification, fit_tau_min: Option<f64>) -> Vec<String> {
         Some(_) => "try a larger --fit-tau-min, or a longer log for the long-tau terms",
     };
     let mut out = Vec::new();
-    if id.dispersion > POOR_DISPERSION {
+    if id.dispersion > crate::jobs::adev::POOR_DISPERSION {
         out.push(format!(
-            "the noise-term fit is poor: dispersion {:.2} (X^2 per degree of freedom over {} taus; above {POOR_DISPERSION} the selected terms miss the curve's shape); {hint}",
+            "the noise-term fit is poor: dispersion {:.2} (X^2 per degree of freedom over {} taus; above {} the selected terms miss the curve's shape); {hint}",
             id.dispersion,
-            id.points.len()
+            id.points.len(),
+            crate::jobs::adev::POOR_DISPERSION
         ));
     }
     for t in id.terms.iter().filter(|t| t.coef.unc > t.coef.value.abs()) {
@@ -468,4 +475,10 @@ fn grid_name(g: TauGrid) -> String {
         TauGrid::Octave => "octave".into(),
         TauGrid::Dense { per_decade } => format!("dense ({per_decade} per decade)"),
     }
+}
+
+/// Whether `-o PATH` names a folder: one that exists, or a path without an extension
+/// that does not exist (`-o OUT.parquet` stays a table).
+fn is_folder_output(path: &std::path::Path) -> bool {
+    path.is_dir() || (!path.exists() && path.extension().is_none())
 }

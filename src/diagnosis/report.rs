@@ -1,7 +1,6 @@
 //! What a diagnosis leaves behind: the JSON object of contracts.md section 3, Parquet
 //! tables for analytics tools, the amended spec, and an SVG report a person can read.
 
-use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -201,7 +200,7 @@ pub fn table_meta<'a>(d: &Diagnosis, meta: &[(&'a str, String)]) -> Vec<(&'a str
 }
 
 /// Writes `gap_features.parquet`, `gap_regions.parquet`, `gap_effects.parquet`,
-/// `spec_after.toml` and `report.svg` into `dir` (created when missing) as one set
+/// `spec_after.toml`, `report.svg` and `report.html` into `dir` (created when missing) as one set
 /// ([`GAP_OUTPUTS`]).
 pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Result<Vec<String>> {
     let mut out = OutputSet::new(dir)?;
@@ -217,8 +216,16 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
     }
     let toml = d.spec_after.to_toml()?;
     out.file("spec_after.toml", |p| write_text(p, &toml))?;
-    let report = svg(d);
+    let report = svg(d)?;
     out.file("report.svg", |p| write_text(p, &report))?;
+    let value = |k: &str| {
+        meta.iter()
+            .find(|(n, _)| *n == k)
+            .map_or(String::new(), |(_, v)| v.clone())
+    };
+    let page =
+        crate::report::gap::gap_page(&value("real"), &value("spec"), std::slice::from_ref(d))?;
+    out.file(crate::report::REPORT, |p| write_text(p, &page))?;
     let written = GAP_OUTPUTS
         .iter()
         .map(|n| out.path(n).display().to_string())
@@ -230,19 +237,14 @@ pub fn write_outputs(d: &Diagnosis, dir: &Path, meta: &[(&str, String)]) -> Resu
 /// The files of `farma gap -o OUTDIR`, written as one set ([`OutputSet`]): each is
 /// staged beside its place and they are renamed into place only once all are written,
 /// so a run that fails before then leaves the folder's files as they were.
-pub const GAP_OUTPUTS: [&str; 5] = [
+pub const GAP_OUTPUTS: [&str; 6] = [
     "gap_features.parquet",
     "gap_regions.parquet",
     "gap_effects.parquet",
     "spec_after.toml",
     "report.svg",
+    "report.html",
 ];
-
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// Whether a first-round candidate is one the greedy search added (same kind and the
 /// same estimated parameters: an effect added in a later round was re-estimated).
@@ -252,156 +254,10 @@ fn was_added(d: &Diagnosis, e: &super::Effect) -> bool {
         .any(|a| a.kind == e.kind && a.params == e.params)
 }
 
-/// A self-contained SVG: the Allan deviation of the real log's withheld part against
-/// the simulation band (mean +- 2 sd of ln AVAR) before and after the added effects,
-/// the out-of-band Allan regions shaded, and the ranked effects with their shrink.
-pub fn svg(d: &Diagnosis) -> String {
-    let (w, h) = (900.0, 760.0);
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">
-<rect width="100%" height="100%" fill="white"/>
-<text x="20" y="24" font-size="16">farma gap: channel {} (gap {:.2} before, {:.2} after, noise floor {:.2})</text>
-"#,
-        esc(&d.channel),
-        d.gap_before,
-        d.gap_after,
-        d.noise_floor
-    );
-    let idx: Vec<usize> = (0..d.defs.len())
-        .filter(|&i| d.defs[i].statistic == Statistic::Adev)
-        .collect();
-    if idx.len() >= 2 {
-        let tau: Vec<f64> = idx.iter().map(|&i| d.defs[i].lo.log10()).collect();
-        // ADEV = sqrt(AVAR): half the ln AVAR, in log10
-        let to_l = |v: f64| 0.5 * v / std::f64::consts::LN_10;
-        let mut all: Vec<f64> = Vec::new();
-        for &i in &idx {
-            for e in [&d.ens_before, &d.ens_after] {
-                all.push(to_l(e.mean[i] - 2.0 * e.sd[i]));
-                all.push(to_l(e.mean[i] + 2.0 * e.sd[i]));
-            }
-            all.push(to_l(d.real[i]));
-        }
-        let (ymin, ymax) = all
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(*v), b.max(*v))
-            });
-        let (ymin, ymax) = (ymin - 0.1, ymax + 0.1);
-        let (x0, x1) = (tau[0], tau[tau.len() - 1]);
-        let panel = |s: &mut String,
-                     top: f64,
-                     title: &str,
-                     e: &super::EnsembleStats,
-                     regions: &[Region]| {
-            let (px, py, pw, ph) = (80.0, top, 780.0, 220.0);
-            let fx = |v: f64| px + (v - x0) / (x1 - x0).max(1e-12) * pw;
-            let fy = |v: f64| py + ph - (v - ymin) / (ymax - ymin).max(1e-12) * ph;
-            let _ = writeln!(
-                s,
-                r##"<rect x="{px}" y="{py}" width="{pw}" height="{ph}" fill="none" stroke="#888"/><text x="{px}" y="{}">{}</text>"##,
-                py - 6.0,
-                esc(title)
-            );
-            for r in regions.iter().filter(|r| r.statistic == Statistic::Adev) {
-                let (a, b) = (fx(r.lo.log10()) - 4.0, fx(r.hi.log10()) + 4.0);
-                let _ = writeln!(
-                    s,
-                    r##"<rect x="{a:.1}" y="{py}" width="{:.1}" height="{ph}" fill="#f4c7c3" opacity="0.6"/>"##,
-                    (b - a).max(8.0)
-                );
-            }
-            let mut band = String::new();
-            for (j, &i) in idx.iter().enumerate() {
-                let _ = write!(
-                    band,
-                    "{:.1},{:.1} ",
-                    fx(tau[j]),
-                    fy(to_l(e.mean[i] + 2.0 * e.sd[i]))
-                );
-            }
-            for (j, &i) in idx.iter().enumerate().rev() {
-                let _ = write!(
-                    band,
-                    "{:.1},{:.1} ",
-                    fx(tau[j]),
-                    fy(to_l(e.mean[i] - 2.0 * e.sd[i]))
-                );
-            }
-            let _ = writeln!(
-                s,
-                r##"<polygon points="{band}" fill="#9ecae1" opacity="0.6"/>"##
-            );
-            let mut line = String::new();
-            for (j, &i) in idx.iter().enumerate() {
-                let _ = write!(line, "{:.1},{:.1} ", fx(tau[j]), fy(to_l(d.real[i])));
-            }
-            let _ = writeln!(
-                s,
-                r##"<polyline points="{line}" fill="none" stroke="#d62728" stroke-width="2"/>"##
-            );
-            // axes: decades
-            let mut dec = x0.floor();
-            while dec <= x1 {
-                if dec >= x0 {
-                    let _ = writeln!(
-                        s,
-                        r##"<text x="{:.1}" y="{}" text-anchor="middle">1e{dec}</text>"##,
-                        fx(dec),
-                        py + ph + 14.0
-                    );
-                }
-                dec += 1.0;
-            }
-            let mut dy = ymin.ceil();
-            while dy <= ymax {
-                let _ = writeln!(
-                    s,
-                    r##"<text x="{}" y="{:.1}" text-anchor="end">1e{dy}</text>"##,
-                    px - 4.0,
-                    fy(dy) + 4.0
-                );
-                dy += 1.0;
-            }
-        };
-        panel(
-            &mut s,
-            60.0,
-            "Allan deviation, withheld part: real (red) vs simulations of the spec (blue, +-2 sd); out-of-band taus shaded. tau [s]",
-            &d.ens_before,
-            &d.where_before,
-        );
-        panel(
-            &mut s,
-            330.0,
-            "... after adding the effects",
-            &d.ens_after,
-            &d.where_after,
-        );
-    }
-    let top = 590.0;
-    let _ = writeln!(
-        s,
-        r#"<text x="80" y="{top}">Candidate effects, ranked by shrink of the withheld-part gap (added effects in bold)</text>"#
-    );
-    for (i, e) in d.effects.iter().take(8).enumerate() {
-        let y = top + 14.0 + i as f64 * 18.0;
-        let bw = (e.shrink.clamp(0.0, 1.0)) * 400.0;
-        let bold = if was_added(d, e) { "bold" } else { "normal" };
-        let _ = writeln!(
-            s,
-            r##"<text x="250" y="{:.1}" text-anchor="end" font-weight="{bold}">{}</text><rect x="260" y="{:.1}" width="{bw:.1}" height="12" fill="#2ca02c"/><text x="{:.1}" y="{:.1}">{:.1} %</text>"##,
-            y + 10.0,
-            esc(&e.kind),
-            y,
-            265.0 + bw,
-            y + 10.0,
-            100.0 * e.shrink
-        );
-    }
-    s.push_str("</svg>\n");
-    s
+/// The report's SVG (drawn by [`crate::report::gap::gap_svg`]): the Allan deviation
+/// and the PSD of the real log's withheld part against the simulation band (mean +- 2
+/// sd) before and after the added effects, the out-of-band regions shaded, and the
+/// ranked effects with their shrink.
+pub fn svg(d: &Diagnosis) -> Result<String> {
+    crate::report::gap::gap_svg(d)
 }

@@ -17,8 +17,13 @@ use crate::stats::noise_terms::{AvarPoint, Identification, Options, identify_fro
 use crate::stats::rate_unit::{RateUnit, datasheet, gyroparams};
 use crate::store::Store;
 
+/// A noise-term fit whose dispersion (the Pearson X^2 per degree of freedom) is above
+/// this is warned about (the command's stderr and its report): the selected terms miss
+/// the curve's shape somewhere.
+pub const POOR_DISPERSION: f64 = 3.0;
+
 /// The files an Allan-deviation folder holds.
-pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet"];
+pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet", "report.html"];
 
 /// Deviation curves and noise terms of channels of one log.
 #[derive(Clone, Debug)]
@@ -46,6 +51,8 @@ pub struct ChannelAdev {
     pub mean: f64,
     /// Its rate unit: `--unit`, else from its name; None when neither gives one.
     pub unit: Option<RateUnit>,
+    /// Welch's PSD of the segment (for the report), None where it cannot be had.
+    pub psd: Option<crate::stats::psd::Psd>,
 }
 
 impl AdevJob {
@@ -78,12 +85,21 @@ impl AdevJob {
                         ..Options::default()
                     };
                     let terms = identify_from(&what, y, rate_hz, &octave, &opts);
+                    let psd = crate::stats::psd::welch(
+                        &what,
+                        y,
+                        rate_hz,
+                        crate::stats::psd::default_segment_len(y.len()),
+                        crate::stats::psd::Detrend::Constant,
+                    )
+                    .ok();
                     Ok(ChannelAdev {
                         channel: name.clone(),
                         curves: c,
                         terms,
                         mean: phase::mean(y),
                         unit: self.unit.or_else(|| RateUnit::from_channel_name(name)),
+                        psd,
                     })
                 })
                 .collect(),
@@ -91,12 +107,21 @@ impl AdevJob {
         )
     }
 
-    /// Writes `allan.parquet` and `noise_terms.parquet` into the folder `dir`.
+    /// Writes `allan.parquet`, `noise_terms.parquet` and `report.html` into the
+    /// folder `dir`.
     pub fn write(&self, dir: &Path, store: &Store, done: &[ChannelAdev]) -> Result<()> {
         let mut set = OutputSet::new(dir)?;
         let md = super::source_metadata(&self.log, store)?;
         set.parquet("allan.parquet", &allan_table(done)?, &md)?;
         set.parquet("noise_terms.parquet", &noise_terms_table(done)?, &md)?;
+        let page = crate::report::allan::adev_page(
+            &self.log.display().to_string(),
+            store.sample_rate_hz(),
+            done,
+        )?;
+        set.file(crate::report::REPORT, |p| {
+            crate::output::write_text(p, &page)
+        })?;
         super::commit_outputs(set, ADEV_OUTPUTS)
     }
 }

@@ -1,7 +1,8 @@
 //! The gap job (`farma gap`, the batch task `gap`): the sim-to-real gap diagnosis of
 //! channels of one log against one simulation spec. One channel writes the files of
 //! `farma gap -o` ([`report::GAP_OUTPUTS`]); several write the three tables with every
-//! channel's rows, and a `spec_after` and a report per channel.
+//! channel's rows, a `spec_after` and an SVG report per channel, and one
+//! `report.html` over the channels.
 
 use std::path::{Path, PathBuf};
 
@@ -124,12 +125,19 @@ impl GapJob {
             let toml = d.spec_after.to_toml()?;
             let spec_name = format!("spec_after_{}.toml", d.channel);
             out.file(&spec_name, |p| write_text(p, &toml))?;
-            let svg = report::svg(d);
+            let svg = report::svg(d)?;
             let svg_name = format!("report_{}.svg", d.channel);
             out.file(&svg_name, |p| write_text(p, &svg))?;
             names.push(spec_name);
             names.push(svg_name);
         }
+        let page = crate::report::gap::gap_page(
+            &self.log.display().to_string(),
+            &self.spec_path.display().to_string(),
+            done,
+        )?;
+        out.file(crate::report::REPORT, |p| write_text(p, &page))?;
+        names.push(crate::report::REPORT.to_string());
         let written = names
             .iter()
             .map(|n| out.path(n).display().to_string())

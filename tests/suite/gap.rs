@@ -196,6 +196,9 @@ fn cli_writes_the_contract_json_tables_and_report() {
     assert_eq!(after.channels[0].components.len(), 3);
     let svg = std::fs::read_to_string(outdir.join("report.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("sinusoid"));
+    // report.html: self-contained, the gap's plot with axis titles and units
+    let html = crate::reports::check_report(&outdir.join("report.html"), 1);
+    assert!(html.contains("sinusoid") && html.contains("Allan deviation [u]"));
     // written as one set: the five files and nothing else (no temporary file left)
     let mut names: Vec<String> = std::fs::read_dir(&outdir)
         .unwrap()

@@ -22,6 +22,7 @@ mod gcv_limit;
 mod ingest;
 mod noise_terms;
 mod psd_acf;
+mod reports;
 mod simulate;
 mod spec;
 mod spec_examples;

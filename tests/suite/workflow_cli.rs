@@ -136,27 +136,28 @@ fn analyze_writes_every_table_and_a_summary() {
         "prediction.parquet",
         "poly.parquet",
         "summary.txt",
+        "report.html",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert!(summary.contains("######## gyro_z") && summary.contains("Ljung-Box"));
     assert!(out.join("verdict.parquet").exists());
-    // written as one set: the 15 files, the channel folders and no temporary file
-    // left beside them
-    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 16);
+    // written as one set: the 16 files (report.html among them), the channel folders
+    // and no temporary file left beside them
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 17);
     let mut chans: Vec<String> = std::fs::read_dir(out.join("channels"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
         .collect();
     chans.sort();
     assert_eq!(chans, ["gyro_x", "gyro_z"]);
-    // each channel folder: its 11 tables, summary, JSON line and marker
+    // each channel folder: its 11 tables, summary, JSON line, report and marker
     assert_eq!(
         std::fs::read_dir(out.join("channels/gyro_z"))
             .unwrap()
             .count(),
-        14
+        15
     );
     // -o naming a file: exit 2 before the work, the file untouched
     let taken = out.join("summary.txt");

@@ -28,6 +28,9 @@ pub const MARKER: &str = "done.json";
 pub const SUMMARY: &str = "summary.txt";
 /// A channel folder's `--json` line.
 pub const JSON_LINE: &str = "channel.json";
+/// A channel folder's report (its plots; the folder-level `report.html` takes in its
+/// body).
+pub const REPORT: &str = crate::report::REPORT;
 /// The tables (file stems) each channel folder holds and the folder-level files
 /// concatenate, in the order they are written.
 pub const TABLES: &[&str] = &[
@@ -49,6 +52,7 @@ pub fn channel_files() -> Vec<String> {
     let mut v: Vec<String> = TABLES.iter().map(|t| format!("{t}.parquet")).collect();
     v.push(SUMMARY.into());
     v.push(JSON_LINE.into());
+    v.push(REPORT.into());
     v
 }
 
@@ -134,6 +138,8 @@ pub struct ChannelFiles<'a> {
     pub tables: Vec<(&'static str, RecordBatch)>,
     pub summary: String,
     pub json_line: String,
+    /// The channel's `report.html`.
+    pub report: String,
     pub metadata: &'a [(&'a str, String)],
 }
 
@@ -152,6 +158,7 @@ pub fn commit_channel(dir: &Path, files: ChannelFiles, marker: &Marker, secs: f6
     set.file(JSON_LINE, |p| {
         crate::output::write_text(p, &files.json_line)
     })?;
+    set.file(REPORT, |p| crate::output::write_text(p, &files.report))?;
     let names = channel_files();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     super::super::commit_outputs(set, &names)?;

@@ -116,6 +116,7 @@ pub const ANALYZE_OUTPUTS: &[&str] = &[
     "poly.parquet",
     "verdict.parquet",
     "summary.txt",
+    "report.html",
 ];
 
 /// The workflow on channels of one log.
@@ -298,10 +299,18 @@ impl AnalyzeJob {
             v.line(0),
             summary(a, rate)
         );
+        let report = crate::report::analysis::channel_section(
+            a,
+            &v.line(0),
+            rate,
+            crate::report::unit_of(&name),
+        )?
+        .finish(&format!("farma analyze {}: {name}", self.log.display()));
         Ok(ChannelFiles {
             tables,
             summary: summary_text,
             json_line: format!("{}\n", channel_json(a, v, self.prep.alpha)),
+            report,
             metadata: md,
         })
     }
@@ -411,6 +420,10 @@ impl AnalyzeJob {
             json_lines.push(folder::read_text(d, folder::JSON_LINE)?);
         }
         set.file("summary.txt", |p| crate::output::write_text(p, &text))?;
+        let page = self.report_page(&verdicts, &dirs, width)?;
+        set.file(crate::report::REPORT, |p| {
+            crate::output::write_text(p, &page)
+        })?;
         super::commit_outputs(set, ANALYZE_OUTPUTS)?;
         remove_other_channel_folders(&self.output, &dirs);
         Ok(AnalyzeDone {
@@ -426,6 +439,29 @@ impl AnalyzeJob {
             text,
             secs,
         })
+    }
+
+    /// The folder's `report.html`: the verdict of every channel first, then each
+    /// channel's plots (the body of its folder's report).
+    fn report_page(&self, verdicts: &[Verdict], dirs: &[PathBuf], width: usize) -> Result<String> {
+        use crate::report::html::{Page, body_of};
+        let log = self.log.display().to_string();
+        let mut p = Page::new(&format!("farma analyze: {log}"));
+        let lines: Vec<String> = verdicts.iter().map(|v| v.line(width)).collect();
+        p.verdict(&lines);
+        p.pre(&self.choice.text());
+        for d in dirs {
+            let page = folder::read_text(d, folder::REPORT)?;
+            match body_of(&page) {
+                Some(body) => {
+                    p.raw(body);
+                }
+                None => {
+                    p.p("warn", &format!("{}: its report has no body", d.display()));
+                }
+            }
+        }
+        Ok(p.finish(&format!("farma analyze: {log}")))
     }
 
     /// Analyses one channel and commits its folder with `marker`.
