@@ -44,14 +44,16 @@ fn plan(path: &Path, schema: &Schema, opts: &LogOptions) -> Result<(Vec<String>,
     let keep: Vec<String> = match &opts.columns {
         None => names.clone(),
         Some(sel) => {
+            let all: std::collections::HashSet<&String> = names.iter().collect();
             for s in sel {
-                if !names.contains(s) {
+                if !all.contains(s) {
                     return Err(Error::column(
                         path,
                         format!("no column '{s}'; columns are: {}", names.join(", ")),
                     ));
                 }
             }
+            let sel: std::collections::HashSet<&String> = sel.iter().collect();
             names
                 .iter()
                 .filter(|n| sel.contains(n) || Some(*n) == time_col.as_ref())
@@ -59,11 +61,13 @@ fn plan(path: &Path, schema: &Schema, opts: &LogOptions) -> Result<(Vec<String>,
                 .collect()
         }
     };
-    for n in &keep {
-        let dt = schema
-            .field_with_name(n)
-            .expect("name from schema")
-            .data_type();
+    // By index, not `field_with_name` (a scan per name): linear at any width.
+    let keep_set: std::collections::HashSet<&str> = keep.iter().map(String::as_str).collect();
+    for f in schema.fields() {
+        let (n, dt) = (f.name(), f.data_type());
+        if !keep_set.contains(n.as_str()) {
+            continue;
+        }
         if !is_supported(dt) {
             return Err(Error::column(
                 path,

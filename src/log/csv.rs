@@ -259,6 +259,7 @@ fn read_header(path: &Path, text: &[u8], opts: &LogOptions) -> Result<Header> {
                     msg: "expected a header row of column names, found numbers".into(),
                 });
             }
+            let mut seen = std::collections::HashSet::with_capacity(names.len());
             for (i, n) in names.iter().enumerate() {
                 if n.is_empty() {
                     return Err(Error::column(
@@ -266,7 +267,7 @@ fn read_header(path: &Path, text: &[u8], opts: &LogOptions) -> Result<Header> {
                         format!("header (line {line_no}): column {} has no name", i + 1),
                     ));
                 }
-                if names[..i].contains(n) {
+                if !seen.insert(n.as_str()) {
                     return Err(Error::column(
                         path,
                         format!("header (line {line_no}): column name '{n}' appears twice"),
@@ -471,32 +472,36 @@ fn plan_columns(
     time_col: Option<&str>,
     opts: &LogOptions,
 ) -> Result<ColumnPlan> {
-    let keep: Vec<String> = match &opts.columns {
-        None => names.to_vec(),
+    // Hash sets, not `Vec::contains`: a header of 100k names is checked in linear time.
+    let keep: Option<std::collections::HashSet<&str>> = match &opts.columns {
+        None => None,
         Some(sel) => {
-            let mut k = Vec::new();
-            if let Some(t) = time_col {
-                k.push(t.to_string());
-            }
+            let all: std::collections::HashSet<&str> = names.iter().map(String::as_str).collect();
+            let mut k: std::collections::HashSet<&str> = time_col.into_iter().collect();
             for s in sel {
-                if !names.contains(s) {
+                if !all.contains(s.as_str()) {
                     return Err(Error::column(
                         path,
                         format!("no column '{s}'; columns are: {}", names.join(", ")),
                     ));
                 }
-                if !k.contains(s) {
-                    k.push(s.clone());
-                }
+                k.insert(s.as_str());
             }
-            k
+            Some(k)
         }
     };
     // Store order follows the file's column order.
-    let store_names: Vec<String> = names.iter().filter(|n| keep.contains(n)).cloned().collect();
+    let mut store_names: Vec<String> = Vec::new();
     let target = names
         .iter()
-        .map(|n| store_names.iter().position(|k| k == n))
+        .map(|n| {
+            keep.as_ref()
+                .is_none_or(|k| k.contains(n.as_str()))
+                .then(|| {
+                    store_names.push(n.clone());
+                    store_names.len() - 1
+                })
+        })
         .collect();
     Ok(ColumnPlan {
         target,

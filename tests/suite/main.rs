@@ -9,6 +9,7 @@ mod adev;
 mod analyze_channels;
 mod bad_input;
 mod batch;
+mod csv_wide;
 mod estimator_multivariate;
 mod estimator_paths;
 mod estimator_recovery;
