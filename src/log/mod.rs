@@ -674,12 +674,17 @@ pub fn open_log(
             Ok(Store::open(&cached)?.with_label(path))
         }
         None => {
-            let dir =
-                tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
-            let tmp = dir.path().join("log.arrow");
+            // Named like every output temporary (`.farma-HOST-PID-XXXXXX.tmp`) straight in
+            // the temporary folder, so a killed run's store is swept by the next run there
+            // (`output::sweep_stale_temps`); the name is reserved by an empty file that the
+            // conversion's rename replaces, and removed when `tmp` drops.
+            let dir = std::env::temp_dir();
+            let tmp = crate::output::temp_in(&dir, &dir)?.into_temp_path();
             convert(path, &tmp, opts, progress, NanCheck::OnRead)?;
-            // The map keeps the data alive after the temporary folder is removed.
-            Ok(Store::open(&tmp)?.with_label(path))
+            // The map keeps the data alive after the file is removed.
+            let store = Store::open(&tmp)?.with_label(path);
+            drop(tmp);
+            Ok(store)
         }
     }
 }

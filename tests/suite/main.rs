@@ -25,6 +25,7 @@ mod psd_acf;
 mod simulate;
 mod spec;
 mod store_checksums;
+mod temp_stores;
 mod unit_root;
 mod update_cli;
 mod workflow_cli;
