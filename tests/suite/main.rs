@@ -10,6 +10,7 @@ mod analyze_channels;
 mod bad_input;
 mod batch;
 mod csv_wide;
+mod disk_full;
 mod estimator_multivariate;
 mod estimator_paths;
 mod estimator_recovery;
