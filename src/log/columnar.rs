@@ -1,8 +1,12 @@
 //! Parquet and Arrow IPC logs: streams record batches into a store's columns.
 //!
 //! Numeric columns of any width are converted to `f64` exactly (every integer up to
-//! 2^53 and every `f32` is representable); nulls become missing values for the NaN
-//! policy; `Timestamp` time columns become seconds. The sample rate may come from the
+//! 2^53 and every `f32` is representable); a 64-bit integer that no `f64` holds
+//! exactly (beyond 2^53) is refused, naming its column and row, rather than rounded;
+//! nulls become missing values for the NaN policy; `Timestamp` time columns become
+//! seconds. Arrow IPC is read in the file and the stream formats, with lz4 or zstd
+//! compressed bodies (pyarrow's Feather default is lz4). Parquet page checksums (CRC32)
+//! are verified where the writer recorded them. The sample rate may come from the
 //! `sample_rate_hz` key of the file's key-value or Arrow schema metadata.
 
 use std::collections::HashMap;
@@ -147,6 +151,31 @@ fn copy_column(arr: &dyn Array, out: &mut [f64], row0: u64, nf: &mut NonFinite) 
     }
 }
 
+/// The first value of a 64-bit integer column that no `f64` holds exactly (beyond
+/// 2^53 in magnitude), with its index in `arr`; None for other types.
+fn inexact_integer(arr: &dyn Array) -> Option<(usize, String, f64)> {
+    // 2^63 and 2^64 as f64: a conversion that saturates there is not exact
+    const I64_END: f64 = 9_223_372_036_854_775_808.0;
+    const U64_END: f64 = 18_446_744_073_709_551_616.0;
+    match arr.data_type() {
+        DataType::Int64 => {
+            let a = arr.as_primitive::<Int64Type>();
+            a.values().iter().enumerate().find_map(|(i, &v)| {
+                let f = v as f64;
+                (!a.is_null(i) && (f >= I64_END || f as i64 != v)).then(|| (i, v.to_string(), f))
+            })
+        }
+        DataType::UInt64 => {
+            let a = arr.as_primitive::<UInt64Type>();
+            a.values().iter().enumerate().find_map(|(i, &v)| {
+                let f = v as f64;
+                (!a.is_null(i) && (f >= U64_END || f as u64 != v)).then(|| (i, v.to_string(), f))
+            })
+        }
+        _ => None,
+    }
+}
+
 /// Streams `batches` into a new store.
 fn fill(
     path: &Path,
@@ -175,6 +204,15 @@ fn fill(
                 let arr = batch
                     .column_by_name(name)
                     .ok_or_else(|| Error::Internal(format!("batch lacks column {name}")))?;
+                if let Some((i, v, f)) = inexact_integer(arr.as_ref()) {
+                    return Err(Error::column(
+                        path,
+                        format!(
+                            "column '{name}', row {}: the integer {v} has no exact 64-bit float (it is beyond 2^53 = 9007199254740992; it would become {f:.0}); farma keeps every channel as f64: scale or offset the column, or convert it to float64 yourself if the rounding is acceptable",
+                            row + i + 1
+                        ),
+                    ));
+                }
                 copy_column(
                     arr.as_ref(),
                     &mut cols[ci][row..row + k],
@@ -223,18 +261,37 @@ pub(crate) fn read_parquet(
     let (names, time_col) = plan(path, &schema, opts)?;
     let n_rows = usize::try_from(builder.metadata().file_metadata().num_rows())
         .map_err(|_| Error::format(path, "negative row count in the metadata"))?;
-    let indices: Vec<usize> = names
+    let index: HashMap<&str, usize> = schema
+        .fields()
         .iter()
-        .map(|n| schema.index_of(n).expect("planned"))
+        .enumerate()
+        .map(|(i, f)| (f.name().as_str(), i))
         .collect();
+    let indices: Vec<usize> = names.iter().map(|n| index[n.as_str()]).collect();
     let mask = ProjectionMask::roots(builder.parquet_schema(), indices);
     let reader = builder
         .with_projection(mask)
         .with_batch_size(64 * 1024)
         .build()
         .map_err(|e| Error::format(path, format!("cannot read Parquet: {e}")))?;
-    let batches = reader
-        .map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Parquet data: {e}"))));
+    let batches = reader.map(|b| {
+        b.map_err(|e| {
+            let msg = e.to_string();
+            if !msg.contains("CRC checksum mismatch") {
+                return Error::format(path, format!("cannot decode Parquet data: {msg}"));
+            }
+            let at = match bad_page(path) {
+                Some((rg, n_rg, col)) => format!(
+                    "in column '{col}', row group {rg} (numbered from 0; the file has {n_rg})"
+                ),
+                None => "in a data page".to_string(),
+            };
+            Error::format(
+                path,
+                format!("page checksum (CRC32) mismatch {at}: the file is damaged"),
+            )
+        })
+    });
     let (writer, nonfinite) = fill(path, target, &names, n_rows, batches, progress)?;
     Ok(Parsed {
         writer,
@@ -247,6 +304,34 @@ pub(crate) fn read_parquet(
     })
 }
 
+/// The first page of a Parquet file whose CRC32 does not match its header's: (row
+/// group, 0-based, the number of row groups, column path). Reads every page of every
+/// column (the error path only: the Arrow reader says only that some page failed).
+fn bad_page(path: &Path) -> Option<(usize, usize, String)> {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    let r = SerializedFileReader::new(File::open(path).ok()?).ok()?;
+    let n_rg = r.num_row_groups();
+    for rg in 0..n_rg {
+        let g = r.get_row_group(rg).ok()?;
+        for c in 0..g.num_columns() {
+            let Ok(mut pages) = g.get_column_page_reader(c) else {
+                continue;
+            };
+            loop {
+                match pages.get_next_page() {
+                    Ok(Some(_)) => {}
+                    Ok(None) => break,
+                    Err(e) if e.to_string().contains("CRC checksum mismatch") => {
+                        return Some((rg, n_rg, g.metadata().column(c).column_path().string()));
+                    }
+                    Err(_) => break,
+                }
+            }
+        }
+    }
+    None
+}
+
 /// Reads an Arrow IPC file (of any layout) into a new store at `target`.
 pub(crate) fn read_arrow(
     path: &Path,
@@ -254,29 +339,69 @@ pub(crate) fn read_arrow(
     opts: &LogOptions,
     progress: &Progress,
 ) -> Result<Parsed> {
-    let open = || -> Result<arrow_ipc::reader::FileReader<File>> {
+    let open = |projection: Option<Vec<usize>>| -> Result<arrow_ipc::reader::FileReader<File>> {
         let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
-        arrow_ipc::reader::FileReader::try_new(file, None)
+        let mut b = arrow_ipc::reader::FileReaderBuilder::new();
+        if let Some(p) = projection {
+            b = b.with_projection(p);
+        }
+        b.build(file)
             .map_err(|e| Error::format(path, format!("not a readable Arrow IPC file: {e}")))
     };
-    let reader = open()?;
+    let reader = open(None)?;
     let schema = reader.schema();
+    read_ipc(path, target, opts, progress, &schema, reader, |first| {
+        open(Some(vec![first]))
+    })
+}
+
+/// Reads an Arrow IPC stream (the format of `pyarrow.ipc.new_stream`, no footer) into a
+/// new store at `target`: like [`read_arrow`], the rows counted in a first pass.
+pub(crate) fn read_arrow_stream(
+    path: &Path,
+    target: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+) -> Result<Parsed> {
+    type Stream = arrow_ipc::reader::StreamReader<std::io::BufReader<File>>;
+    let open = |projection: Option<Vec<usize>>| -> Result<Stream> {
+        let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
+        arrow_ipc::reader::StreamReader::try_new_buffered(file, projection)
+            .map_err(|e| Error::format(path, format!("not a readable Arrow IPC stream: {e}")))
+    };
+    let reader = open(None)?;
+    let schema = reader.schema();
+    read_ipc(path, target, opts, progress, &schema, reader, |first| {
+        open(Some(vec![first]))
+    })
+}
+
+/// The common part of [`read_arrow`] and [`read_arrow_stream`]: `reader` yields the
+/// batches, `counter(i)` a reader of column `i` only, for the row count.
+fn read_ipc<R, C>(
+    path: &Path,
+    target: &Path,
+    opts: &LogOptions,
+    progress: &Progress,
+    schema: &Schema,
+    reader: R,
+    counter: impl FnOnce(usize) -> Result<C>,
+) -> Result<Parsed>
+where
+    R: Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
+    C: Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
+{
     let md: HashMap<String, String> = schema
         .metadata()
         .iter()
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
     let rate_meta_hz = rate_from(&md, path)?;
-    let (names, time_col) = plan(path, &schema, opts)?;
+    let (names, time_col) = plan(path, schema, opts)?;
     // First pass: count rows (decodes one column per batch).
     let first = schema.index_of(&names[0]).expect("planned");
-    let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
-    let mut counter = arrow_ipc::reader::FileReaderBuilder::new()
-        .with_projection(vec![first])
-        .build(file)
-        .map_err(|e| Error::format(path, format!("not a readable Arrow IPC file: {e}")))?;
     let mut n_rows = 0usize;
-    for b in &mut counter {
+    for b in counter(first)? {
         n_rows += b
             .map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))?
             .num_rows();

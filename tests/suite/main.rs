@@ -7,6 +7,7 @@ mod common;
 
 mod adev;
 mod analyze_channels;
+mod arrow_formats;
 mod bad_input;
 mod batch;
 mod csv_wide;
@@ -21,7 +22,9 @@ mod fit_index_cli;
 mod fixtures;
 mod gap;
 mod ingest;
+mod input_kinds;
 mod noise_terms;
+mod parquet_checksums;
 mod psd_acf;
 mod simulate;
 mod spec;
