@@ -246,7 +246,7 @@ fn reserve_space(file: &std::fs::File, len: u64) -> std::io::Result<()> {
 /// cause, the bytes, the folder and what its file system has free.
 fn no_space(target: &Path, dir: &Path, need: u64, e: std::io::Error) -> Error {
     let free = free_bytes(dir)
-        .map(|f| format!(", which has {f} bytes ({:.1} MB) free", f as f64 / 1e6))
+        .map(|f| format!(", which has {f} bytes ({}) free", human_bytes(f)))
         .unwrap_or_default();
     let dir = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
     Error::output_io(
@@ -254,12 +254,24 @@ fn no_space(target: &Path, dir: &Path, need: u64, e: std::io::Error) -> Error {
         std::io::Error::new(
             e.kind(),
             format!(
-                "{e}: the store needs {need} bytes ({:.1} MB) on the file system of {}{free}; free space there or write elsewhere (--cache-dir, --no-cache with TMPDIR, -o)",
-                need as f64 / 1e6,
+                "{e}: the store needs {need} bytes ({}) on the file system of {}{free}; free space there or write elsewhere (--cache-dir, --no-cache with TMPDIR, -o)",
+                human_bytes(need),
                 dir.display()
             ),
         ),
     )
+}
+
+/// `bytes` in kB, MB or GB with one decimal.
+fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b < 1e6 {
+        format!("{:.1} kB", b / 1e3)
+    } else if b < 1e9 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.1} GB", b / 1e9)
+    }
 }
 
 /// Bytes free to an unprivileged user on the file system holding `dir` (`statvfs`).
@@ -412,7 +424,7 @@ mod tests {
         assert!(msg.contains(&format!("needs {asked} bytes")), "{msg}");
         assert!(msg.contains("No space left on device"), "{msg}");
         assert!(msg.contains("s.arrow"), "{msg}");
-        assert!(msg.contains("bytes free") && msg.contains("file system of"), "{msg}");
+        assert!(msg.contains(") free") && msg.contains("file system of"), "{msg}");
         let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert!(left.is_empty(), "left behind: {left:?}");
     }
