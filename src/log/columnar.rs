@@ -332,6 +332,170 @@ fn bad_page(path: &Path) -> Option<(usize, usize, String)> {
     None
 }
 
+/// Checks the framing of every IPC message of an Arrow file (`stream == false`: the
+/// blocks its footer lists) or stream (the messages from the first byte) before
+/// arrow-ipc decodes them: arrow-ipc trusts the lengths a file states, so a damaged
+/// file could panic it (a buffer past the end of its body) or abort the process (an
+/// allocation of a stated length: a body, or a compressed buffer's uncompressed
+/// length). Refused here, with exit 2: a message or body past the end of the file,
+/// a buffer outside its message's body, an uncompressed length beyond the machine's
+/// memory.
+fn check_ipc_framing(path: &Path, stream: bool) -> Result<()> {
+    let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
+    // SAFETY: read only, as every reader of the input; see csv.rs.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?;
+    let bytes: &[u8] = &map;
+    let bad = |m: String| Error::format(path, format!("damaged Arrow IPC data: {m}"));
+    let memory = physical_memory();
+    // One message at `pos`: its framing, header, body; returns the end of its body.
+    let message_at = |pos: usize, end: usize| -> Result<Option<usize>> {
+        let word = |at: usize| -> Result<i32> {
+            bytes
+                .get(at..at + 4)
+                .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
+                .ok_or_else(|| bad(format!("a message header at byte {at} runs past the end")))
+        };
+        let (len, meta_start) = match word(pos)? {
+            -1 => (word(pos + 4)?, pos + 8),
+            n => (n, pos + 4), // the format before the continuation marker
+        };
+        if len == 0 {
+            return Ok(None); // end of stream
+        }
+        let len = usize::try_from(len)
+            .map_err(|_| bad(format!("negative message length at byte {pos}")))?;
+        let meta_end = meta_start
+            .checked_add(len)
+            .filter(|e| *e <= end)
+            .ok_or_else(|| bad(format!("the message at byte {pos} runs past the end")))?;
+        let msg = arrow_ipc::root_as_message(&bytes[meta_start..meta_end])
+            .map_err(|e| bad(format!("the message at byte {pos}: {e}")))?;
+        let body_len = usize::try_from(msg.bodyLength())
+            .map_err(|_| bad(format!("negative body length at byte {pos}")))?;
+        let body_end = meta_end
+            .checked_add(body_len)
+            .filter(|e| *e <= end)
+            .ok_or_else(|| {
+                bad(format!(
+                    "the body of the message at byte {pos} ({body_len} bytes) runs past the end"
+                ))
+            })?;
+        let batch = msg
+            .header_as_record_batch()
+            .or_else(|| msg.header_as_dictionary_batch().and_then(|d| d.data()));
+        if let Some(batch) = batch {
+            let compressed = batch.compression().is_some();
+            for b in batch.buffers().iter().flatten() {
+                let (off, blen) = (b.offset(), b.length());
+                let inside = usize::try_from(off)
+                    .ok()
+                    .zip(usize::try_from(blen).ok())
+                    .and_then(|(o, l)| o.checked_add(l).map(|e| (o, e)))
+                    .filter(|(_, e)| *e <= body_len);
+                let Some((o, e)) = inside else {
+                    return Err(bad(format!(
+                        "a buffer (offset {off}, length {blen}) lies outside the {body_len}-byte body of the message at byte {pos}"
+                    )));
+                };
+                if compressed && e - o >= 8 {
+                    let at = meta_end + o;
+                    let n = i64::from_le_bytes(bytes[at..at + 8].try_into().expect("8 bytes"));
+                    if n < -1 || n as u64 > memory {
+                        return Err(bad(format!(
+                            "a compressed buffer at byte {at} states an uncompressed length of {n} bytes"
+                        )));
+                    }
+                }
+            }
+        }
+        Ok(Some(body_end))
+    };
+    if stream {
+        let mut pos = 0;
+        while pos < bytes.len() {
+            match message_at(pos, bytes.len())? {
+                Some(next) => pos = next,
+                None => break,
+            }
+        }
+        return Ok(());
+    }
+    // the file format: ARROW1, padding, messages..., footer, footer length, ARROW1
+    let len = bytes.len();
+    if len < 10 + 8 {
+        return Err(bad("shorter than an Arrow IPC file's magic and footer".into()));
+    }
+    let footer_len = i32::from_le_bytes(bytes[len - 10..len - 6].try_into().expect("4 bytes"));
+    let footer_start = usize::try_from(footer_len)
+        .ok()
+        .and_then(|f| (len - 10).checked_sub(f))
+        .filter(|s| *s >= 8)
+        .ok_or_else(|| bad(format!("footer length {footer_len} past the start of the file")))?;
+    let footer = arrow_ipc::root_as_footer(&bytes[footer_start..len - 10])
+        .map_err(|e| bad(format!("the footer: {e}")))?;
+    let blocks = footer
+        .recordBatches()
+        .into_iter()
+        .flatten()
+        .chain(footer.dictionaries().into_iter().flatten());
+    for b in blocks {
+        let (off, meta, body) = (b.offset(), b.metaDataLength(), b.bodyLength());
+        let end = usize::try_from(off)
+            .ok()
+            .zip(usize::try_from(meta).ok())
+            .zip(usize::try_from(body).ok())
+            .and_then(|((o, m), b)| o.checked_add(m)?.checked_add(b))
+            .filter(|e| *e <= footer_start)
+            .ok_or_else(|| {
+                bad(format!(
+                    "a block (offset {off}, metadata {meta}, body {body} bytes) past the footer at byte {footer_start}"
+                ))
+            })?;
+        let body_end = message_at(off as usize, end)?
+            .ok_or_else(|| bad(format!("an empty message at byte {off}")))?;
+        if body_end != end {
+            return Err(bad(format!(
+                "the block at byte {off} says {body} body bytes, its message another length"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The machine's physical memory in bytes (the bound on a stated uncompressed length);
+/// `u64::MAX` where it cannot be told.
+fn physical_memory() -> u64 {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: sysconf reads a constant of the system.
+        let (pages, size) = unsafe {
+            (
+                libc::sysconf(libc::_SC_PHYS_PAGES),
+                libc::sysconf(libc::_SC_PAGESIZE),
+            )
+        };
+        if pages > 0 && size > 0 {
+            return (pages as u64).saturating_mul(size as u64);
+        }
+    }
+    u64::MAX
+}
+
+/// Runs one step of arrow-ipc's decoder, turning a panic (a case of damage that
+/// [`check_ipc_framing`] does not catch) into an error naming the file.
+fn guarded<T>(
+    path: &Path,
+    f: impl FnOnce() -> Option<std::result::Result<T, arrow_schema::ArrowError>>,
+) -> Option<Result<T>> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r.map(|r| r.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))),
+        Err(_) => Some(Err(Error::format(
+            path,
+            "cannot decode Arrow data: the Arrow decoder failed on damaged data",
+        ))),
+    }
+}
+
 /// Reads an Arrow IPC file (of any layout) into a new store at `target`.
 pub(crate) fn read_arrow(
     path: &Path,
@@ -348,6 +512,7 @@ pub(crate) fn read_arrow(
         b.build(file)
             .map_err(|e| Error::format(path, format!("not a readable Arrow IPC file: {e}")))
     };
+    check_ipc_framing(path, false)?;
     let reader = open(None)?;
     let schema = reader.schema();
     read_ipc(path, target, opts, progress, &schema, reader, |first| {
@@ -369,6 +534,7 @@ pub(crate) fn read_arrow_stream(
         arrow_ipc::reader::StreamReader::try_new_buffered(file, projection)
             .map_err(|e| Error::format(path, format!("not a readable Arrow IPC stream: {e}")))
     };
+    check_ipc_framing(path, true)?;
     let reader = open(None)?;
     let schema = reader.schema();
     read_ipc(path, target, opts, progress, &schema, reader, |first| {
@@ -401,13 +567,12 @@ where
     // First pass: count rows (decodes one column per batch).
     let first = schema.index_of(&names[0]).expect("planned");
     let mut n_rows = 0usize;
-    for b in counter(first)? {
-        n_rows += b
-            .map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))?
-            .num_rows();
+    let mut counter = counter(first)?;
+    while let Some(b) = guarded(path, || counter.next()) {
+        n_rows += b?.num_rows();
     }
-    let batches = reader
-        .map(|b| b.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}"))));
+    let mut reader = reader;
+    let batches = std::iter::from_fn(move || guarded(path, || reader.next()));
     let (writer, nonfinite) = fill(path, target, &names, n_rows, batches, progress)?;
     Ok(Parsed {
         writer,

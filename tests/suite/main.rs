@@ -20,6 +20,7 @@ mod estimator_update;
 mod fit_cli;
 mod fit_index_cli;
 mod fixtures;
+mod fuzz_regressions;
 mod gap;
 mod ingest;
 mod input_kinds;

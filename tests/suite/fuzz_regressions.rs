@@ -1,0 +1,57 @@
+//! Inputs the fuzzer (examples/fuzz.rs, benches/fuzz.sh) found, kept in fixtures/fuzz/:
+//! each must be refused with exit 2 and a message naming the file, never a panic
+//! (exit 101) or an abort (134).
+//!
+//! Found in the first runs of the `arrow` target: arrow-ipc trusts the lengths a file
+//! states, so a buffer stated past its message's body panicked in
+//! `Buffer::slice_with_length` (`arrow_buffer_past_body_*.arrows`, mutated streams) and a
+//! stated length past the end of the file or a huge uncompressed length aborted on the
+//! allocation (`arrow_huge_uncompressed_length.arrow`: "memory allocation of
+//! 5558009288175124480 bytes failed"). The framing of every message is now checked
+//! before arrow-ipc decodes it (`check_ipc_framing` in src/log/columnar.rs).
+
+use crate::common::{farma, fixture, stderr, stdout};
+
+fn assert_refused(path: &std::path::Path, want: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let o = farma(
+        &["info", path.to_str().unwrap(), "--rate", "10", "--no-cache"],
+        dir.path(),
+    );
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{}: {e}", path.display());
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(
+        e.contains(&*path.file_name().unwrap().to_string_lossy()),
+        "{e}"
+    );
+    assert!(e.contains(want), "{want}: {e}");
+    assert_eq!(stdout(&o), "");
+}
+
+#[test]
+fn fuzzed_arrow_inputs_are_refused_not_panics_or_aborts() {
+    for (name, want) in [
+        ("arrow_buffer_past_body_1.arrows", "lies outside the 1216-byte body"),
+        ("arrow_buffer_past_body_2.arrows", "lies outside the 1216-byte body"),
+        ("arrow_huge_uncompressed_length.arrow", "runs past the end"),
+    ] {
+        assert_refused(&fixture(&format!("fuzz/{name}")), want);
+    }
+}
+
+#[test]
+fn a_compressed_buffer_stating_a_huge_uncompressed_length_is_refused_before_the_allocation() {
+    // lz4.arrow's first values buffer (200 f64 of `time`) states 1600 uncompressed
+    // bytes in its 8-byte prefix: say 2^62 instead
+    let mut bytes = std::fs::read(fixture("foreign/lz4.arrow")).unwrap();
+    let at = bytes
+        .windows(8)
+        .position(|w| w == 1600i64.to_le_bytes())
+        .expect("the prefix of a 1600-byte buffer");
+    bytes[at..at + 8].copy_from_slice(&(1i64 << 62).to_le_bytes());
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("huge.arrow");
+    std::fs::write(&p, bytes).unwrap();
+    assert_refused(&p, "states an uncompressed length of 4611686018427387904 bytes");
+}
