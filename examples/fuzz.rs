@@ -24,9 +24,32 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const TOKENS: &[&[u8]] = &[
-    b",", b";", b"\t", b"\n", b"\r\n", b"\"", b"#", b"NaN", b"inf", b"-", b"1e308", b"1e-320",
-    b"1e309", b"0", b"9007199254740993", b"time", b"PAR1", b"ARROW1", b"\xff\xff\xff\xff",
-    b"\x00", b"\xef\xbb\xbf", b"=", b"[", b"]", b"[[channel]]", b"1e300",
+    b",",
+    b";",
+    b"\t",
+    b"\n",
+    b"\r\n",
+    b"\"",
+    b"#",
+    b"NaN",
+    b"inf",
+    b"-",
+    b"1e308",
+    b"1e-320",
+    b"1e309",
+    b"0",
+    b"9007199254740993",
+    b"time",
+    b"PAR1",
+    b"ARROW1",
+    b"\xff\xff\xff\xff",
+    b"\x00",
+    b"\xef\xbb\xbf",
+    b"=",
+    b"[",
+    b"]",
+    b"[[channel]]",
+    b"1e300",
 ];
 
 fn seeds(target: &str, root: &Path) -> Vec<Vec<u8>> {
@@ -150,7 +173,8 @@ fn mutate(rng: &mut ChaCha8Rng, seeds: &[Vec<u8>], base: &[u8]) -> Vec<u8> {
             _ if len >= 4 => {
                 // an interesting little-endian integer over 4 bytes
                 let i = rng.random_range(0..len - 3);
-                let x: u32 = [0, 1, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 64, 4096][rng.random_range(0..7)];
+                let x: u32 =
+                    [0, 1, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 64, 4096][rng.random_range(0..7)];
                 v[i..i + 4].copy_from_slice(&x.to_le_bytes());
             }
             _ => {}
@@ -261,12 +285,18 @@ fn main() {
                 crashes += 1;
                 let p = out_dir.join(format!("crash-{crashes}.bin"));
                 std::fs::write(&p, &input).unwrap();
-                eprintln!("fuzz {target}: panic ({msg}); input saved as {}", p.display());
+                eprintln!(
+                    "fuzz {target}: panic ({msg}); input saved as {}",
+                    p.display()
+                );
             }
             Err(_) => {
                 let p = out_dir.join("hang.bin");
                 std::fs::write(&p, &input).unwrap();
-                eprintln!("fuzz {target}: an input ran over 10 s; saved as {}", p.display());
+                eprintln!(
+                    "fuzz {target}: an input ran over 10 s; saved as {}",
+                    p.display()
+                );
                 std::process::exit(3);
             }
         }

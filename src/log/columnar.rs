@@ -423,14 +423,20 @@ fn check_ipc_framing(path: &Path, stream: bool) -> Result<()> {
     // the file format: ARROW1, padding, messages..., footer, footer length, ARROW1
     let len = bytes.len();
     if len < 10 + 8 {
-        return Err(bad("shorter than an Arrow IPC file's magic and footer".into()));
+        return Err(bad(
+            "shorter than an Arrow IPC file's magic and footer".into()
+        ));
     }
     let footer_len = i32::from_le_bytes(bytes[len - 10..len - 6].try_into().expect("4 bytes"));
     let footer_start = usize::try_from(footer_len)
         .ok()
         .and_then(|f| (len - 10).checked_sub(f))
         .filter(|s| *s >= 8)
-        .ok_or_else(|| bad(format!("footer length {footer_len} past the start of the file")))?;
+        .ok_or_else(|| {
+            bad(format!(
+                "footer length {footer_len} past the start of the file"
+            ))
+        })?;
     let footer = arrow_ipc::root_as_footer(&bytes[footer_start..len - 10])
         .map_err(|e| bad(format!("the footer: {e}")))?;
     let blocks = footer
@@ -488,7 +494,9 @@ fn guarded<T>(
     f: impl FnOnce() -> Option<std::result::Result<T, arrow_schema::ArrowError>>,
 ) -> Option<Result<T>> {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
-        Ok(r) => r.map(|r| r.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}")))),
+        Ok(r) => {
+            r.map(|r| r.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}"))))
+        }
         Err(_) => Some(Err(Error::format(
             path,
             "cannot decode Arrow data: the Arrow decoder failed on damaged data",

@@ -424,7 +424,10 @@ mod tests {
         assert!(msg.contains(&format!("needs {asked} bytes")), "{msg}");
         assert!(msg.contains("No space left on device"), "{msg}");
         assert!(msg.contains("s.arrow"), "{msg}");
-        assert!(msg.contains(") free") && msg.contains("file system of"), "{msg}");
+        assert!(
+            msg.contains(") free") && msg.contains("file system of"),
+            "{msg}"
+        );
         let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert!(left.is_empty(), "left behind: {left:?}");
     }
@@ -437,7 +440,11 @@ mod tests {
         let target = dir.path().join("s.arrow");
         let names = vec!["a".to_string()];
         let w = StoreWriter::create(&target, &names, 1 << 20).unwrap();
-        let tmp = std::fs::read_dir(dir.path()).unwrap().next().unwrap().unwrap();
+        let tmp = std::fs::read_dir(dir.path())
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap();
         #[cfg(target_os = "linux")]
         {
             use std::os::fd::AsRawFd;

@@ -61,7 +61,11 @@ fn an_ipc_stream_converts_through_ingest() {
 fn feather_v1_is_named_not_taken_for_csv() {
     let dir = tempfile::tempdir().unwrap();
     let o = farma(
-        &["info", fixture("foreign/v1.feather").to_str().unwrap(), "--no-cache"],
+        &[
+            "info",
+            fixture("foreign/v1.feather").to_str().unwrap(),
+            "--no-cache",
+        ],
         dir.path(),
     );
     let e = stderr(&o);

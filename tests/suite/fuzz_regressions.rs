@@ -32,8 +32,14 @@ fn assert_refused(path: &std::path::Path, want: &str) {
 #[test]
 fn fuzzed_arrow_inputs_are_refused_not_panics_or_aborts() {
     for (name, want) in [
-        ("arrow_buffer_past_body_1.arrows", "lies outside the 1216-byte body"),
-        ("arrow_buffer_past_body_2.arrows", "lies outside the 1216-byte body"),
+        (
+            "arrow_buffer_past_body_1.arrows",
+            "lies outside the 1216-byte body",
+        ),
+        (
+            "arrow_buffer_past_body_2.arrows",
+            "lies outside the 1216-byte body",
+        ),
         ("arrow_huge_uncompressed_length.arrow", "runs past the end"),
     ] {
         assert_refused(&fixture(&format!("fuzz/{name}")), want);
@@ -53,5 +59,8 @@ fn a_compressed_buffer_stating_a_huge_uncompressed_length_is_refused_before_the_
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("huge.arrow");
     std::fs::write(&p, bytes).unwrap();
-    assert_refused(&p, "states an uncompressed length of 4611686018427387904 bytes");
+    assert_refused(
+        &p,
+        "states an uncompressed length of 4611686018427387904 bytes",
+    );
 }

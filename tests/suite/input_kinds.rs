@@ -45,7 +45,11 @@ fn a_fifo_is_not_a_regular_file() {
 fn utf16(text: &str, big_endian: bool, bom: bool) -> Vec<u8> {
     let mut out = Vec::new();
     if bom {
-        out.extend_from_slice(if big_endian { &[0xFE, 0xFF] } else { &[0xFF, 0xFE] });
+        out.extend_from_slice(if big_endian {
+            &[0xFE, 0xFF]
+        } else {
+            &[0xFF, 0xFE]
+        });
     }
     for u in text.encode_utf16() {
         out.extend_from_slice(&if big_endian {
@@ -62,8 +66,16 @@ fn utf16_text_is_named_with_or_without_a_byte_order_mark() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(fixture("multiaxis.csv")).unwrap();
     for (be, bom, want) in [
-        (false, false, "looks like UTF-16LE text without a byte-order mark"),
-        (true, false, "looks like UTF-16BE text without a byte-order mark"),
+        (
+            false,
+            false,
+            "looks like UTF-16LE text without a byte-order mark",
+        ),
+        (
+            true,
+            false,
+            "looks like UTF-16BE text without a byte-order mark",
+        ),
         (false, true, "UTF-16LE text (byte-order mark)"),
         (true, true, "UTF-16BE text (byte-order mark)"),
     ] {
@@ -72,7 +84,10 @@ fn utf16_text_is_named_with_or_without_a_byte_order_mark() {
         let o = farma(&["info", p.to_str().unwrap(), "--no-cache"], dir.path());
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{e}");
-        assert!(e.contains(&*p.file_name().unwrap().to_string_lossy()), "{e}");
+        assert!(
+            e.contains(&*p.file_name().unwrap().to_string_lossy()),
+            "{e}"
+        );
         assert!(e.contains(want), "{want}: {e}");
         assert!(e.contains("convert it to UTF-8"), "{e}");
         assert!(!e.contains('\0'), "NUL bytes in the message: {e:?}");

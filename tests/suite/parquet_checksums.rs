@@ -46,7 +46,11 @@ fn gyro_x_row(row: usize) -> f64 {
 fn the_intact_file_with_page_checksums_is_read() {
     let dir = tempfile::tempdir().unwrap();
     let o = farma(
-        &["info", fixture("foreign/crc.parquet").to_str().unwrap(), "--no-cache"],
+        &[
+            "info",
+            fixture("foreign/crc.parquet").to_str().unwrap(),
+            "--no-cache",
+        ],
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -57,7 +61,10 @@ fn the_intact_file_with_page_checksums_is_read() {
 fn a_flipped_byte_in_a_data_page_is_exit_2_naming_file_column_and_row_group() {
     let dir = tempfile::tempdir().unwrap();
     let bad = damaged(dir.path());
-    for extra in [&["--no-cache"][..], &["--cache-dir", dir.path().join("c").to_str().unwrap()]] {
+    for extra in [
+        &["--no-cache"][..],
+        &["--cache-dir", dir.path().join("c").to_str().unwrap()],
+    ] {
         let mut args = vec!["info", bad.to_str().unwrap()];
         args.extend_from_slice(extra);
         let o = farma(&args, &dir.path().join("c"));

@@ -42,7 +42,9 @@ fn a_killed_no_cache_runs_store_is_swept_and_a_live_ones_kept() {
     let tmp = tempfile::tempdir().unwrap();
     let host = host();
     // pid_max is at most 2^22: this process cannot exist.
-    let dead = tmp.path().join(format!(".farma-{host}-999999999-a1B2c3.tmp"));
+    let dead = tmp
+        .path()
+        .join(format!(".farma-{host}-999999999-a1B2c3.tmp"));
     let live = tmp
         .path()
         .join(format!(".farma-{host}-{}-z9Y8x7.tmp", std::process::id()));
@@ -51,7 +53,11 @@ fn a_killed_no_cache_runs_store_is_swept_and_a_live_ones_kept() {
         std::fs::write(p, vec![0u8; 4096]).unwrap();
     }
     let o = Command::new(env!("CARGO_BIN_EXE_farma"))
-        .args(["info", fixture("multiaxis.csv").to_str().unwrap(), "--no-cache"])
+        .args([
+            "info",
+            fixture("multiaxis.csv").to_str().unwrap(),
+            "--no-cache",
+        ])
         .env("TMPDIR", tmp.path())
         .env("FARMA_CACHE_DIR", tmp.path().join("unused-cache"))
         .output()
@@ -68,7 +74,11 @@ fn a_killed_no_cache_runs_store_is_swept_and_a_live_ones_kept() {
     // and the run left nothing of its own behind
     let mut want = vec![
         live.file_name().unwrap().to_string_lossy().into_owned(),
-        other_host.file_name().unwrap().to_string_lossy().into_owned(),
+        other_host
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned(),
     ];
     want.sort();
     assert_eq!(entries(tmp.path()), want);
