@@ -261,6 +261,20 @@ pub(crate) fn read_parquet(
     let (names, time_col) = plan(path, &schema, opts)?;
     let n_rows = usize::try_from(builder.metadata().file_metadata().num_rows())
         .map_err(|_| Error::format(path, "negative row count in the metadata"))?;
+    // The store's space is reserved for this count before a row is read: a damaged
+    // count (the fuzzer's 'PAR1' splices) must not reserve gigabytes first.
+    let in_groups: i64 = builder
+        .metadata()
+        .row_groups()
+        .iter()
+        .map(|g| g.num_rows())
+        .fold(0i64, i64::saturating_add);
+    if in_groups != n_rows as i64 {
+        return Err(Error::format(
+            path,
+            format!("damaged metadata: the file says {n_rows} rows, its row groups {in_groups}"),
+        ));
+    }
     let index: HashMap<&str, usize> = schema
         .fields()
         .iter()
@@ -345,7 +359,13 @@ fn check_ipc_framing(path: &Path, stream: bool) -> Result<()> {
     // SAFETY: read only, as every reader of the input; see csv.rs.
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?;
     let bytes: &[u8] = &map;
-    let bad = |m: String| Error::format(path, format!("damaged Arrow IPC data: {m}"));
+    let what = if stream { "stream" } else { "file" };
+    let bad = |m: String| {
+        Error::format(
+            path,
+            format!("not a readable Arrow IPC {what}: damaged: {m}"),
+        )
+    };
     let memory = physical_memory();
     // One message at `pos`: its framing, header, body; returns the end of its body.
     let message_at = |pos: usize, end: usize| -> Result<Option<usize>> {

@@ -64,3 +64,48 @@ fn a_compressed_buffer_stating_a_huge_uncompressed_length_is_refused_before_the_
         "states an uncompressed length of 4611686018427387904 bytes",
     );
 }
+
+#[test]
+fn a_parquet_row_count_that_its_row_groups_do_not_add_up_to_is_refused_before_reserving() {
+    // Found by the parquet target: a spliced footer stated ~1e9 rows, and the store's
+    // space (8 bytes per row and column) was reserved for them before the first row
+    // was read: gigabytes of a shared disk, or a failure for the wrong cause.
+    // FileMetaData field 3, num_rows, in the Thrift compact protocol: the field header
+    // 0x16 (delta 1, i64) after the schema list, then zigzag(4000) = 8000 as a varint
+    let bytes = std::fs::read(fixture("multiaxis.parquet")).unwrap();
+    let n = bytes.len();
+    let footer_len = u32::from_le_bytes(bytes[n - 8..n - 4].try_into().unwrap()) as usize;
+    let start = n - 8 - footer_len;
+    let footer = &bytes[start..n - 8];
+    let pat = [0x16u8, 0xC0, 0x3E];
+    let at: Vec<usize> = footer
+        .windows(3)
+        .enumerate()
+        .filter(|(_, w)| *w == pat)
+        .map(|(i, _)| i)
+        .collect();
+    // the first is the file's (fields 1-3 come before the row groups, whose own
+    // num_rows and whose chunks' num_values follow)
+    assert!(!at.is_empty(), "num_rows not found");
+    let mut varint = Vec::new();
+    let mut z: u64 = 2 * 1_000_000_000; // zigzag(1e9)
+    while z >= 0x80 {
+        varint.push((z as u8) | 0x80);
+        z >>= 7;
+    }
+    varint.push(z as u8);
+    let mut new_footer = footer[..at[0] + 1].to_vec();
+    new_footer.extend_from_slice(&varint);
+    new_footer.extend_from_slice(&footer[at[0] + 3..]);
+    let mut out = bytes[..start].to_vec();
+    out.extend_from_slice(&new_footer);
+    out.extend_from_slice(&(new_footer.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"PAR1");
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("rows_lie.parquet");
+    std::fs::write(&p, out).unwrap();
+    assert_refused(
+        &p,
+        "damaged metadata: the file says 1000000000 rows, its row groups 4000",
+    );
+}
