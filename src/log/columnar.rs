@@ -242,7 +242,14 @@ pub(crate) fn read_parquet(
     progress: &Progress,
 ) -> Result<Parsed> {
     let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file)
+    let damaged = |what: &str| {
+        Error::format(
+            path,
+            format!("not a readable Parquet file: the Parquet decoder failed on damaged {what}"),
+        )
+    };
+    let builder = no_panic(|| ParquetRecordBatchReaderBuilder::try_new(file))
+        .map_err(|()| damaged("metadata"))?
         .map_err(|e| Error::format(path, format!("not a readable Parquet file: {e}")))?;
     let schema = builder.schema().clone();
     let mut md: HashMap<String, String> = schema
@@ -283,18 +290,27 @@ pub(crate) fn read_parquet(
         .collect();
     let indices: Vec<usize> = names.iter().map(|n| index[n.as_str()]).collect();
     let mask = ProjectionMask::roots(builder.parquet_schema(), indices);
-    let reader = builder
-        .with_projection(mask)
-        .with_batch_size(64 * 1024)
-        .build()
-        .map_err(|e| Error::format(path, format!("cannot read Parquet: {e}")))?;
-    let batches = reader.map(|b| {
+    let mut reader = no_panic(|| {
+        builder
+            .with_projection(mask)
+            .with_batch_size(64 * 1024)
+            .build()
+    })
+    .map_err(|()| damaged("metadata"))?
+    .map_err(|e| Error::format(path, format!("cannot read Parquet: {e}")))?;
+    let batches = std::iter::from_fn(move || match no_panic(|| reader.next()) {
+        Ok(b) => b,
+        Err(()) => Some(Err(arrow_schema::ArrowError::ParquetError(
+            "the Parquet decoder failed on damaged data".into(),
+        ))),
+    })
+    .map(|b| {
         b.map_err(|e| {
             let msg = e.to_string();
             if !msg.contains("CRC checksum mismatch") {
                 return Error::format(path, format!("cannot decode Parquet data: {msg}"));
             }
-            let at = match bad_page(path) {
+            let at = match no_panic(|| bad_page(path)).ok().flatten() {
                 Some((rg, n_rg, col)) => format!(
                     "in column '{col}', row group {rg} (numbered from 0; the file has {n_rg})"
                 ),
@@ -507,17 +523,43 @@ fn physical_memory() -> u64 {
     u64::MAX
 }
 
-/// Runs one step of arrow-ipc's decoder, turning a panic (a case of damage that
-/// [`check_ipc_framing`] does not catch) into an error naming the file.
+thread_local! {
+    /// Set while [`no_panic`] runs its closure: the panic hook stays quiet on this thread.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f`, a step of a foreign decoder (arrow-ipc, parquet) that may panic on damaged
+/// data (the fuzzer found `Num of bytes exceed MAX_VLQ_BYTE_LEN` and `column start and
+/// length should not be negative` in parquet, buffers past their body in arrow-ipc);
+/// a panic becomes `Err(())` and prints nothing (the process's panic hook is wrapped
+/// once to stay quiet on a thread inside `no_panic`).
+fn no_panic<T>(f: impl FnOnce() -> T) -> std::result::Result<T, ()> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let prev = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(|q| q.get()) {
+                prev(info);
+            }
+        }));
+    });
+    let was = QUIET.with(|q| q.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    r.map_err(|_| ())
+}
+
+/// One step of arrow-ipc's decoder under [`no_panic`]: a panic (a case of damage that
+/// [`check_ipc_framing`] does not catch) is an error naming the file.
 fn guarded<T>(
     path: &Path,
     f: impl FnOnce() -> Option<std::result::Result<T, arrow_schema::ArrowError>>,
 ) -> Option<Result<T>> {
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+    match no_panic(f) {
         Ok(r) => {
             r.map(|r| r.map_err(|e| Error::format(path, format!("cannot decode Arrow data: {e}"))))
         }
-        Err(_) => Some(Err(Error::format(
+        Err(()) => Some(Err(Error::format(
             path,
             "cannot decode Arrow data: the Arrow decoder failed on damaged data",
         ))),
