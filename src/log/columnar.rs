@@ -374,18 +374,23 @@ fn check_ipc_framing(path: &Path, stream: bool) -> Result<()> {
     let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
     // SAFETY: read only, as every reader of the input; see csv.rs.
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?;
-    let bytes: &[u8] = &map;
     let what = if stream { "stream" } else { "file" };
-    let bad = |m: String| {
+    check_ipc_bytes(&map, stream).map_err(|m| {
         Error::format(
             path,
             format!("not a readable Arrow IPC {what}: damaged: {m}"),
         )
-    };
+    })
+}
+
+/// [`check_ipc_framing`] on the bytes of a file; `Err` says what is wrong. Also the
+/// check of [`crate::store::Store::open`], whose decoder trusts the lengths as much.
+pub(crate) fn check_ipc_bytes(bytes: &[u8], stream: bool) -> std::result::Result<(), String> {
+    let bad = |m: String| m;
     let memory = physical_memory();
     // One message at `pos`: its framing, header, body; returns the end of its body.
-    let message_at = |pos: usize, end: usize| -> Result<Option<usize>> {
-        let word = |at: usize| -> Result<i32> {
+    let message_at = |pos: usize, end: usize| -> std::result::Result<Option<usize>, String> {
+        let word = |at: usize| -> std::result::Result<i32, String> {
             bytes
                 .get(at..at + 4)
                 .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
@@ -533,7 +538,7 @@ thread_local! {
 /// length should not be negative` in parquet, buffers past their body in arrow-ipc);
 /// a panic becomes `Err(())` and prints nothing (the process's panic hook is wrapped
 /// once to stay quiet on a thread inside `no_panic`).
-fn no_panic<T>(f: impl FnOnce() -> T) -> std::result::Result<T, ()> {
+pub(crate) fn no_panic<T>(f: impl FnOnce() -> T) -> std::result::Result<T, ()> {
     static HOOK: std::sync::Once = std::sync::Once::new();
     HOOK.call_once(|| {
         let prev = std::panic::take_hook();

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+pub(crate) use columnar::{check_ipc_bytes, no_panic};
 pub use csv::Delimiter;
 
 use crate::error::{Error, Result};

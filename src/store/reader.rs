@@ -104,12 +104,18 @@ impl Store {
         if start.checked_add(block_len).is_none_or(|end| end > len) {
             return Err(bad("record batch block past the end of the file"));
         }
+        // arrow-ipc's decoder trusts the buffers' stated offsets and lengths (a damaged
+        // one panicked it: the store fuzz target): check the framing first, and decode
+        // under no_panic as a net
+        crate::log::check_ipc_bytes(&map, false).map_err(|m| bad(&format!("damaged: {m}")))?;
         let decoder = arrow_ipc::reader::FileDecoder::new(Arc::new(schema), version)
             .with_require_alignment(true);
-        let batch = decoder
-            .read_record_batch(block, &buffer.slice_with_length(start, block_len))
-            .map_err(|e| bad(&e.to_string()))?
-            .ok_or_else(|| bad("empty record batch message"))?;
+        let batch = crate::log::no_panic(|| {
+            decoder.read_record_batch(block, &buffer.slice_with_length(start, block_len))
+        })
+        .map_err(|()| bad("damaged: the Arrow decoder failed on its record batch"))?
+        .map_err(|e| bad(&e.to_string()))?
+        .ok_or_else(|| bad("empty record batch message"))?;
         for col in batch.columns() {
             if col.null_count() != 0 {
                 return Err(bad("a column has nulls"));

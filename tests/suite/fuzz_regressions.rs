@@ -129,3 +129,19 @@ fn a_parquet_row_count_that_its_row_groups_do_not_add_up_to_is_refused_before_re
         "damaged metadata: the file says 1000000000 rows, its row groups 4000",
     );
 }
+
+#[test]
+fn a_store_whose_buffer_lies_past_its_body_is_refused_by_the_opener() {
+    // The store target (600 s, 521,985 inputs): 1,649 panics of one kind, a buffer
+    // stated past the record batch's body ('slice offset=128000
+    // length=66709569480457472 selflen=160000' in arrow-buffer), through
+    // Store::open's FileDecoder. The opener now checks the framing first.
+    let p = fixture("fuzz/store_buffer_past_body.arrow");
+    match farma::store::Store::open(&p) {
+        Err(farma::Error::Format { msg, .. }) => {
+            assert!(msg.contains("lies outside"), "{msg}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_refused(&p, "lies outside");
+}
