@@ -222,6 +222,71 @@ fn parse_cell(cell: &[u8]) -> std::result::Result<f64, ()> {
     }
 }
 
+/// Refuses text that is not UTF-8 or ASCII where that shows in the first bytes: UTF-16
+/// or UTF-32 (with a byte-order mark, or ASCII text as UTF-16 without one: every other
+/// byte NUL), or binary data (NUL bytes) before the end of the first lines. Such input
+/// would otherwise show NUL bytes in column names or fail on a cell far from the cause.
+fn check_text_encoding(path: &Path, text: &[u8]) -> Result<()> {
+    let convert = "convert it to UTF-8 (e.g. iconv -f UTF-16 -t UTF-8)";
+    let bom = if text.starts_with(b"\xFF\xFE\0\0") {
+        Some("UTF-32LE")
+    } else if text.starts_with(b"\0\0\xFE\xFF") {
+        Some("UTF-32BE")
+    } else if text.starts_with(b"\xFF\xFE") {
+        Some("UTF-16LE")
+    } else if text.starts_with(b"\xFE\xFF") {
+        Some("UTF-16BE")
+    } else {
+        None
+    };
+    if let Some(enc) = bom {
+        return Err(Error::format(
+            path,
+            format!("{enc} text (byte-order mark); farma reads UTF-8 text: {convert}"),
+        ));
+    }
+    let sample = &text[..text.len().min(4096)];
+    let Some(first_nul) = memchr::memchr(0, sample) else {
+        return Ok(());
+    };
+    let (mut even, mut odd) = (0usize, 0usize);
+    for (i, b) in sample.iter().enumerate() {
+        if *b == 0 {
+            if i % 2 == 0 {
+                even += 1;
+            } else {
+                odd += 1;
+            }
+        }
+    }
+    // ASCII as UTF-16: the high byte of every code unit is 0
+    let units = sample.len() / 2;
+    let utf16 = if odd * 10 >= units * 8 && even * 10 < units {
+        Some("UTF-16LE")
+    } else if even * 10 >= units * 8 && odd * 10 < units {
+        Some("UTF-16BE")
+    } else {
+        None
+    };
+    let line = 1 + memchr::memchr_iter(b'\n', &sample[..first_nul]).count();
+    Err(match utf16 {
+        Some(enc) => Error::format(
+            path,
+            format!(
+                "looks like {enc} text without a byte-order mark (every other byte is NUL); farma reads UTF-8 text: {convert}"
+            ),
+        ),
+        None => Error::Malformed {
+            path: path.to_path_buf(),
+            line: line as u64,
+            msg: format!(
+                "a NUL byte (at byte {}): binary data, not a text log",
+                first_nul
+            ),
+        },
+    })
+}
+
 /// The header: names, the line it is on (1-based), and where the body starts.
 struct Header {
     names: Vec<String>,
@@ -259,6 +324,7 @@ fn read_header(path: &Path, text: &[u8], opts: &LogOptions) -> Result<Header> {
                     msg: "expected a header row of column names, found numbers".into(),
                 });
             }
+            let mut seen = std::collections::HashSet::with_capacity(names.len());
             for (i, n) in names.iter().enumerate() {
                 if n.is_empty() {
                     return Err(Error::column(
@@ -266,7 +332,7 @@ fn read_header(path: &Path, text: &[u8], opts: &LogOptions) -> Result<Header> {
                         format!("header (line {line_no}): column {} has no name", i + 1),
                     ));
                 }
-                if names[..i].contains(n) {
+                if !seen.insert(n.as_str()) {
                     return Err(Error::column(
                         path,
                         format!("header (line {line_no}): column name '{n}' appears twice"),
@@ -378,6 +444,7 @@ pub(crate) fn read_csv(
         0
     };
     text = &text[bom..];
+    check_text_encoding(path, text)?;
 
     let header = read_header(path, text, opts)?;
     let time_col = super::find_time_column(path, &header.names, opts)?;
@@ -471,32 +538,36 @@ fn plan_columns(
     time_col: Option<&str>,
     opts: &LogOptions,
 ) -> Result<ColumnPlan> {
-    let keep: Vec<String> = match &opts.columns {
-        None => names.to_vec(),
+    // Hash sets, not `Vec::contains`: a header of 100k names is checked in linear time.
+    let keep: Option<std::collections::HashSet<&str>> = match &opts.columns {
+        None => None,
         Some(sel) => {
-            let mut k = Vec::new();
-            if let Some(t) = time_col {
-                k.push(t.to_string());
-            }
+            let all: std::collections::HashSet<&str> = names.iter().map(String::as_str).collect();
+            let mut k: std::collections::HashSet<&str> = time_col.into_iter().collect();
             for s in sel {
-                if !names.contains(s) {
+                if !all.contains(s.as_str()) {
                     return Err(Error::column(
                         path,
                         format!("no column '{s}'; columns are: {}", names.join(", ")),
                     ));
                 }
-                if !k.contains(s) {
-                    k.push(s.clone());
-                }
+                k.insert(s.as_str());
             }
-            k
+            Some(k)
         }
     };
     // Store order follows the file's column order.
-    let store_names: Vec<String> = names.iter().filter(|n| keep.contains(n)).cloned().collect();
+    let mut store_names: Vec<String> = Vec::new();
     let target = names
         .iter()
-        .map(|n| store_names.iter().position(|k| k == n))
+        .map(|n| {
+            keep.as_ref()
+                .is_none_or(|k| k.contains(n.as_str()))
+                .then(|| {
+                    store_names.push(n.clone());
+                    store_names.len() - 1
+                })
+        })
         .collect();
     Ok(ColumnPlan {
         target,

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+pub(crate) use columnar::{check_ipc_bytes, no_panic};
 pub use csv::Delimiter;
 
 use crate::error::{Error, Result};
@@ -291,17 +292,37 @@ pub(crate) fn find_time_column(
 pub enum Format {
     Csv,
     Parquet,
+    /// The Arrow IPC file format (Feather v2): `ARROW1` at both ends.
     Arrow,
+    /// The Arrow IPC stream format: encapsulated messages from the first byte (the
+    /// continuation marker `FF FF FF FF`), no footer.
+    ArrowStream,
+    /// Feather v1 (`FEA1`), the format before Arrow IPC files: refused with a message.
+    FeatherV1,
 }
 
-/// Tells the format from the file's first bytes (`PAR1`, `ARROW1`), else CSV.
+/// Tells the format from the file's first bytes (`PAR1`, `ARROW1`, an Arrow stream's
+/// continuation marker `FF FF FF FF`, `FEA1`), else CSV. Only regular files are read:
+/// a FIFO, socket or device is refused (the sniffing would eat a FIFO's first bytes, and
+/// the readers map or re-read the file).
 pub fn detect_format(path: &Path) -> Result<Format> {
     use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|e| Error::input_io(path, e))?;
-    if f.metadata().map(|m| m.is_dir()).unwrap_or(false) {
+    // stat first: opening a FIFO for reading would block until a writer comes
+    let md = std::fs::metadata(path).map_err(|e| Error::input_io(path, e))?;
+    if md.is_dir() {
         return Err(Error::format(path, "is a directory, not a log file"));
     }
-    let mut head = [0u8; 6];
+    if !md.is_file() {
+        return Err(Error::format(
+            path,
+            format!(
+                "not a regular file ({}); farma needs a file it can map or re-read: save the data to a file first",
+                file_kind(&md)
+            ),
+        ));
+    }
+    let mut f = std::fs::File::open(path).map_err(|e| Error::input_io(path, e))?;
+    let mut head = [0u8; 8];
     let mut n = 0;
     while n < head.len() {
         match f.read(&mut head[n..]) {
@@ -310,13 +331,43 @@ pub fn detect_format(path: &Path) -> Result<Format> {
             Err(e) => return Err(Error::input_io(path, e)),
         }
     }
-    Ok(if head[..n].starts_with(b"PAR1") {
+    let head = &head[..n];
+    Ok(if head.starts_with(b"PAR1") {
         Format::Parquet
-    } else if head[..n].starts_with(b"ARROW1") {
+    } else if head.starts_with(b"ARROW1") {
         Format::Arrow
+    } else if head.starts_with(b"FEA1") {
+        Format::FeatherV1
+    } else if head.len() == 8
+        && head.starts_with(&[0xff; 4])
+        && i32::from_le_bytes(head[4..8].try_into().expect("4 bytes")) > 0
+    {
+        // a continuation marker and a positive metadata length: no text log starts so
+        // (0xFF is not UTF-8)
+        Format::ArrowStream
     } else {
         Format::Csv
     })
+}
+
+/// What kind of non-regular file `md` describes, for messages.
+fn file_kind(md: &std::fs::Metadata) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = md.file_type();
+        if t.is_fifo() {
+            return "a FIFO";
+        } else if t.is_socket() {
+            return "a socket";
+        } else if t.is_char_device() {
+            return "a character device";
+        } else if t.is_block_device() {
+            return "a block device";
+        }
+    }
+    let _ = md;
+    "not a plain file"
 }
 
 /// Converts `input` into a store at `output` (written to a temporary file, then
@@ -354,6 +405,13 @@ fn convert(
         Format::Csv => csv::read_csv(input, output, opts, progress)?,
         Format::Parquet => columnar::read_parquet(input, output, opts, progress)?,
         Format::Arrow => columnar::read_arrow(input, output, opts, progress)?,
+        Format::ArrowStream => columnar::read_arrow_stream(input, output, opts, progress)?,
+        Format::FeatherV1 => {
+            return Err(Error::format(
+                input,
+                "a Feather v1 file (the format before Arrow IPC, deprecated since 2020): farma reads Feather v2 / Arrow IPC; convert it, e.g. in Python: pyarrow.feather.write_feather(pyarrow.feather.read_table(IN), OUT)",
+            ));
+        }
     };
     finalize(parsed, input, output, opts, nan_check)
 }
@@ -674,12 +732,17 @@ pub fn open_log(
             Ok(Store::open(&cached)?.with_label(path))
         }
         None => {
-            let dir =
-                tempfile::tempdir().map_err(|e| Error::output_io(&std::env::temp_dir(), e))?;
-            let tmp = dir.path().join("log.arrow");
+            // Named like every output temporary (`.farma-HOST-PID-XXXXXX.tmp`) straight in
+            // the temporary folder, so a killed run's store is swept by the next run there
+            // (`output::sweep_stale_temps`); the name is reserved by an empty file that the
+            // conversion's rename replaces, and removed when `tmp` drops.
+            let dir = std::env::temp_dir();
+            let tmp = crate::output::temp_in(&dir, &dir)?.into_temp_path();
             convert(path, &tmp, opts, progress, NanCheck::OnRead)?;
-            // The map keeps the data alive after the temporary folder is removed.
-            Ok(Store::open(&tmp)?.with_label(path))
+            // The map keeps the data alive after the file is removed.
+            let store = Store::open(&tmp)?.with_label(path);
+            drop(tmp);
+            Ok(store)
         }
     }
 }

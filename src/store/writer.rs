@@ -59,6 +59,17 @@ impl StoreWriter {
     /// Creates a temporary file beside `target` laid out for `names.len()` columns of
     /// `n_rows` rows each. Values start as zero.
     pub fn create(target: &Path, names: &[String], n_rows: usize) -> Result<Self> {
+        Self::create_with(target, names, n_rows, reserve_space)
+    }
+
+    /// [`StoreWriter::create`] with `reserve(file, len)` to give the file its `len`
+    /// bytes before it is mapped: the seam through which the tests inject a full disk.
+    fn create_with(
+        target: &Path,
+        names: &[String],
+        n_rows: usize,
+        reserve: impl FnOnce(&std::fs::File, u64) -> std::io::Result<()>,
+    ) -> Result<Self> {
         let dir = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
@@ -88,8 +99,10 @@ impl StoreWriter {
         let file = tmp.as_file();
         let map_err = |e| Error::output_io(target, e);
         (&*file).write_all(&head).map_err(map_err)?;
-        file.set_len((body_offset + body_len) as u64)
-            .map_err(map_err)?;
+        // The space is reserved before the map: a page of a map that the file system
+        // cannot back is a SIGBUS when it is written, not an error we could report.
+        let total = (body_offset + body_len) as u64;
+        reserve(file, total).map_err(|e| no_space(target, &dir, total, e))?;
         // SAFETY: the file is ours (a fresh temporary file), nobody else maps or truncates it.
         let map = unsafe { MmapMut::map_mut(file) }.map_err(map_err)?;
         Ok(StoreWriter {
@@ -208,6 +221,80 @@ impl StoreWriter {
     }
 }
 
+/// Gives `file` a length of `len` bytes with every block allocated
+/// (`posix_fallocate`), so that writing through a map of it cannot fail. Where the file
+/// system cannot allocate ahead (EOPNOTSUPP, EINVAL: some network or FUSE file systems),
+/// the file is only extended (`set_len`), as before.
+fn reserve_space(file: &std::fs::File, len: u64) -> std::io::Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let len_off = libc::off_t::try_from(len)
+            .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidInput, "file too large"))?;
+        // SAFETY: a valid open file descriptor; posix_fallocate touches nothing else.
+        let rc = unsafe { libc::posix_fallocate(file.as_raw_fd(), 0, len_off) };
+        match rc {
+            0 => return Ok(()),
+            libc::EOPNOTSUPP | libc::EINVAL | libc::ENOSYS => {}
+            e => return Err(std::io::Error::from_raw_os_error(e)),
+        }
+    }
+    file.set_len(len)
+}
+
+/// The error of a store whose `need` bytes could not be reserved in folder `dir`: the
+/// cause, the bytes, the folder and what its file system has free.
+fn no_space(target: &Path, dir: &Path, need: u64, e: std::io::Error) -> Error {
+    let free = free_bytes(dir)
+        .map(|f| format!(", which has {f} bytes ({}) free", human_bytes(f)))
+        .unwrap_or_default();
+    let dir = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+    Error::output_io(
+        target,
+        std::io::Error::new(
+            e.kind(),
+            format!(
+                "{e}: the store needs {need} bytes ({}) on the file system of {}{free}; free space there or write elsewhere (--cache-dir, --no-cache with TMPDIR, -o)",
+                human_bytes(need),
+                dir.display()
+            ),
+        ),
+    )
+}
+
+/// `bytes` in kB, MB or GB with one decimal.
+fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b < 1e6 {
+        format!("{:.1} kB", b / 1e3)
+    } else if b < 1e9 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.1} GB", b / 1e9)
+    }
+}
+
+/// Bytes free to an unprivileged user on the file system holding `dir` (`statvfs`).
+fn free_bytes(dir: &Path) -> Option<u64> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+        // SAFETY: statvfs only writes the struct we hand it; `c` is NUL-terminated.
+        let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+        if unsafe { libc::statvfs(c.as_ptr(), &mut st) } != 0 {
+            return None;
+        }
+        #[allow(clippy::unnecessary_cast)] // the field types differ between targets
+        Some(st.f_bavail as u64 * st.f_frsize as u64)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = dir;
+        None
+    }
+}
+
 /// Permissions of a finished output: readable by all (tempfile's default is 0600).
 pub fn output_permissions() -> std::fs::Permissions {
     #[cfg(unix)]
@@ -314,4 +401,66 @@ fn record_batch_message(
     };
     fbb.finish(root, None);
     fbb.finished_data().to_vec()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_store_that_cannot_get_its_space_is_exit_1_naming_the_bytes_and_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("s.arrow");
+        let names = vec!["a".to_string(), "b".to_string()];
+        let mut asked = 0;
+        let r = StoreWriter::create_with(&target, &names, 1000, |_, len| {
+            asked = len;
+            Err(std::io::Error::from_raw_os_error(libc::ENOSPC))
+        });
+        let e = r.err().expect("the reservation failed");
+        assert_eq!(e.exit_code(), crate::error::EXIT_FAILURE, "{e}");
+        let msg = e.to_string();
+        assert!(asked >= 2 * 8000, "{asked}");
+        assert!(msg.contains(&format!("needs {asked} bytes")), "{msg}");
+        assert!(msg.contains("No space left on device"), "{msg}");
+        assert!(msg.contains("s.arrow"), "{msg}");
+        assert!(
+            msg.contains(") free") && msg.contains("file system of"),
+            "{msg}"
+        );
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
+
+    #[test]
+    fn the_reserved_file_is_fully_allocated_before_the_map() {
+        // posix_fallocate, not a sparse set_len: the blocks are there before a value
+        // is written through the map.
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("s.arrow");
+        let names = vec!["a".to_string()];
+        let w = StoreWriter::create(&target, &names, 1 << 20).unwrap();
+        let tmp = std::fs::read_dir(dir.path())
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap();
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::fd::AsRawFd;
+            use std::os::unix::fs::MetadataExt;
+            let md = tmp.metadata().unwrap();
+            assert!(md.len() >= 8 << 20);
+            // file systems that cannot allocate ahead keep a sparse file (set_len)
+            let probe = std::fs::File::create(dir.path().join("probe")).unwrap();
+            // SAFETY: a valid descriptor.
+            let rc = unsafe { libc::posix_fallocate(probe.as_raw_fd(), 0, 1 << 16) };
+            if rc == 0 {
+                assert!(md.blocks() * 512 >= md.len(), "{} blocks", md.blocks());
+            } else {
+                eprintln!("skipped: no posix_fallocate here ({rc})");
+            }
+        }
+        drop(w);
+    }
 }
