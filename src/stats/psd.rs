@@ -120,6 +120,7 @@ pub fn welch(
     detrend: Detrend,
 ) -> Result<Psd> {
     check(what, y.len(), rate_hz, segment_len)?;
+    crate::stats::require_finite(what, y, rate_hz)?;
     let l = segment_len;
     let w = hann(l);
     let st = starts(y.len(), l);
@@ -157,6 +158,14 @@ pub fn welch(
         }
     }
     let freq_hz = scale_and_freqs(&mut sums, l, rate_hz, st.len(), &w);
+    if let Some(k) = sums.iter().position(|v| !v.is_finite()) {
+        return Err(crate::stats::overflow_error(
+            what,
+            "PSD",
+            &format!("{} Hz", crate::fmt::num(freq_hz[k])),
+            y,
+        ));
+    }
     Ok(Psd {
         freq_hz,
         psd: sums,

@@ -5,6 +5,7 @@
 
 mod common;
 
+mod absurd_sizes;
 mod adev;
 mod analyze_channels;
 mod bad_input;
@@ -24,6 +25,7 @@ mod noise_terms;
 mod output_commit;
 mod psd_acf;
 mod simulate;
+mod simulate_blocks;
 mod spec;
 mod store_checksums;
 mod unit_root;

@@ -6,6 +6,15 @@
 use std::collections::HashSet;
 
 use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
+use crate::fmt::num;
+
+/// The highest sample rate a spec may give, Hz (no gyro log comes near; above it a
+/// second of simulation is beyond the simulator's samples).
+pub const MAX_RATE_HZ: f64 = 1e9;
+/// The largest magnitude of a spec's number: the simulation squares and sums them
+/// (variances, sums of components and of recursions), which overflows f64 (1.8e308)
+/// long before 1e300; values above 1e100 are refused where they are read.
+pub const MAX_MAGNITUDE: f64 = 1e100;
 
 impl Spec {
     /// Checks values and cross-references (module doc); the message names the key.
@@ -16,7 +25,15 @@ impl Spec {
         let rate = self.sample_rate_hz;
         if !(rate.is_finite() && rate > 0.0) {
             return Err(format!(
-                "the top level: 'sample_rate_hz' must be > 0, found {rate}"
+                "the top level: 'sample_rate_hz' must be > 0, found {}",
+                num(rate)
+            ));
+        }
+        if rate > MAX_RATE_HZ {
+            return Err(format!(
+                "the top level: 'sample_rate_hz' = {} Hz is out of range: at most {} Hz",
+                num(rate),
+                num(MAX_RATE_HZ)
             ));
         }
         if let Some(seed) = self.seed
@@ -270,16 +287,29 @@ struct Check<'a> {
 
 impl Check<'_> {
     fn finite(&self, key: &str, x: f64) -> Result<(), String> {
-        if x.is_finite() {
-            Ok(())
-        } else {
+        if !x.is_finite() {
             Err(format!("{}: '{key}' must be finite, found {x}", self.place))
+        } else if x.abs() > MAX_MAGNITUDE {
+            Err(format!(
+                "{}: '{key}' = {} is out of range: beyond {} the simulated values overflow f64 (they are squared and summed)",
+                self.place,
+                num(x),
+                num(MAX_MAGNITUDE)
+            ))
+        } else {
+            Ok(())
         }
     }
 
     fn all_finite(&self, key: &str, xs: &[f64]) -> Result<(), String> {
-        match xs.iter().find(|x| !x.is_finite()) {
+        match xs.iter().find(|x| !x.is_finite() || x.abs() > MAX_MAGNITUDE) {
             None => Ok(()),
+            Some(x) if x.is_finite() => Err(format!(
+                "{}: '{key}' holds {}, out of range: beyond {} the simulated values overflow f64",
+                self.place,
+                num(*x),
+                num(MAX_MAGNITUDE)
+            )),
             Some(x) => Err(format!(
                 "{}: '{key}' must hold finite numbers, found {x}",
                 self.place
@@ -292,7 +322,7 @@ impl Check<'_> {
         if x >= 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be >= 0, found {x}", self.place))
+            Err(format!("{}: '{key}' must be >= 0, found {}", self.place, num(x)))
         }
     }
 
@@ -301,7 +331,7 @@ impl Check<'_> {
         if x > 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be > 0, found {x}", self.place))
+            Err(format!("{}: '{key}' must be > 0, found {}", self.place, num(x)))
         }
     }
 }
