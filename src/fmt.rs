@@ -47,7 +47,14 @@ mod tests {
         assert_eq!(num(f64::MAX), "1.797693e308");
         assert_eq!(num(f64::INFINITY), "inf");
         assert_eq!(num(0.0), "0");
-        for v in [1e-300, 1e300, 123.456e200, f64::MIN_POSITIVE, 7.0e-5, 9999999.5] {
+        for v in [
+            1e-300,
+            1e300,
+            123.456e200,
+            f64::MIN_POSITIVE,
+            7.0e-5,
+            9999999.5,
+        ] {
             assert!(num(v).len() <= 14, "{v}: {}", num(v));
         }
     }

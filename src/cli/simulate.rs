@@ -69,7 +69,8 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         (Some(d), _) => {
             if !(d.is_finite() && d > 0.0) {
                 return Err(Error::Usage(format!(
-                    "--duration must be > 0 seconds, found {d}"
+                    "--duration must be > 0 seconds, found {}",
+                    crate::fmt::num(d)
                 )));
             }
             let n = (d * rate_hz).round();
@@ -79,7 +80,7 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
                     "--duration {d_s} s is less than one sample at {rate_s} Hz"
                 )));
             }
-            if !(n <= MAX_SAMPLES as f64) {
+            if n > MAX_SAMPLES as f64 {
                 return Err(Error::Usage(format!(
                     "--duration {d_s} s is too long: {} samples at {rate_s} Hz, more than the simulator's limit of {MAX_SAMPLES} samples per channel",
                     crate::fmt::num(n)
@@ -160,7 +161,10 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
     let block = BLOCK_ROWS.min(n_samples) as f64;
     let planned = 8.0 * block * (4.0 * n_channels + 4.0) + 24.0 * thermal * n_samples as f64;
     crate::workflow::budget::check_memory(
-        &format!("--duration {} s", crate::fmt::num(n_samples as f64 / rate_hz)),
+        &format!(
+            "--duration {} s",
+            crate::fmt::num(n_samples as f64 / rate_hz)
+        ),
         &format!(
             "simulating {n_samples} samples of {} channel(s) by blocks of {} samples",
             spec.channels.len(),

@@ -283,7 +283,10 @@ pub fn lock_dir(dir: &Path) -> Result<DirLock> {
                 tries += 1;
                 let text = std::fs::read_to_string(&file).unwrap_or_default();
                 let mut words = text.split_whitespace();
-                let (h, pid) = (words.next(), words.next().and_then(|p| p.parse::<u32>().ok()));
+                let (h, pid) = (
+                    words.next(),
+                    words.next().and_then(|p| p.parse::<u32>().ok()),
+                );
                 let stale = match (h, pid) {
                     (Some(h), Some(pid)) => {
                         h == host
@@ -366,13 +369,11 @@ pub fn settle(dir: &Path) -> Result<()> {
         )
     };
     let safe = |n: &str| !n.is_empty() && !n.contains('/') && n != "." && n != "..";
-    if !j
-        .renames
-        .iter()
-        .all(|(a, b)| safe(a) && safe(b))
-        || !j.remove.iter().all(|n| safe(n))
-    {
-        return Err(Error::format(&jpath, "a commit journal naming files outside its folder"));
+    if !j.renames.iter().all(|(a, b)| safe(a) && safe(b)) || !j.remove.iter().all(|n| safe(n)) {
+        return Err(Error::format(
+            &jpath,
+            "a commit journal naming files outside its folder",
+        ));
     }
     let mut done = 0usize;
     for (from, to) in &j.renames {

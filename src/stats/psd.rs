@@ -72,7 +72,10 @@ pub fn hann(l: usize) -> Vec<f64> {
 
 fn check(what: &str, n: usize, rate_hz: f64, segment_len: usize) -> Result<()> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(Error::Usage(format!("{what}: sample rate {rate_hz} Hz")));
+        return Err(Error::Usage(format!(
+            "{what}: sample rate {} Hz",
+            crate::fmt::num(rate_hz)
+        )));
     }
     if segment_len < 2 {
         return Err(Error::Usage(format!(

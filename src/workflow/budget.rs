@@ -69,7 +69,10 @@ pub fn memory_limit_bytes() -> f64 {
 
 /// Bytes as GB for messages: `12.3 GB`, `8e+12 bytes` beyond.
 fn gb(bytes: f64) -> String {
-    format!("{} GB", crate::fmt::num((bytes / 1e9 * 1000.0).round() / 1000.0))
+    format!(
+        "{} GB",
+        crate::fmt::num((bytes / 1e9 * 1000.0).round() / 1000.0)
+    )
 }
 
 /// Refuses (a usage error, exit 2) a request whose planned memory `bytes` exceeds the

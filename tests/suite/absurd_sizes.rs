@@ -40,7 +40,16 @@ fn oversized_flags_are_refused_before_the_allocation() {
     let out_s = out.to_str().unwrap();
     // simulate: blocks of 1M samples x 3 channels need more than 0.01 GB
     let (code, err) = run(
-        &["simulate", spec, "--duration", "1e9", "-o", out_s, "--memory-limit", "0.01"],
+        &[
+            "simulate",
+            spec,
+            "--duration",
+            "1e9",
+            "-o",
+            out_s,
+            "--memory-limit",
+            "0.01",
+        ],
         d,
     );
     assert_eq!(code, Some(2), "{err}");
@@ -52,13 +61,22 @@ fn oversized_flags_are_refused_before_the_allocation() {
     // the bootstrap's replicates
     let (code, err) = run(
         &[
-            "select", log, "--channel", "gyro_x", "--bootstrap", "1000000000", "--memory-limit",
+            "select",
+            log,
+            "--channel",
+            "gyro_x",
+            "--bootstrap",
+            "1000000000",
+            "--memory-limit",
             "1",
         ],
         d,
     );
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("--bootstrap 1000000000") && err.contains("bytes"), "{err}");
+    assert!(
+        err.contains("--bootstrap 1000000000") && err.contains("bytes"),
+        "{err}"
+    );
     // the gap ensemble's replicas
     let gspec = write(
         d,
@@ -67,13 +85,27 @@ fn oversized_flags_are_refused_before_the_allocation() {
     );
     let (code, err) = run(
         &[
-            "gap", "--real", log, "--sim", &gspec, "--channel", "gyro_x", "--replicas",
-            "1000000000", "-o", d.join("gap").to_str().unwrap(), "--memory-limit", "1",
+            "gap",
+            "--real",
+            log,
+            "--sim",
+            &gspec,
+            "--channel",
+            "gyro_x",
+            "--replicas",
+            "1000000000",
+            "-o",
+            d.join("gap").to_str().unwrap(),
+            "--memory-limit",
+            "1",
         ],
         d,
     );
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("--replicas 1000000000") && err.contains("bytes"), "{err}");
+    assert!(
+        err.contains("--replicas 1000000000") && err.contains("bytes"),
+        "{err}"
+    );
     // an inline farma model with d = 1e12 (its state: 8e12 bytes)
     let fspec = write(
         d,
@@ -82,10 +114,21 @@ fn oversized_flags_are_refused_before_the_allocation() {
     );
     let (code, err) = run(&["simulate", &fspec, "--duration", "10", "-o", out_s], d);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("'d' = 1000000000000") && err.contains("8e12 bytes"), "{err}");
+    assert!(
+        err.contains("'d' = 1000000000000") && err.contains("8e12 bytes"),
+        "{err}"
+    );
     // a bad --memory-limit
     let (code, err) = run(
-        &["simulate", spec, "--duration", "1", "-o", out_s, "--memory-limit=0"],
+        &[
+            "simulate",
+            spec,
+            "--duration",
+            "1",
+            "-o",
+            out_s,
+            "--memory-limit=0",
+        ],
         d,
     );
     assert_eq!(code, Some(2), "{err}");
@@ -98,18 +141,36 @@ fn overflowing_specs_are_refused_naming_the_component_and_the_value() {
     let d = dir.path();
     let out = d.join("x.arrow");
     let cases = [
-        ("kind = \"gauss_markov\"\nsigma = 1e300\ntau_s = 1e300", "component 1 (gauss_markov): 'sigma' = 1e300"),
-        ("kind = \"bias_instability\"\nb = 1e300", "component 1 (bias_instability): 'b' = 1e300"),
-        ("kind = \"rate_ramp\"\nr = 1e307", "component 1 (rate_ramp): 'r' = 1e307"),
+        (
+            "kind = \"gauss_markov\"\nsigma = 1e300\ntau_s = 1e300",
+            "component 1 (gauss_markov): 'sigma' = 1e300",
+        ),
+        (
+            "kind = \"bias_instability\"\nb = 1e300",
+            "component 1 (bias_instability): 'b' = 1e300",
+        ),
+        (
+            "kind = \"rate_ramp\"\nr = 1e307",
+            "component 1 (rate_ramp): 'r' = 1e307",
+        ),
     ];
     for (comp, want) in cases {
         let spec = write(
             d,
             "s.toml",
-            &format!("sample_rate_hz = 10.0\n[[channel]]\nname = \"g\"\n[[channel.component]]\n{comp}\n"),
+            &format!(
+                "sample_rate_hz = 10.0\n[[channel]]\nname = \"g\"\n[[channel.component]]\n{comp}\n"
+            ),
         );
         let (code, err) = run(
-            &["simulate", &spec, "--duration", "100", "-o", out.to_str().unwrap()],
+            &[
+                "simulate",
+                &spec,
+                "--duration",
+                "100",
+                "-o",
+                out.to_str().unwrap(),
+            ],
             d,
         );
         assert_eq!(code, Some(2), "{comp}: {err}");
@@ -122,11 +183,21 @@ fn overflowing_specs_are_refused_naming_the_component_and_the_value() {
     let text = text.replace("sample_rate_hz = 100.0", "sample_rate_hz = 1e300");
     let spec = write(d, "r.toml", &text);
     let (code, err) = run(
-        &["simulate", &spec, "--duration", "10", "-o", out.to_str().unwrap()],
+        &[
+            "simulate",
+            &spec,
+            "--duration",
+            "10",
+            "-o",
+            out.to_str().unwrap(),
+        ],
         d,
     );
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("'sample_rate_hz' = 1e300 Hz is out of range"), "{err}");
+    assert!(
+        err.contains("'sample_rate_hz' = 1e300 Hz is out of range"),
+        "{err}"
+    );
     assert!(!err.contains("too long"), "{err}");
 }
 
@@ -135,7 +206,13 @@ fn overflowing_specs_are_refused_naming_the_component_and_the_value() {
 #[test]
 fn a_non_finite_block_names_the_component_that_produced_it() {
     let coeffs: Vec<String> = (0..250)
-        .map(|k| if k == 249 { "1e90".into() } else { "0.0".to_string() })
+        .map(|k| {
+            if k == 249 {
+                "1e90".into()
+            } else {
+                "0.0".to_string()
+            }
+        })
         .collect();
     let text = format!(
         "sample_rate_hz = 10.0\ntemperature_channel = \"t\"\n[[channel]]\nname = \"g\"\n[[channel.component]]\nkind = \"white_noise\"\nn = 0.1\n[[channel.component]]\nkind = \"temperature_bias\"\ncoeffs = [{}]\nreference_c = 0.0\n",
@@ -145,7 +222,11 @@ fn a_non_finite_block_names_the_component_that_produced_it() {
     let temp: Vec<f64> = (0..1000).map(|k| 5.0 + k as f64 * 0.005).collect();
     let mut req = SimRequest::new(1000, 10.0);
     req.temperature_c = Some(&temp);
-    let err = Simulator::new(&spec, req).unwrap().run().unwrap_err().to_string();
+    let err = Simulator::new(&spec, req)
+        .unwrap()
+        .run()
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("channel 'g' component 2 (temperature_bias) gives a non-finite value"),
         "{err}"
@@ -163,7 +244,14 @@ fn store_with(path: &Path, values: &[f64]) {
     );
     let src = dir.join("src.arrow");
     let o = farma(
-        &["simulate", &spec, "--duration", &format!("{}", values.len() as f64 / 10.0), "-o", src.to_str().unwrap()],
+        &[
+            "simulate",
+            &spec,
+            "--duration",
+            &format!("{}", values.len() as f64 / 10.0),
+            "-o",
+            src.to_str().unwrap(),
+        ],
         dir,
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -182,7 +270,9 @@ fn store_with(path: &Path, values: &[f64]) {
 fn adev_and_psd_refuse_a_series_holding_inf_or_overflowing() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let mut v: Vec<f64> = (0..4000).map(|k| ((k * 7919) % 1000) as f64 * 1e-3).collect();
+    let mut v: Vec<f64> = (0..4000)
+        .map(|k| ((k * 7919) % 1000) as f64 * 1e-3)
+        .collect();
     v[1234] = f64::INFINITY;
     let inf = d.join("inf.arrow");
     store_with(&inf, &v);
@@ -203,7 +293,10 @@ fn adev_and_psd_refuse_a_series_holding_inf_or_overflowing() {
     for cmd in ["adev", "psd"] {
         let (code, err) = run(&[cmd, huge.to_str().unwrap(), "--channel", "g"], d);
         assert_eq!(code, Some(2), "{cmd}: {err}");
-        assert!(err.contains("overflows f64") && !err.contains("too short"), "{cmd}: {err}");
+        assert!(
+            err.contains("overflows f64") && !err.contains("too short"),
+            "{cmd}: {err}"
+        );
         assert!(longest_word(&err) < 40, "{err}");
     }
 }

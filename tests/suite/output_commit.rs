@@ -82,10 +82,22 @@ fn a_commit_killed_between_renames_is_completed_by_the_next_reader() {
             .unwrap();
         assert!(!o.status.success(), "kill after {n} renames: not killed");
         // killed mid-commit: the journal names the set
-        assert!(out.join(".farma-commit.json").is_file(), "after {n} renames");
+        assert!(
+            out.join(".farma-commit.json").is_file(),
+            "after {n} renames"
+        );
         let o = farma(&["check", out.to_str().unwrap(), log], dir.path());
-        assert_eq!(o.status.code(), Some(0), "after {n} renames: {}", stderr(&o));
-        assert!(stderr(&o).contains("completed the commit"), "{}", stderr(&o));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "after {n} renames: {}",
+            stderr(&o)
+        );
+        assert!(
+            stderr(&o).contains("completed the commit"),
+            "{}",
+            stderr(&o)
+        );
         // the killed run's lock stays until the next writer takes it over
         let now: Vec<_> = tree(&out)
             .into_iter()
@@ -110,7 +122,11 @@ fn a_second_writer_is_refused_and_a_stale_lock_taken_over() {
     let o = farma(&fit_args(log, out.to_str().unwrap(), false), dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let before = tree(&out);
-    assert!(!names(&before).iter().any(|n| n.starts_with('.')), "{:?}", names(&before));
+    assert!(
+        !names(&before).iter().any(|n| n.starts_with('.')),
+        "{:?}",
+        names(&before)
+    );
     // a live writer: this test process
     let lock = out.join(".farma.lock");
     std::fs::write(&lock, format!("{} {}\n", host(), std::process::id())).unwrap();
@@ -126,7 +142,14 @@ fn a_second_writer_is_refused_and_a_stale_lock_taken_over() {
     // analyze holds its folder for the whole run: refused too
     std::fs::write(&lock, format!("{} {}\n", host(), std::process::id())).unwrap();
     let o = farma(
-        &["analyze", log, "-o", out.to_str().unwrap(), "--channel", "gyro_x"],
+        &[
+            "analyze",
+            log,
+            "-o",
+            out.to_str().unwrap(),
+            "--channel",
+            "gyro_x",
+        ],
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));

@@ -58,12 +58,19 @@ fn blocks_give_the_whole_series_generators_values() {
     let whole = sim.run().unwrap();
     for ((name, want), (got_name, v)) in GOLDEN.iter().zip(&whole.channels) {
         assert_eq!(name, got_name);
-        assert_eq!(fnv(v), *want, "{name}: not the whole-series generator's values");
+        assert_eq!(
+            fnv(v),
+            *want,
+            "{name}: not the whole-series generator's values"
+        );
     }
     for block in [CHUNK, 3 * CHUNK, 1 << 20] {
         let b = by_blocks(&sim, block);
         for ((name, v), w) in whole.channels.iter().zip(&b) {
-            assert!(v == w, "{name}: blocks of {block} differ from the whole series");
+            assert!(
+                v == w,
+                "{name}: blocks of {block} differ from the whole series"
+            );
         }
     }
 }
@@ -93,7 +100,10 @@ fn blocks_of_every_component_kind_give_the_whole_series() {
         let b = by_blocks(&sim, block);
         for ((name, v), w) in whole.channels.iter().zip(&b) {
             assert_eq!(v.len(), n);
-            assert!(v == w, "{name}: blocks of {block} differ from the whole series");
+            assert!(
+                v == w,
+                "{name}: blocks of {block} differ from the whole series"
+            );
         }
     }
 }

@@ -45,5 +45,7 @@ pub fn sinusoid(
 
 /// warmup: amplitude exp(-t_k / tau_s) \[u\] (contracts.md section 2).
 pub fn warmup(out: &mut [f64], amplitude: f64, tau_s: f64, rate_hz: f64, start: usize) {
-    add_by_index(out, start, |k| amplitude * (-(k as f64 / rate_hz) / tau_s).exp());
+    add_by_index(out, start, |k| {
+        amplitude * (-(k as f64 / rate_hz) / tau_s).exp()
+    });
 }

@@ -123,7 +123,8 @@ impl<'a> Simulator<'a> {
         let fs = req.sample_rate_hz;
         if !(fs.is_finite() && fs > 0.0) {
             return Err(Error::Usage(format!(
-                "sample rate must be > 0 Hz, found {fs}"
+                "sample rate must be > 0 Hz, found {}",
+                crate::fmt::num(fs)
             )));
         }
         if req.n_samples == 0 {
@@ -232,20 +233,26 @@ impl<'a> Simulator<'a> {
                     }
                     Component::Sinusoid { freq_hz, .. } if *freq_hz >= fs / 2.0 => {
                         return Err(Error::Usage(format!(
-                            "{place}: freq_hz = {freq_hz} is not below the Nyquist frequency {} Hz of the {fs} Hz simulation",
-                            fs / 2.0
+                            "{place}: freq_hz = {} is not below the Nyquist frequency {} Hz of the {} Hz simulation",
+                            crate::fmt::num(*freq_hz),
+                            crate::fmt::num(fs / 2.0),
+                            crate::fmt::num(fs)
                         )));
                     }
                     Component::Outliers { rate_hz, .. } if *rate_hz > fs => {
                         return Err(Error::Usage(format!(
-                            "{place}: rate_hz = {rate_hz} exceeds the sample rate {fs} Hz"
+                            "{place}: rate_hz = {} exceeds the sample rate {} Hz",
+                            crate::fmt::num(*rate_hz),
+                            crate::fmt::num(fs)
                         )));
                     }
                     Component::BiasInstability { .. } => {
                         let (lo, hi) = bi_bounds(comp, req.n_samples, fs);
                         if !(lo > 0.0 && hi > lo) {
                             return Err(Error::Usage(format!(
-                                "{place}: the flicker bounds tau_min_s = {lo} s, tau_max_s = {hi} s are not 0 < min < max (the defaults are 1 / sample rate and the duration)"
+                                "{place}: the flicker bounds tau_min_s = {} s, tau_max_s = {} s are not 0 < min < max (the defaults are 1 / sample rate and the duration)",
+                                crate::fmt::num(lo),
+                                crate::fmt::num(hi)
                             )));
                         }
                         let k = markov::bias_instability_bank(1.0, lo, hi).processes.len();

@@ -122,7 +122,16 @@ pub fn add_recursion(
     key: &StreamKey,
     what: &str,
 ) -> Result<()> {
-    add_recursion_from(out, r, burn_in, offset, key, what, 0, &mut RecState::default())
+    add_recursion_from(
+        out,
+        r,
+        burn_in,
+        offset,
+        key,
+        what,
+        0,
+        &mut RecState::default(),
+    )
 }
 
 /// [`add_recursion`] for a block starting at sample `c0 * CHUNK` of the series, the
@@ -164,8 +173,7 @@ pub fn add_recursion_from(
         state.started = true;
     }
     let start = c0 as usize * super::streams::CHUNK;
-    recurse(&mut buf, r, &mut state.xs, &mut state.es)
-        .map_err(|t| diverged(start + t, "at"))?;
+    recurse(&mut buf, r, &mut state.xs, &mut state.es).map_err(|t| diverged(start + t, "at"))?;
     for (o, x) in out.iter_mut().zip(&buf) {
         *o += x + offset;
     }

@@ -137,8 +137,7 @@ pub fn ar1_bank_from(out: &mut [f64], bank: &[Ar1], key: &StreamKey, c0: u64, x:
         .zip(ends.par_chunks_mut(k.max(1)))
         .enumerate()
         .for_each(|(c, (s, end))| {
-            let mut rngs: Vec<ChaCha8Rng> =
-                (0..k).map(|i| key.rng(i, c0 + c as u64)).collect();
+            let mut rngs: Vec<ChaCha8Rng> = (0..k).map(|i| key.rng(i, c0 + c as u64)).collect();
             let y = end;
             y.iter_mut().for_each(|v| *v = 0.0);
             for v in s.iter_mut() {

@@ -118,7 +118,9 @@ impl Spec {
                         && lo >= hi
                     {
                         return Err(format!(
-                            "{place}: 'tau_min_s' ({lo}) must be below 'tau_max_s' ({hi})"
+                            "{place}: 'tau_min_s' ({}) must be below 'tau_max_s' ({})",
+                            num(*lo),
+                            num(*hi)
                         ));
                     }
                 }
@@ -135,7 +137,8 @@ impl Spec {
                 } => {
                     if amplitude.is_finite() && *amplitude < 0.0 {
                         return Err(format!(
-                            "{place}: 'amplitude' must be >= 0, found {amplitude} (use 'phase_rad' to flip the sign)"
+                            "{place}: 'amplitude' must be >= 0, found {} (use 'phase_rad' to flip the sign)",
+                            num(*amplitude)
                         ));
                     }
                     check.non_negative("amplitude", *amplitude)?;
@@ -144,7 +147,9 @@ impl Spec {
                     let nyquist = self.sample_rate_hz / 2.0;
                     if *freq_hz >= nyquist {
                         return Err(format!(
-                            "{place}: 'freq_hz' = {freq_hz} must be below the Nyquist frequency {nyquist} Hz (sample_rate_hz / 2)"
+                            "{place}: 'freq_hz' = {} must be below the Nyquist frequency {} Hz (sample_rate_hz / 2)",
+                            num(*freq_hz),
+                            num(nyquist)
                         ));
                     }
                 }
@@ -229,8 +234,9 @@ impl Spec {
                     check.non_negative("scale", *scale)?;
                     if *rate_hz > self.sample_rate_hz {
                         return Err(format!(
-                            "{place}: 'rate_hz' = {rate_hz} exceeds sample_rate_hz = {} (at most one outlier per sample)",
-                            self.sample_rate_hz
+                            "{place}: 'rate_hz' = {} exceeds sample_rate_hz = {} (at most one outlier per sample)",
+                            num(*rate_hz),
+                            num(self.sample_rate_hz)
                         ));
                     }
                 }
@@ -302,7 +308,10 @@ impl Check<'_> {
     }
 
     fn all_finite(&self, key: &str, xs: &[f64]) -> Result<(), String> {
-        match xs.iter().find(|x| !x.is_finite() || x.abs() > MAX_MAGNITUDE) {
+        match xs
+            .iter()
+            .find(|x| !x.is_finite() || x.abs() > MAX_MAGNITUDE)
+        {
             None => Ok(()),
             Some(x) if x.is_finite() => Err(format!(
                 "{}: '{key}' holds {}, out of range: beyond {} the simulated values overflow f64",
@@ -322,7 +331,11 @@ impl Check<'_> {
         if x >= 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be >= 0, found {}", self.place, num(x)))
+            Err(format!(
+                "{}: '{key}' must be >= 0, found {}",
+                self.place,
+                num(x)
+            ))
         }
     }
 
@@ -331,7 +344,11 @@ impl Check<'_> {
         if x > 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be > 0, found {}", self.place, num(x)))
+            Err(format!(
+                "{}: '{key}' must be > 0, found {}",
+                self.place,
+                num(x)
+            ))
         }
     }
 }

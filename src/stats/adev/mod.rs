@@ -185,7 +185,10 @@ pub fn curves(
     ci: CiOptions,
 ) -> Result<Vec<Curve>> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(Error::Usage(format!("{what}: sample rate {rate_hz} Hz")));
+        return Err(Error::Usage(format!(
+            "{what}: sample rate {} Hz",
+            crate::fmt::num(rate_hz)
+        )));
     }
     crate::stats::require_finite(what, y, rate_hz)?;
     for &k in kinds {
