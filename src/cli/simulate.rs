@@ -65,6 +65,8 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         }
         None => spec.sample_rate_hz,
     };
+    // a rate or a spec value out of range is named before any size is derived from it
+    spec.check_simulable(rate_hz).map_err(Error::Usage)?;
     let n_samples = match (a.duration, &real) {
         (Some(d), _) => {
             if !(d.is_finite() && d > 0.0) {

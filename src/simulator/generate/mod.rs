@@ -127,6 +127,7 @@ impl<'a> Simulator<'a> {
                 crate::fmt::num(fs)
             )));
         }
+        spec.check_simulable(fs).map_err(Error::Usage)?;
         if req.n_samples == 0 {
             return Err(Error::Usage("nothing to simulate: 0 samples".into()));
         }

@@ -8,13 +8,77 @@ use std::collections::HashSet;
 use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
 use crate::fmt::num;
 
-/// The highest sample rate a spec may give, Hz (no gyro log comes near; above it a
-/// second of simulation is beyond the simulator's samples).
+/// The highest sample rate a simulation may run at, Hz (no gyro log comes near; above
+/// it a second of simulation is beyond the simulator's samples).
 pub const MAX_RATE_HZ: f64 = 1e9;
-/// The largest magnitude of a spec's number: the simulation squares and sums them
-/// (variances, sums of components and of recursions), which overflows f64 (1.8e308)
-/// long before 1e300; values above 1e100 are refused where they are read.
+/// The largest magnitude of a number of a spec that is simulated: the simulation squares
+/// and sums them (variances, sums of components and of recursions), which overflows
+/// f64 (1.8e308) long before 1e300. A spec as data (parsed, written back) may hold any
+/// finite value; [`Spec::check_simulable`] refuses those beyond.
 pub const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Every number of a component, by key (the elements of a list under one key).
+fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
+    let mut v: Vec<(&'static str, f64)> = Vec::new();
+    match c {
+        Component::ConstantBias { value } => v.push(("value", *value)),
+        Component::WhiteNoise { n } => v.push(("n", *n)),
+        Component::Quantization { q } => v.push(("q", *q)),
+        Component::BiasInstability {
+            b,
+            tau_min_s,
+            tau_max_s,
+        } => {
+            v.push(("b", *b));
+            v.extend(tau_min_s.map(|t| ("tau_min_s", t)));
+            v.extend(tau_max_s.map(|t| ("tau_max_s", t)));
+        }
+        Component::RateRandomWalk { k } => v.push(("k", *k)),
+        Component::RateRamp { r } => v.push(("r", *r)),
+        Component::GaussMarkov { sigma, tau_s } => {
+            v.extend([("sigma", *sigma), ("tau_s", *tau_s)]);
+        }
+        Component::Sinusoid {
+            amplitude,
+            freq_hz,
+            phase_rad,
+        } => v.extend([
+            ("amplitude", *amplitude),
+            ("freq_hz", *freq_hz),
+            ("phase_rad", *phase_rad),
+        ]),
+        Component::Arma { ar, ma, sigma } => {
+            v.extend(ar.iter().map(|x| ("ar", *x)));
+            v.extend(ma.iter().map(|x| ("ma", *x)));
+            v.push(("sigma", *sigma));
+        }
+        Component::Farma(FarmaModel::Inline { f, ma, sigma, .. }) => {
+            v.extend(f.iter().flatten().map(|x| ("f", *x)));
+            v.extend(ma.iter().map(|x| ("ma", *x)));
+            v.push(("sigma", *sigma));
+        }
+        Component::Farma(FarmaModel::Fitted { .. }) => {}
+        Component::TemperatureBias {
+            coeffs,
+            reference_c,
+        } => {
+            v.extend(coeffs.iter().map(|x| ("coeffs", *x)));
+            v.extend(reference_c.map(|t| ("reference_c", t)));
+        }
+        Component::ThermalRate { coeff, smoothing_s } => {
+            v.extend([("coeff", *coeff), ("smoothing_s", *smoothing_s)]);
+        }
+        Component::Warmup { amplitude, tau_s } => {
+            v.extend([("amplitude", *amplitude), ("tau_s", *tau_s)]);
+        }
+        Component::Outliers { rate_hz, scale } => {
+            v.extend([("rate_hz", *rate_hz), ("scale", *scale)]);
+        }
+        Component::Heteroskedastic { slope, .. } => v.push(("slope", *slope)),
+        Component::CrossAxis { gain, .. } => v.push(("gain", *gain)),
+    }
+    v
+}
 
 impl Spec {
     /// Checks values and cross-references (module doc); the message names the key.
@@ -29,13 +93,7 @@ impl Spec {
                 num(rate)
             ));
         }
-        if rate > MAX_RATE_HZ {
-            return Err(format!(
-                "the top level: 'sample_rate_hz' = {} Hz is out of range: at most {} Hz",
-                num(rate),
-                num(MAX_RATE_HZ)
-            ));
-        }
+
         if let Some(seed) = self.seed
             && seed > i64::MAX as u64
         {
@@ -72,6 +130,38 @@ impl Spec {
         }
         for channel in &self.channels {
             self.validate_channel(channel)?;
+        }
+        Ok(())
+    }
+
+    /// What a simulation of the spec at `rate_hz` needs beyond [`Spec::validate`]:
+    /// the rate at most [`MAX_RATE_HZ`] and every number at most [`MAX_MAGNITUDE`] in
+    /// magnitude (beyond, the simulated values overflow f64); the message names the
+    /// component, the key and the value.
+    pub fn check_simulable(&self, rate_hz: f64) -> Result<(), String> {
+        if rate_hz > MAX_RATE_HZ {
+            return Err(format!(
+                "the sample rate {} Hz (the spec's 'sample_rate_hz' or the --like log's) is out of range: at most {} Hz",
+                num(rate_hz),
+                num(MAX_RATE_HZ)
+            ));
+        }
+        for ch in &self.channels {
+            for (i, c) in ch.components.iter().enumerate() {
+                if let Some((key, x)) = numbers(c)
+                    .into_iter()
+                    .find(|(_, x)| x.abs() > MAX_MAGNITUDE)
+                {
+                    return Err(format!(
+                        "channel '{}' component {} ({}): '{key}' = {} is out of range: beyond {} the simulated values overflow f64 (they are squared and summed)",
+                        ch.name,
+                        i + 1,
+                        c.kind(),
+                        num(x),
+                        num(MAX_MAGNITUDE)
+                    ));
+                }
+            }
         }
         Ok(())
     }
@@ -293,32 +383,16 @@ struct Check<'a> {
 
 impl Check<'_> {
     fn finite(&self, key: &str, x: f64) -> Result<(), String> {
-        if !x.is_finite() {
-            Err(format!("{}: '{key}' must be finite, found {x}", self.place))
-        } else if x.abs() > MAX_MAGNITUDE {
-            Err(format!(
-                "{}: '{key}' = {} is out of range: beyond {} the simulated values overflow f64 (they are squared and summed)",
-                self.place,
-                num(x),
-                num(MAX_MAGNITUDE)
-            ))
-        } else {
+        if x.is_finite() {
             Ok(())
+        } else {
+            Err(format!("{}: '{key}' must be finite, found {x}", self.place))
         }
     }
 
     fn all_finite(&self, key: &str, xs: &[f64]) -> Result<(), String> {
-        match xs
-            .iter()
-            .find(|x| !x.is_finite() || x.abs() > MAX_MAGNITUDE)
-        {
+        match xs.iter().find(|x| !x.is_finite()) {
             None => Ok(()),
-            Some(x) if x.is_finite() => Err(format!(
-                "{}: '{key}' holds {}, out of range: beyond {} the simulated values overflow f64",
-                self.place,
-                num(*x),
-                num(MAX_MAGNITUDE)
-            )),
             Some(x) => Err(format!(
                 "{}: '{key}' must hold finite numbers, found {x}",
                 self.place
