@@ -22,6 +22,7 @@ pub mod cli;
 pub mod diagnosis;
 pub mod error;
 pub mod estimator;
+pub mod fmt;
 pub mod jobs;
 pub mod log;
 pub mod model;

@@ -63,6 +63,11 @@ pub struct Cli {
     /// No progress bars.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// Memory one request may plan, GB (default: half of the physical memory): a
+    /// flag asking for more (--duration, --bootstrap, --replicas, --max-lag, ...) is
+    /// refused before the work.
+    #[arg(long, global = true, value_name = "GB")]
+    pub memory_limit: Option<f64>,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -216,6 +221,9 @@ pub fn run(cli: Cli) -> Result<()> {
             .num_threads(n)
             .build_global()
             .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+    }
+    if let Some(gb) = cli.memory_limit {
+        crate::workflow::budget::set_memory_limit_gb(gb)?;
     }
     let progress = Progress::auto(cli.quiet);
     match cli.command {

@@ -9,9 +9,10 @@ use serde_json::json;
 use super::LogArgs;
 use crate::error::{Error, Result};
 use crate::log::Progress;
-use crate::simulator::write::{LogFormat, TIME_COL, write_log};
-use crate::simulator::{SimRequest, Simulator, load_spec};
-use crate::stats::summarize;
+use crate::simulator::generate::streams::MAX_SAMPLES;
+use crate::simulator::write::{BLOCK_ROWS, LogFormat, LogWriter, TIME_COL};
+use crate::simulator::{Component, SimRequest, Simulator, load_spec};
+use crate::stats::Summarizer;
 
 #[derive(Args, Debug)]
 pub struct SimulateArgs {
@@ -64,21 +65,28 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         }
         None => spec.sample_rate_hz,
     };
+    // a rate or a spec value out of range is named before any size is derived from it
+    spec.check_simulable(rate_hz).map_err(Error::Usage)?;
     let n_samples = match (a.duration, &real) {
         (Some(d), _) => {
             if !(d.is_finite() && d > 0.0) {
                 return Err(Error::Usage(format!(
-                    "--duration must be > 0 seconds, found {d}"
+                    "--duration must be > 0 seconds, found {}",
+                    crate::fmt::num(d)
                 )));
             }
             let n = (d * rate_hz).round();
+            let (d_s, rate_s) = (crate::fmt::num(d), crate::fmt::num(rate_hz));
             if n < 1.0 {
                 return Err(Error::Usage(format!(
-                    "--duration {d} s is less than one sample at {rate_hz} Hz"
+                    "--duration {d_s} s is less than one sample at {rate_s} Hz"
                 )));
             }
-            if n > usize::MAX as f64 / 2.0 {
-                return Err(Error::Usage(format!("--duration {d} s is too long")));
+            if n > MAX_SAMPLES as f64 {
+                return Err(Error::Usage(format!(
+                    "--duration {d_s} s is too long: {} samples at {rate_s} Hz, more than the simulator's limit of {MAX_SAMPLES} samples per channel",
+                    crate::fmt::num(n)
+                )));
             }
             n as usize
         }
@@ -142,20 +150,41 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         channels,
         base_dir: a.spec.parent().map(|p| p.to_path_buf()),
     };
-    let sim = Simulator::new(&spec, req)?;
-    let out = sim.run()?;
-
-    let mut columns: Vec<(&str, &[f64])> = out
+    // memory planned before it is taken: the log is generated and written by
+    // blocks, so what is held is a few blocks per channel (and thermal_rate's
+    // smoothed temperature, 3 values per sample while it is computed), not the series
+    let n_channels = spec.channels.len() as f64;
+    let thermal = spec
         .channels
         .iter()
-        .map(|(n, v)| (n.as_str(), v.as_slice()))
-        .collect();
-    if let Some((name, t)) = temperature
-        && !columns.iter().any(|c| c.0 == name)
-    {
-        columns.push((name, t));
+        .flat_map(|c| &c.components)
+        .filter(|c| matches!(c, Component::ThermalRate { .. }))
+        .count() as f64;
+    let block = BLOCK_ROWS.min(n_samples) as f64;
+    let planned = 8.0 * block * (4.0 * n_channels + 4.0) + 24.0 * thermal * n_samples as f64;
+    crate::workflow::budget::check_memory(
+        &format!(
+            "--duration {} s",
+            crate::fmt::num(n_samples as f64 / rate_hz)
+        ),
+        &format!(
+            "simulating {n_samples} samples of {} channel(s) by blocks of {} samples",
+            spec.channels.len(),
+            block
+        ),
+        planned,
+    )?;
+    let sim = Simulator::new(&spec, req)?;
+    let names = sim.channel_names()?;
+    let mut columns: Vec<&str> = names.iter().map(String::as_str).collect();
+    let temp_col = match temperature {
+        Some((name, t)) if !columns.contains(&name) => Some((name, t)),
+        _ => None,
+    };
+    if let Some((name, _)) = temp_col {
+        columns.push(name);
     }
-    for (name, _) in &columns {
+    for name in &columns {
         if ["time", "time_s", "t", "timestamp"].contains(name) {
             return Err(Error::Usage(format!(
                 "{}: channel '{name}' would be read as the time column of the simulated log; rename it",
@@ -163,10 +192,11 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
             )));
         }
     }
+    let seed = sim.seed();
     let provenance = vec![
         ("source", a.spec.display().to_string()),
-        ("farma_simulate_seed", out.seed.to_string()),
-        ("farma_simulate_replica", out.replica.to_string()),
+        ("farma_simulate_seed", seed.to_string()),
+        ("farma_simulate_replica", a.replica.to_string()),
         (
             "farma_simulate_like",
             a.like
@@ -174,10 +204,28 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
                 .map_or_else(String::new, |p| p.display().to_string()),
         ),
     ];
-    write_log(&a.output, format, &columns, rate_hz, &provenance)?;
+    let mut w = LogWriter::create(&a.output, format, &columns, n_samples, rate_hz, &provenance)?;
+    let mut acc: Vec<Summarizer> = names.iter().map(|n| Summarizer::new(n)).collect();
+    let mut blocks = sim.blocks(BLOCK_ROWS)?;
+    while let Some((start, cols)) = blocks.next_block()? {
+        let mut block: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+        if let Some((_, t)) = temp_col {
+            block.push(&t[start..start + cols[0].len()]);
+        }
+        w.write_block(&block)?;
+        for (s, c) in acc.iter_mut().zip(&cols) {
+            s.push(c);
+        }
+    }
+    w.finish()?;
+    let out = Simulated {
+        seed,
+        replica: a.replica,
+        n_channels: names.len(),
+    };
     let elapsed_s = started.elapsed().as_secs_f64();
 
-    let summaries: Vec<_> = out.channels.iter().map(|(n, v)| summarize(n, v)).collect();
+    let summaries: Vec<_> = acc.into_iter().map(Summarizer::finish).collect();
     if a.json {
         let v = json!({
             "output": a.output.display().to_string(),
@@ -200,7 +248,7 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
             "wrote {} ({}): {} channel(s), {} samples at {} Hz ({} s), seed {} replica {}",
             a.output.display(),
             format.as_str(),
-            out.channels.len(),
+            out.n_channels,
             n_samples,
             rate_hz,
             n_samples as f64 / rate_hz,
@@ -217,4 +265,11 @@ pub fn run(a: SimulateArgs, progress: &Progress) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// What the summary line says of the simulation.
+struct Simulated {
+    seed: u64,
+    replica: u64,
+    n_channels: usize,
 }

@@ -167,6 +167,17 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ))
         })?;
     let n = real.x.len();
+    // the ensemble holds every replica's component signals and other channels at once
+    let n_comp = spec.channels[channel].components.len();
+    crate::workflow::budget::check_memory(
+        &format!("--replicas {}", prm.replicas),
+        &format!(
+            "the ensemble of {} replicas x {} signals x {n} samples",
+            prm.replicas,
+            n_comp + real.others.len() + 1
+        ),
+        8.0 * n as f64 * prm.replicas as f64 * (n_comp + real.others.len() + 1) as f64,
+    )?;
     let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
     let rate_hz = real.rate_hz;
     let mut notes = Vec::new();
@@ -196,7 +207,6 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     let real_feats = test.compute(real.x, temperature.as_ref(), &real_others);
 
     let sim_others = sim.channels(spec, &other_names)?;
-    let n_comp = spec.channels[channel].components.len();
     let parts = sim.component_signals(spec, channel, &(0..n_comp).collect::<Vec<_>>())?;
     let target: Vec<Vec<f64>> = parts
         .iter()

@@ -110,9 +110,13 @@ pub fn sweep_stale_temps(dir: &Path) {
     };
     let me = std::process::id();
     let mut removed = 0usize;
+    let committing = journal_temps(dir);
     for entry in entries.flatten() {
         let name = entry.file_name();
         let Some(name) = name.to_str() else { continue };
+        if committing.iter().any(|c| c == name) {
+            continue;
+        }
         let Some(pid) = stale_temp_pid(name, &host) else {
             continue;
         };
@@ -214,15 +218,240 @@ fn stage_parquet_batches(
     Ok(tmp.into_temp_path())
 }
 
+/// The lock file of an output folder ([`lock_dir`]).
+pub const LOCK_FILE: &str = ".farma.lock";
+/// The commit journal of an output folder ([`OutputSet::commit`]).
+pub const JOURNAL_FILE: &str = ".farma-commit.json";
+
+/// Output folders this process holds the lock of, with how many guards hold each.
+static HELD: std::sync::Mutex<Vec<(PathBuf, usize)>> = std::sync::Mutex::new(Vec::new());
+
+/// This process's lock on an output folder; released (the lock file removed) when the
+/// last guard of the folder is dropped.
+#[derive(Debug)]
+pub struct DirLock {
+    key: PathBuf,
+    file: PathBuf,
+}
+
+impl Drop for DirLock {
+    fn drop(&mut self) {
+        let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(i) = held.iter().position(|(k, _)| *k == self.key) {
+            held[i].1 -= 1;
+            if held[i].1 == 0 {
+                held.remove(i);
+                let _ = std::fs::remove_file(&self.file);
+            }
+        }
+    }
+}
+
+/// Takes the lock of output folder `dir` (which exists) for this process: the file
+/// `.farma.lock` created exclusively in it, holding `HOST PID`. A folder locked by
+/// another live process is refused (a usage error, exit 2, naming the lock and its
+/// holder): two runs never write one folder at once. A lock left by a killed run (this
+/// machine, a process that no longer exists) is taken over with a note. Locks nest
+/// within a process (`analyze` holds its folder for the whole run and commits sets in
+/// it). Then completes a commit that a killed run left half done ([`settle`]).
+pub fn lock_dir(dir: &Path) -> Result<DirLock> {
+    let key = dir.canonicalize().map_err(|e| Error::output_io(dir, e))?;
+    let file = key.join(LOCK_FILE);
+    {
+        let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(h) = held.iter_mut().find(|(k, _)| *k == key) {
+            h.1 += 1;
+            return Ok(DirLock { key, file });
+        }
+    }
+    let me = std::process::id();
+    let host = host_name().unwrap_or_else(|| "unknown".into());
+    let mut tries = 0;
+    loop {
+        use std::io::Write;
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&file)
+        {
+            Ok(mut f) => {
+                f.write_all(format!("{host} {me}\n").as_bytes())
+                    .map_err(|e| Error::output_io(&file, e))?;
+                break;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && tries < 3 => {
+                tries += 1;
+                let text = std::fs::read_to_string(&file).unwrap_or_default();
+                let mut words = text.split_whitespace();
+                let (h, pid) = (
+                    words.next(),
+                    words.next().and_then(|p| p.parse::<u32>().ok()),
+                );
+                let stale = match (h, pid) {
+                    (Some(h), Some(pid)) => {
+                        h == host
+                            && Path::new("/proc/self").exists()
+                            && (pid == me || !Path::new("/proc").join(pid.to_string()).exists())
+                    }
+                    // written but not yet filled by its taker, or not ours: not stale
+                    _ => false,
+                };
+                if stale {
+                    eprintln!(
+                        "farma: note: {}: lock of a run that is gone (process {} on {host}) taken over",
+                        file.display(),
+                        pid.unwrap_or(0)
+                    );
+                    let _ = std::fs::remove_file(&file);
+                    continue;
+                }
+                if h.is_none() && tries < 3 {
+                    // its taker has not written it yet
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                    continue;
+                }
+                return Err(Error::Usage(format!(
+                    "-o {}: another farma run is writing this folder (process {} on host {}, lock file {}); wait for it to end, or remove the lock file if that run is gone",
+                    dir.display(),
+                    pid.map_or_else(|| "?".to_string(), |p| p.to_string()),
+                    h.unwrap_or("?"),
+                    file.display()
+                )));
+            }
+            Err(e) => return Err(Error::output_io(&file, e)),
+        }
+    }
+    HELD.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((key.clone(), 1));
+    let lock = DirLock { key, file };
+    settle(dir)?;
+    Ok(lock)
+}
+
+/// The commit journal: the renames (temporary name, final name) and removals of a set
+/// being committed, names relative to the folder.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Journal {
+    renames: Vec<(String, String)>,
+    remove: Vec<String>,
+}
+
+/// Completes the commit of a set that a run killed while it committed left half done
+/// in `dir`: when the journal `.farma-commit.json` is there, its renames not yet done
+/// are done, its removals too, and the journal is removed (every step can be repeated,
+/// so two processes settling one folder agree). Every reader of an output folder
+/// (model folders, analyze's channel folders) and every writer (at [`lock_dir`])
+/// calls it first, so none sees a folder holding files of two runs.
+pub fn settle(dir: &Path) -> Result<()> {
+    let jpath = dir.join(JOURNAL_FILE);
+    let text = match std::fs::read_to_string(&jpath) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::input_io(&jpath, e)),
+    };
+    let j: Journal = serde_json::from_str(&text).map_err(|e| {
+        Error::format(
+            &jpath,
+            format!("an output folder's commit journal that cannot be read ({e}); remove it and run again"),
+        )
+    })?;
+    let unfinished = |e: std::io::Error| {
+        Error::output_io(
+            dir,
+            std::io::Error::new(
+                e.kind(),
+                format!(
+                    "cannot complete the commit of a run that was stopped while committing ({}): {e}",
+                    jpath.display()
+                ),
+            ),
+        )
+    };
+    let safe = |n: &str| !n.is_empty() && !n.contains('/') && n != "." && n != "..";
+    if !j.renames.iter().all(|(a, b)| safe(a) && safe(b)) || !j.remove.iter().all(|n| safe(n)) {
+        return Err(Error::format(
+            &jpath,
+            "a commit journal naming files outside its folder",
+        ));
+    }
+    let mut done = 0usize;
+    for (from, to) in &j.renames {
+        match std::fs::rename(dir.join(from), dir.join(to)) {
+            Ok(()) => done += 1,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(unfinished(e)),
+        }
+    }
+    for name in &j.remove {
+        match std::fs::remove_file(dir.join(name)) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(unfinished(e)),
+        }
+    }
+    match std::fs::remove_file(&jpath) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(unfinished(e)),
+    }
+    eprintln!(
+        "farma: note: {}: completed the commit of a run that was stopped while committing ({done} file(s) put in place)",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// The temporary files a commit journal in `dir` names (kept by the sweep of stale
+/// temporary files: they are the set being committed).
+fn journal_temps(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join(JOURNAL_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str::<Journal>(&t).ok())
+        .map(|j| j.renames.into_iter().map(|(a, _)| a).collect())
+        .unwrap_or_default()
+}
+
+/// Debug builds only: `FARMA_TEST_KILL_AFTER_RENAMES=N` kills the process (SIGKILL)
+/// once N renames of a commit are done (N = 0: right after the journal is written),
+/// the test seam of an interrupted commit.
+fn test_kill_point(renames_done: usize) {
+    if !cfg!(debug_assertions) {
+        return;
+    }
+    let Some(n) = std::env::var("FARMA_TEST_KILL_AFTER_RENAMES")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+    else {
+        return;
+    };
+    if n == renames_done {
+        let _ = std::process::Command::new("kill")
+            .args(["-KILL", &std::process::id().to_string()])
+            .status();
+        std::thread::sleep(std::time::Duration::from_secs(5));
+        std::process::exit(137);
+    }
+}
+
 /// The files of one run, written together into one folder: each is first written
 /// to a temporary file there, and only once every one is written are they renamed
 /// into place ([`OutputSet::commit`]). A run that fails before leaves the folder as
 /// it was (the temporary files are removed when the set is dropped); the files of
 /// an earlier run that this one does not write are removed at the commit, so the
 /// folder never holds files of two runs.
+///
+/// The set holds the folder's lock ([`lock_dir`]) from its creation to its drop, and
+/// commits through a journal: once every file is staged, `.farma-commit.json` (the
+/// renames and removals to do) is put in place by one rename, which is the commit
+/// point; then the files are renamed and the journal removed. A run killed before
+/// the journal leaves the earlier set (and temporary files that the next run sweeps);
+/// one killed after it leaves the journal, which the next reader or writer of the
+/// folder completes ([`settle`]): either set complete, never a mix.
 pub struct OutputSet {
     dir: PathBuf,
     staged: Vec<(PathBuf, tempfile::TempPath)>,
+    _lock: DirLock,
 }
 
 impl OutputSet {
@@ -231,9 +460,11 @@ impl OutputSet {
     pub fn new(dir: &Path) -> Result<Self> {
         Self::check(dir)?;
         ensure_dir(dir)?;
+        let lock = lock_dir(dir)?;
         Ok(OutputSet {
             dir: dir.to_path_buf(),
             staged: Vec::new(),
+            _lock: lock,
         })
     }
 
@@ -313,6 +544,7 @@ impl OutputSet {
     /// Renames every file of the set into place, after checking that none of their
     /// names is taken by a folder, then removes those of `outputs` (the names this
     /// kind of run can write) that the set does not hold. Returns the removed paths.
+    /// Atomic for readers through the journal (see [`OutputSet`]).
     pub fn commit(self, outputs: &[&str]) -> Result<Vec<PathBuf>> {
         for (path, _) in &self.staged {
             if path.is_dir() {
@@ -322,19 +554,53 @@ impl OutputSet {
                 ));
             }
         }
+        let name_of = |p: &Path| -> Result<String> {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .map(str::to_string)
+                .ok_or_else(|| Error::Internal(format!("output name {}", p.display())))
+        };
         let written: Vec<PathBuf> = self.staged.iter().map(|(p, _)| p.clone()).collect();
-        for (path, tmp) in self.staged {
-            tmp.persist(&path)
-                .map_err(|e| Error::output_io(&path, e.error))?;
+        let mut journal = Journal {
+            renames: Vec::new(),
+            remove: Vec::new(),
+        };
+        for (path, tmp) in &self.staged {
+            journal.renames.push((name_of(tmp)?, name_of(path)?));
         }
         let mut removed = Vec::new();
         for name in outputs {
             let path = self.dir.join(name);
             if !written.contains(&path) && path.is_file() {
-                std::fs::remove_file(&path).map_err(|e| Error::output_io(&path, e))?;
+                journal.remove.push(name_of(&path)?);
                 removed.push(path);
             }
         }
+        let jpath = self.dir.join(JOURNAL_FILE);
+        let text = serde_json::to_string(&journal)
+            .map_err(|e| Error::Internal(format!("commit journal: {e}")))?;
+        // the commit point: after this rename the set is committed (the next reader
+        // completes it if this process stops here)
+        write_text(&jpath, &text)?;
+        let mut staged = Vec::new();
+        for (path, tmp) in self.staged {
+            // kept from here on: the journal names them
+            let tmp = tmp.keep().map_err(|e| Error::output_io(&path, e.error))?;
+            staged.push((path, tmp));
+        }
+        test_kill_point(0);
+        for (k, (path, tmp)) in staged.iter().enumerate() {
+            std::fs::rename(tmp, path).map_err(|e| Error::output_io(path, e))?;
+            test_kill_point(k + 1);
+        }
+        for path in &removed {
+            match std::fs::remove_file(path) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(Error::output_io(path, e)),
+            }
+        }
+        std::fs::remove_file(&jpath).map_err(|e| Error::output_io(&jpath, e))?;
         Ok(removed)
     }
 }

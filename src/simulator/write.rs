@@ -84,149 +84,234 @@ pub fn write_log(
             "simulated columns of different lengths".into(),
         ));
     }
-    let time = |k: usize| k as f64 / sample_rate_hz;
-    match format {
-        LogFormat::Parquet => write_parquet(path, columns, n, sample_rate_hz, provenance, &time),
-        LogFormat::Arrow => write_store(path, columns, n, sample_rate_hz, provenance, &time),
-        LogFormat::Csv => write_csv(path, columns, n, sample_rate_hz, provenance, &time),
-    }
-}
-
-fn write_parquet(
-    path: &Path,
-    columns: &[(&str, &[f64])],
-    n: usize,
-    rate: f64,
-    provenance: &[(&str, String)],
-    time: &dyn Fn(usize) -> f64,
-) -> Result<()> {
-    let tmp = temp_beside(path)?;
-    let mut fields = vec![Field::new(TIME_COL, DataType::Float64, false)];
-    fields.extend(
-        columns
-            .iter()
-            .map(|(n, _)| Field::new(*n, DataType::Float64, false)),
-    );
-    let schema = Arc::new(Schema::new(fields));
-    let mut kv = vec![
-        KeyValue::new("sample_rate_hz".into(), rate.to_string()),
-        KeyValue::new(
-            "farma_version".into(),
-            env!("CARGO_PKG_VERSION").to_string(),
-        ),
-    ];
-    kv.extend(
-        provenance
-            .iter()
-            .map(|(k, v)| KeyValue::new(k.to_string(), v.clone())),
-    );
-    let props = WriterProperties::builder()
-        .set_compression(Compression::ZSTD(ZstdLevel::default()))
-        .set_max_row_group_row_count(Some(ROW_GROUP))
-        .set_key_value_metadata(Some(kv))
-        .build();
-    let io = |e: parquet::errors::ParquetError| Error::output_io(path, std::io::Error::other(e));
-    let file = tmp.reopen().map_err(|e| Error::output_io(path, e))?;
-    let mut w = ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(io)?;
+    let names: Vec<&str> = columns.iter().map(|c| c.0).collect();
+    let mut w = LogWriter::create(path, format, &names, n, sample_rate_hz, provenance)?;
     let mut start = 0;
     while start < n {
         let end = (start + ROW_GROUP).min(n);
-        let mut arrays: Vec<ArrayRef> = vec![Arc::new(Float64Array::from_iter_values(
-            (start..end).map(time),
-        ))];
-        arrays.extend(
-            columns
-                .iter()
-                .map(|(_, v)| Arc::new(Float64Array::from(v[start..end].to_vec())) as ArrayRef),
-        );
-        let batch = RecordBatch::try_new(schema.clone(), arrays)
-            .map_err(|e| Error::Internal(format!("simulated table: {e}")))?;
-        w.write(&batch).map_err(io)?;
+        let block: Vec<&[f64]> = columns.iter().map(|c| &c.1[start..end]).collect();
+        w.write_block(&block)?;
         start = end;
     }
-    w.close().map_err(io)?;
-    tmp.persist(path)
-        .map_err(|e| Error::output_io(path, e.error))?;
-    Ok(())
+    w.finish()
 }
 
-fn write_store(
-    path: &Path,
-    columns: &[(&str, &[f64])],
+/// Rows per block that [`LogWriter`] writes best: a Parquet row group.
+pub const BLOCK_ROWS: usize = ROW_GROUP;
+
+/// A simulated log written block by block, in bounded memory: the blocks of the
+/// channels' values are given in order ([`LogWriter::write_block`]), each goes to the
+/// temporary file (a Parquet row group or CSV lines; in a store, into the mapped file,
+/// whose pages are then released), and [`LogWriter::finish`] renames it into place.
+/// Dropped unfinished, the temporary file is removed. Blocks of [`BLOCK_ROWS`] rows
+/// give the same file as one call with the whole columns.
+pub struct LogWriter {
+    path: PathBuf,
     n: usize,
+    written: usize,
     rate: f64,
-    provenance: &[(&str, String)],
-    time: &dyn Fn(usize) -> f64,
-) -> Result<()> {
-    let mut names = vec![TIME_COL.to_string()];
-    names.extend(columns.iter().map(|(n, _)| n.to_string()));
-    let mut w = StoreWriter::create(path, &names, n)?;
-    {
-        let mut cols = w.columns_mut();
-        for (k, v) in cols[0].iter_mut().enumerate() {
-            *v = time(k);
-        }
-        for (dst, (_, src)) in cols.iter_mut().skip(1).zip(columns) {
-            dst.copy_from_slice(src);
-        }
-    }
-    let source = provenance
-        .iter()
-        .find(|(k, _)| *k == "source")
-        .map_or_else(String::new, |(_, v)| v.clone());
-    let meta = StoreMeta {
-        format_version: STORE_FORMAT_VERSION,
-        farma_version: env!("CARGO_PKG_VERSION").to_string(),
-        sample_rate_hz: rate,
-        time_source: format!("column:{TIME_COL}"),
-        time_col: Some(TIME_COL.to_string()),
-        segments: vec![Segment {
-            start: 0,
-            len: n as u64,
-            t0_s: 0.0,
-        }],
-        repairs: vec![],
-        source,
-        source_format: "simulate".into(),
-        source_size: 0,
-        source_mtime_ns: 0,
-        nonfinite: vec![],
-    };
-    w.finish(&meta)
+    sink: Sink,
 }
 
-fn write_csv(
-    path: &Path,
-    columns: &[(&str, &[f64])],
-    n: usize,
-    rate: f64,
-    provenance: &[(&str, String)],
-    time: &dyn Fn(usize) -> f64,
-) -> Result<()> {
-    let tmp = temp_beside(path)?;
-    let io = |e: std::io::Error| Error::output_io(path, e);
-    {
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.as_file());
-        write!(w, "# farma simulate: sample_rate_hz={rate}").map_err(io)?;
-        for (k, v) in provenance {
-            write!(w, " {k}={}", v.replace('\n', " ")).map_err(io)?;
-        }
-        writeln!(w).map_err(io)?;
-        write!(w, "{TIME_COL}").map_err(io)?;
-        for (name, _) in columns {
-            write!(w, ",{name}").map_err(io)?;
-        }
-        writeln!(w).map_err(io)?;
-        for k in 0..n {
-            write!(w, "{:?}", time(k)).map_err(io)?;
-            for (_, v) in columns {
-                write!(w, ",{:?}", v[k]).map_err(io)?;
+enum Sink {
+    Parquet {
+        tmp: tempfile::NamedTempFile,
+        w: Box<ArrowWriter<std::fs::File>>,
+        schema: Arc<Schema>,
+    },
+    Store {
+        w: Box<StoreWriter>,
+        meta: Box<StoreMeta>,
+    },
+    Csv {
+        w: std::io::BufWriter<tempfile::NamedTempFile>,
+    },
+}
+
+impl LogWriter {
+    /// Starts `path` (in `format`) for channels `names` of `n` rows each, with a time
+    /// column, the rate and the provenance metadata.
+    pub fn create(
+        path: &Path,
+        format: LogFormat,
+        names: &[&str],
+        n: usize,
+        rate: f64,
+        provenance: &[(&str, String)],
+    ) -> Result<LogWriter> {
+        let sink = match format {
+            LogFormat::Parquet => {
+                let tmp = temp_beside(path)?;
+                let mut fields = vec![Field::new(TIME_COL, DataType::Float64, false)];
+                fields.extend(
+                    names
+                        .iter()
+                        .map(|n| Field::new(*n, DataType::Float64, false)),
+                );
+                let schema = Arc::new(Schema::new(fields));
+                let mut kv = vec![
+                    KeyValue::new("sample_rate_hz".into(), rate.to_string()),
+                    KeyValue::new(
+                        "farma_version".into(),
+                        env!("CARGO_PKG_VERSION").to_string(),
+                    ),
+                ];
+                kv.extend(
+                    provenance
+                        .iter()
+                        .map(|(k, v)| KeyValue::new(k.to_string(), v.clone())),
+                );
+                let props = WriterProperties::builder()
+                    .set_compression(Compression::ZSTD(ZstdLevel::default()))
+                    .set_max_row_group_row_count(Some(ROW_GROUP))
+                    .set_key_value_metadata(Some(kv))
+                    .build();
+                let file = tmp.reopen().map_err(|e| Error::output_io(path, e))?;
+                let w = ArrowWriter::try_new(file, schema.clone(), Some(props))
+                    .map_err(|e| parquet_io(path, e))?;
+                Sink::Parquet {
+                    tmp,
+                    w: Box::new(w),
+                    schema,
+                }
             }
-            writeln!(w).map_err(io)?;
-        }
-        w.flush().map_err(io)?;
+            LogFormat::Arrow => {
+                let mut cols = vec![TIME_COL.to_string()];
+                cols.extend(names.iter().map(|n| n.to_string()));
+                let w = StoreWriter::create(path, &cols, n)?;
+                let source = provenance
+                    .iter()
+                    .find(|(k, _)| *k == "source")
+                    .map_or_else(String::new, |(_, v)| v.clone());
+                let meta = StoreMeta {
+                    format_version: STORE_FORMAT_VERSION,
+                    farma_version: env!("CARGO_PKG_VERSION").to_string(),
+                    sample_rate_hz: rate,
+                    time_source: format!("column:{TIME_COL}"),
+                    time_col: Some(TIME_COL.to_string()),
+                    segments: vec![Segment {
+                        start: 0,
+                        len: n as u64,
+                        t0_s: 0.0,
+                    }],
+                    repairs: vec![],
+                    source,
+                    source_format: "simulate".into(),
+                    source_size: 0,
+                    source_mtime_ns: 0,
+                    nonfinite: vec![],
+                };
+                Sink::Store {
+                    w: Box::new(w),
+                    meta: Box::new(meta),
+                }
+            }
+            LogFormat::Csv => {
+                let tmp = temp_beside(path)?;
+                let io = |e: std::io::Error| Error::output_io(path, e);
+                let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp);
+                write!(w, "# farma simulate: sample_rate_hz={rate}").map_err(io)?;
+                for (k, v) in provenance {
+                    write!(w, " {k}={}", v.replace('\n', " ")).map_err(io)?;
+                }
+                writeln!(w).map_err(io)?;
+                write!(w, "{TIME_COL}").map_err(io)?;
+                for name in names {
+                    write!(w, ",{name}").map_err(io)?;
+                }
+                writeln!(w).map_err(io)?;
+                Sink::Csv { w }
+            }
+        };
+        Ok(LogWriter {
+            path: path.to_path_buf(),
+            n,
+            written: 0,
+            rate,
+            sink,
+        })
     }
-    tmp.persist(path)
-        .map_err(|e| Error::output_io(path, e.error))?;
-    Ok(())
+
+    /// Writes the next rows: one slice per channel, all of one length.
+    pub fn write_block(&mut self, block: &[&[f64]]) -> Result<()> {
+        let len = block.first().map_or(0, |c| c.len());
+        let start = self.written;
+        if block.iter().any(|c| c.len() != len) || start + len > self.n {
+            return Err(Error::Internal("simulated block of a wrong length".into()));
+        }
+        let rate = self.rate;
+        let time = |k: usize| k as f64 / rate;
+        let path = &self.path;
+        match &mut self.sink {
+            Sink::Parquet { w, schema, .. } => {
+                let mut arrays: Vec<ArrayRef> = vec![Arc::new(Float64Array::from_iter_values(
+                    (start..start + len).map(time),
+                ))];
+                arrays.extend(
+                    block
+                        .iter()
+                        .map(|v| Arc::new(Float64Array::from(v.to_vec())) as ArrayRef),
+                );
+                let batch = RecordBatch::try_new(schema.clone(), arrays)
+                    .map_err(|e| Error::Internal(format!("simulated table: {e}")))?;
+                w.write(&batch).map_err(|e| parquet_io(path, e))?;
+            }
+            Sink::Store { w, .. } => {
+                {
+                    let mut cols = w.columns_mut();
+                    for (k, v) in cols[0][start..start + len].iter_mut().enumerate() {
+                        *v = time(start + k);
+                    }
+                    for (dst, src) in cols.iter_mut().skip(1).zip(block) {
+                        dst[start..start + len].copy_from_slice(src);
+                    }
+                }
+                // the written pages go to the file, not the process's memory
+                w.release_rows(start..start + len);
+            }
+            Sink::Csv { w } => {
+                let io = |e: std::io::Error| Error::output_io(path, e);
+                for j in 0..len {
+                    write!(w, "{:?}", time(start + j)).map_err(io)?;
+                    for v in block {
+                        write!(w, ",{:?}", v[j]).map_err(io)?;
+                    }
+                    writeln!(w).map_err(io)?;
+                }
+            }
+        }
+        self.written += len;
+        Ok(())
+    }
+
+    /// Completes the file (after every row is written) and renames it into place.
+    pub fn finish(self) -> Result<()> {
+        if self.written != self.n {
+            return Err(Error::Internal(format!(
+                "simulated log of {} rows finished after {}",
+                self.n, self.written
+            )));
+        }
+        let path = &self.path;
+        match self.sink {
+            Sink::Parquet { tmp, w, .. } => {
+                w.close().map_err(|e| parquet_io(path, e))?;
+                tmp.persist(path)
+                    .map_err(|e| Error::output_io(path, e.error))?;
+            }
+            Sink::Store { w, meta } => w.finish(&meta)?,
+            Sink::Csv { w } => {
+                let tmp = w
+                    .into_inner()
+                    .map_err(|e| Error::output_io(path, e.into_error()))?;
+                tmp.persist(path)
+                    .map_err(|e| Error::output_io(path, e.error))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn parquet_io(path: &Path, e: parquet::errors::ParquetError) -> Error {
+    Error::output_io(path, std::io::Error::other(e))
 }

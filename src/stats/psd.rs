@@ -72,7 +72,10 @@ pub fn hann(l: usize) -> Vec<f64> {
 
 fn check(what: &str, n: usize, rate_hz: f64, segment_len: usize) -> Result<()> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(Error::Usage(format!("{what}: sample rate {rate_hz} Hz")));
+        return Err(Error::Usage(format!(
+            "{what}: sample rate {} Hz",
+            crate::fmt::num(rate_hz)
+        )));
     }
     if segment_len < 2 {
         return Err(Error::Usage(format!(
@@ -120,6 +123,7 @@ pub fn welch(
     detrend: Detrend,
 ) -> Result<Psd> {
     check(what, y.len(), rate_hz, segment_len)?;
+    crate::stats::require_finite(what, y, rate_hz)?;
     let l = segment_len;
     let w = hann(l);
     let st = starts(y.len(), l);
@@ -157,6 +161,14 @@ pub fn welch(
         }
     }
     let freq_hz = scale_and_freqs(&mut sums, l, rate_hz, st.len(), &w);
+    if let Some(k) = sums.iter().position(|v| !v.is_finite()) {
+        return Err(crate::stats::overflow_error(
+            what,
+            "PSD",
+            &format!("{} Hz", crate::fmt::num(freq_hz[k])),
+            y,
+        ));
+    }
     Ok(Psd {
         freq_hz,
         psd: sums,

@@ -87,11 +87,57 @@ pub fn summarize(name: &str, x: &[f64]) -> ChannelSummary {
         .into_iter()
         .reduce(Moments::merge)
         .expect("non-empty");
+    summary_of(name, m, x.len())
+}
+
+/// [`summarize`] of a series given piece by piece ([`Summarizer::push`]): the same
+/// summary, bit for bit, when every piece but the last is a multiple of 65536 values.
+pub struct Summarizer {
+    name: String,
+    len: usize,
+    m: Option<Moments>,
+}
+
+impl Summarizer {
+    pub fn new(name: &str) -> Self {
+        Summarizer {
+            name: name.to_string(),
+            len: 0,
+            m: None,
+        }
+    }
+
+    /// The next values of the series.
+    pub fn push(&mut self, x: &[f64]) {
+        let blocks: Vec<Moments> = x.par_chunks(BLOCK).map(Moments::of_block).collect();
+        for b in blocks {
+            self.m = Some(match self.m.take() {
+                None => b,
+                Some(a) => a.merge(b),
+            });
+        }
+        self.len += x.len();
+    }
+
+    /// The summary of every value pushed (at least one).
+    pub fn finish(self) -> ChannelSummary {
+        let m = self.m.unwrap_or(Moments {
+            n: 0.0,
+            mean: f64::NAN,
+            m2: f64::NAN,
+            min: f64::NAN,
+            max: f64::NAN,
+        });
+        summary_of(&self.name, m, self.len)
+    }
+}
+
+fn summary_of(name: &str, m: Moments, len: usize) -> ChannelSummary {
     let n = m.n as u64;
     ChannelSummary {
         name: name.to_string(),
         n,
-        n_nonfinite: x.len() as u64 - n,
+        n_nonfinite: len as u64 - n,
         mean: if n > 0 { m.mean } else { f64::NAN },
         std: if n > 1 {
             (m.m2 / (m.n - 1.0)).sqrt()

@@ -149,6 +149,29 @@ impl StoreWriter {
         out
     }
 
+    /// Releases rows `rows` of every column from this process's memory: the pages
+    /// already written stay in the file (and the page cache) but leave the process's
+    /// resident set, so that a producer writing block by block (`farma simulate` of
+    /// 1e8 samples) holds one block, not the file. Advice only: a failure is ignored.
+    pub fn release_rows(&self, rows: std::ops::Range<usize>) {
+        for i in 0..self.names.len() {
+            let start = self.body_offset + i * self.col_stride + rows.start * 8;
+            let len = (rows.end.min(self.n_rows) - rows.start.min(rows.end)) * 8;
+            if len == 0 {
+                continue;
+            }
+            // SAFETY: the map is a shared file mapping (MmapMut::map_mut), for which
+            // MADV_DONTNEED drops the pages from this process only: dirty pages go to
+            // the page cache and the file keeps every value (a private mapping would
+            // lose them). No slice into the range is alive (`&self` excludes
+            // `columns_mut`'s borrows).
+            let _ = unsafe {
+                self.map
+                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, len)
+            };
+        }
+    }
+
     /// Column `i`'s values, as written so far.
     pub fn column(&self, i: usize) -> &[f64] {
         let start = self.body_offset + i * self.col_stride;
@@ -164,9 +187,29 @@ impl StoreWriter {
     /// The data is not fsync'ed: a killed process loses nothing (the page cache holds
     /// it and the rename is atomic), only a machine crash could.
     pub fn finish(self, meta: &StoreMeta) -> Result<()> {
+        // by pieces, each released after it is hashed: the resident set stays bounded
+        // however long the columns are
+        const PIECE: usize = 1 << 20;
         let checksums: Vec<u64> = (0..self.names.len())
             .into_par_iter()
-            .map(|i| column_checksum(self.column(i)))
+            .map(|i| {
+                let col = self.column(i);
+                let mut h = twox_hash::XxHash64::with_seed(0);
+                for (k, piece) in col.chunks(PIECE).enumerate() {
+                    std::hash::Hasher::write(&mut h, as_bytes(piece));
+                    let start = self.body_offset + i * self.col_stride + k * PIECE * 8;
+                    // SAFETY: as in `release_rows`: a shared file mapping; the piece
+                    // is read again from the page cache if needed.
+                    let _ = unsafe {
+                        self.map.unchecked_advise_range(
+                            memmap2::UncheckedAdvice::DontNeed,
+                            start,
+                            piece.len() * 8,
+                        )
+                    };
+                }
+                std::hash::Hasher::finish(&h)
+            })
             .collect();
         let StoreWriter {
             target,
@@ -313,12 +356,16 @@ pub fn output_permissions() -> std::fs::Permissions {
 /// The XXH64 hash (seed 0) of a column's values as little-endian bytes: the checksum
 /// recorded under [`CHECKSUM_KEY`].
 pub(super) fn column_checksum(values: &[f64]) -> u64 {
+    twox_hash::XxHash64::oneshot(0, as_bytes(values))
+}
+
+/// The bytes of `values`.
+fn as_bytes(values: &[f64]) -> &[u8] {
     // SAFETY: any f64 is 8 initialised bytes; the byte slice borrows `values`. Stores
     // are little-endian (Arrow IPC), as are the machines farma runs on.
-    let bytes = unsafe {
+    unsafe {
         std::slice::from_raw_parts(values.as_ptr() as *const u8, std::mem::size_of_val(values))
-    };
-    twox_hash::XxHash64::oneshot(0, bytes)
+    }
 }
 
 /// The JSON recorded under [`CHECKSUM_KEY`]: column name to 16 lowercase hex digits.

@@ -11,8 +11,93 @@
 //! 8 (2026-11-27, BENCHMARKS.md): 542 MB for 6 more fits in flight, 90 bytes per
 //! sample each; one `farma fit` of one such channel peaks at 116 MB, the process and
 //! the mapped channel included.
+//!
+//! Two notions, one module: `FARMA_MEMORY_GB` **schedules** (how many fits run at once;
+//! it never refuses work), while the memory limit ([`memory_limit_bytes`], the global
+//! `--memory-limit GB`, default [`DEFAULT_MEMORY_SHARE`] of the physical memory read
+//! from `/proc/meminfo`) **refuses**: every command that allocates by a user-given size
+//! (`simulate --duration`, grids, `--bootstrap`, `gap --replicas`, `--max-lag`,
+//! `--segment`, an inline farma spec's `d`) plans the bytes first and stops with exit 2
+//! naming the flag and the bytes when they exceed the limit ([`check_memory`]), rather
+//! than being killed by the allocator. The fits' budget is capped by the limit.
+
+use std::sync::OnceLock;
 
 use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+
+/// The share of the physical memory a request may plan when `--memory-limit` is not
+/// given.
+pub const DEFAULT_MEMORY_SHARE: f64 = 0.5;
+/// The limit when the physical memory cannot be read (not Linux), GB.
+pub const FALLBACK_LIMIT_GB: f64 = 8.0;
+
+static LIMIT_GB: OnceLock<f64> = OnceLock::new();
+
+/// Sets the memory limit from `--memory-limit GB` (once per process; the binary's
+/// command line). A usage error unless a positive finite number.
+pub fn set_memory_limit_gb(gb: f64) -> Result<()> {
+    if !(gb.is_finite() && gb > 0.0) {
+        return Err(Error::Usage(format!(
+            "--memory-limit must be a positive number of GB, found {}",
+            crate::fmt::num(gb)
+        )));
+    }
+    let _ = LIMIT_GB.set(gb);
+    Ok(())
+}
+
+/// The machine's physical memory in bytes (`MemTotal` of `/proc/meminfo`).
+pub fn physical_memory_bytes() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// The memory one request may plan, bytes: `--memory-limit`, else
+/// [`DEFAULT_MEMORY_SHARE`] of the physical memory, else [`FALLBACK_LIMIT_GB`].
+pub fn memory_limit_bytes() -> f64 {
+    match LIMIT_GB.get() {
+        Some(gb) => gb * 1e9,
+        None => physical_memory_bytes()
+            .map(|b| b * DEFAULT_MEMORY_SHARE)
+            .unwrap_or(FALLBACK_LIMIT_GB * 1e9),
+    }
+}
+
+/// Bytes as GB for messages: `12.3 GB`, `8e+12 bytes` beyond.
+fn gb(bytes: f64) -> String {
+    format!(
+        "{} GB",
+        crate::fmt::num((bytes / 1e9 * 1000.0).round() / 1000.0)
+    )
+}
+
+/// Refuses (a usage error, exit 2) a request whose planned memory `bytes` exceeds the
+/// limit: `flag` names what the user gave (`--bootstrap 1e9`), `what` what it would
+/// allocate.
+pub fn check_memory(flag: &str, what: &str, bytes: f64) -> Result<()> {
+    let limit = memory_limit_bytes();
+    if bytes.is_finite() && bytes <= limit {
+        return Ok(());
+    }
+    let default = match LIMIT_GB.get() {
+        Some(_) => String::new(),
+        None => format!(
+            " (the default: {} % of this machine's {})",
+            (DEFAULT_MEMORY_SHARE * 100.0).round(),
+            physical_memory_bytes().map_or_else(|| "memory".to_string(), gb)
+        ),
+    };
+    Err(Error::Usage(format!(
+        "{flag}: {what} would need about {} bytes ({}) of memory, more than the memory limit of {}{default}; ask for less, or raise --memory-limit GB",
+        crate::fmt::num(bytes.round()),
+        gb(bytes),
+        gb(limit)
+    )))
+}
 
 /// Bytes a running fit holds per sample of its series (module doc).
 pub const FIT_BYTES_PER_SAMPLE: f64 = 96.0;
@@ -22,13 +107,15 @@ pub const FIT_BYTES_PER_SAMPLE: f64 = 96.0;
 pub const DEFAULT_BUDGET_GB: f64 = 0.75;
 
 /// The budget in bytes: `FARMA_MEMORY_GB` (a positive number of GB) or the default.
+/// Never above the memory limit ([`memory_limit_bytes`]).
 pub fn budget_bytes() -> f64 {
-    std::env::var("FARMA_MEMORY_GB")
+    (std::env::var("FARMA_MEMORY_GB")
         .ok()
         .and_then(|v| v.trim().parse::<f64>().ok())
         .filter(|g| g.is_finite() && *g > 0.0)
         .unwrap_or(DEFAULT_BUDGET_GB)
-        * 1e9
+        * 1e9)
+        .min(memory_limit_bytes())
 }
 
 /// Fits of `n` samples that may run at once within the budget: at least 1.

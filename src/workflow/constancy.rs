@@ -270,6 +270,15 @@ pub fn constancy_test(x: &[f64], prm: &ConstancyParams) -> Result<Constancy> {
         return Err(Error::Usage("--bootstrap must be at least 1".into()));
     }
     let n = x.len();
+    // the replicates' statistics (and the collection of them), and the fits in flight
+    crate::workflow::budget::check_memory(
+        &format!("--bootstrap {}", prm.bootstrap),
+        &format!("{} bootstrap replicates of {n} samples", prm.bootstrap),
+        16.0 * prm.bootstrap as f64
+            + rayon::current_num_threads() as f64
+                * crate::workflow::budget::FIT_BYTES_PER_SAMPLE
+                * n as f64,
+    )?;
     let mean = x.iter().sum::<f64>() / n as f64;
     let xc: Vec<f64> = x.iter().map(|v| v - mean).collect();
     let Glr {

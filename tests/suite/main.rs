@@ -5,12 +5,14 @@
 
 mod common;
 
+mod absurd_sizes;
 mod adev;
 mod analyze_channels;
 mod arrow_formats;
 mod bad_input;
 mod batch;
 mod csv_wide;
+mod deterministic_outputs;
 mod disk_full;
 mod estimator_multivariate;
 mod estimator_paths;
@@ -26,10 +28,12 @@ mod gcv_limit;
 mod ingest;
 mod input_kinds;
 mod noise_terms;
+mod output_commit;
 mod parquet_checksums;
 mod psd_acf;
 mod reports;
 mod simulate;
+mod simulate_blocks;
 mod spec;
 mod spec_examples;
 mod store_checksums;

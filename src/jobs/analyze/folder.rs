@@ -22,7 +22,8 @@ use crate::output::{OutputSet, batch};
 /// The folder of the channel folders under the output folder.
 pub const CHANNELS_DIR: &str = "channels";
 /// A channel folder's marker: the channel is done (JSON: channel, options hash, data
-/// hash, log fingerprint, time).
+/// hash, log fingerprint, farma version; no time, so that two identical runs write
+/// identical folders).
 pub const MARKER: &str = "done.json";
 /// A channel folder's summary text.
 pub const SUMMARY: &str = "summary.txt";
@@ -93,7 +94,9 @@ pub struct Marker {
 }
 
 impl Marker {
-    fn to_json(&self, secs: f64) -> String {
+    /// The marker's JSON: what [`Marker::read`] compares, no time (two identical runs
+    /// write identical markers; the timings go to stderr).
+    fn to_json(&self) -> String {
         json!({
             "channel": self.channel,
             "options_hash": self.options_hash,
@@ -102,8 +105,6 @@ impl Marker {
             "log_mtime_ns": self.log.mtime_ns,
             "log_hash": self.log.head_tail_hash,
             "farma_version": env!("CARGO_PKG_VERSION"),
-            "finished": crate::log::utc_stamp(std::time::SystemTime::now()),
-            "secs": secs,
         })
         .to_string()
             + "\n"
@@ -128,6 +129,11 @@ impl Marker {
     /// Whether `dir` holds this channel's results: its marker equals this one and
     /// every file of the folder is there.
     pub fn matches(&self, dir: &Path) -> bool {
+        // a commit stopped half way is completed first (a folder that cannot be
+        // settled is redone)
+        if crate::output::settle(dir).is_err() {
+            return false;
+        }
         Marker::read(&dir.join(MARKER)).is_some_and(|m| m == *self)
             && channel_files().iter().all(|f| dir.join(f).is_file())
     }
@@ -145,7 +151,7 @@ pub struct ChannelFiles<'a> {
 
 /// Commits a channel's files into `dir`: the old marker removed, the files renamed
 /// into place as one set, the marker written last.
-pub fn commit_channel(dir: &Path, files: ChannelFiles, marker: &Marker, secs: f64) -> Result<()> {
+pub fn commit_channel(dir: &Path, files: ChannelFiles, marker: &Marker) -> Result<()> {
     let m = dir.join(MARKER);
     if m.exists() {
         std::fs::remove_file(&m).map_err(|e| Error::output_io(&m, e))?;
@@ -162,7 +168,7 @@ pub fn commit_channel(dir: &Path, files: ChannelFiles, marker: &Marker, secs: f6
     let names = channel_files();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     super::super::commit_outputs(set, &names)?;
-    crate::output::write_text(&m, &marker.to_json(secs))
+    crate::output::write_text(&m, &marker.to_json())
 }
 
 /// Reads the Parquet file at `path` as one batch.

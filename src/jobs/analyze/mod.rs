@@ -336,6 +336,9 @@ impl AnalyzeJob {
         let fp = crate::batch::units::fingerprint(&self.log)?;
         let md = super::source_metadata(&self.log, store)?;
         OutputSet::check(&self.output)?;
+        // the folder is this run's until it ends: a second run into it is refused
+        crate::output::ensure_dir(&self.output)?;
+        let _lock = crate::output::lock_dir(&self.output)?;
         // each channel's marker, and whether an earlier run's folder is kept (said in
         // channel order, before the work)
         let markers: Vec<(Marker, bool)> = chans
@@ -396,14 +399,14 @@ impl AnalyzeJob {
             }
             set.parquet(&format!("{t}.parquet"), &table, &md)?;
         }
-        let secs = t0.elapsed().as_secs_f64();
+        // no timing in the files: two identical runs write byte-identical folders
+        // (the elapsed time goes to stderr, `AnalyzeDone::secs`)
         let mut text = format!(
-            "farma analyze {} ({} channel(s), {} samples at {} Hz; {:.2} s)\n",
+            "farma analyze {} ({} channel(s), {} samples at {} Hz)\n",
             self.log.display(),
             chans.len(),
             store.n_samples(),
             rate,
-            secs
         );
         let width = verdicts.iter().map(|v| v.channel.len()).max().unwrap_or(0);
         text += &format!("\n== verdict (alpha {})\n", crate::workflow::ALPHA);
@@ -437,7 +440,7 @@ impl AnalyzeJob {
                 .collect(),
             verdicts,
             text,
-            secs,
+            secs: t0.elapsed().as_secs_f64(),
         })
     }
 
@@ -480,7 +483,7 @@ impl AnalyzeJob {
         let r = analyze_channel(c.clone(), prm).and_then(|a| {
             let v = Verdict::of(&a);
             let files = self.channel_files(&a, &v, store, md)?;
-            folder::commit_channel(&dir, files, marker, t.elapsed().as_secs_f64())?;
+            folder::commit_channel(&dir, files, marker)?;
             Ok(v)
         });
         match &r {

@@ -20,6 +20,7 @@ use crate::model::{Coef, Farma, Order};
 impl ModelDir {
     /// The channels fitted, in the order of params.parquet.
     pub fn channels(&self) -> Result<Vec<String>> {
+        crate::output::settle(self.path())?;
         let pp = self.params_path();
         strings(&read_all(&pp)?, "channel", &pp)
     }
@@ -57,6 +58,7 @@ impl ModelDir {
     /// missing column, d = 0, non-finite values, a `b` whose length is not q, an f_m
     /// without rows, a repeated grid point, grids that differ between the f_m.
     pub fn load(&self, channel: Option<&str>) -> Result<(String, Farma)> {
+        crate::output::settle(self.path())?;
         let params_path = self.params_path();
         let coef_path = self.coef_path();
         let params = read_all(&params_path)?;

@@ -34,8 +34,8 @@ use super::spec::{Component, FarmaModel, Kind, Spec};
 use crate::error::{Error, Result};
 use crate::model::Farma;
 use crate::model::folder::ModelDir;
-use recursion::{Coefs, FARMA_BURN_IN, Recursion, add_recursion, arma_burn_in};
-use streams::{MAX_SAMPLES, StreamKey};
+use recursion::{Coefs, FARMA_BURN_IN, RecState, Recursion, add_recursion_from, arma_burn_in};
+use streams::{CHUNK, MAX_SAMPLES, StreamKey};
 
 /// Seed used when neither the request nor the spec gives one.
 pub const DEFAULT_SEED: u64 = 0;
@@ -123,9 +123,11 @@ impl<'a> Simulator<'a> {
         let fs = req.sample_rate_hz;
         if !(fs.is_finite() && fs > 0.0) {
             return Err(Error::Usage(format!(
-                "sample rate must be > 0 Hz, found {fs}"
+                "sample rate must be > 0 Hz, found {}",
+                crate::fmt::num(fs)
             )));
         }
+        spec.check_simulable(fs).map_err(Error::Usage)?;
         if req.n_samples == 0 {
             return Err(Error::Usage("nothing to simulate: 0 samples".into()));
         }
@@ -222,22 +224,36 @@ impl<'a> Simulator<'a> {
                     comp.kind()
                 );
                 match comp {
+                    Component::Farma(FarmaModel::Inline { p, d, q, .. }) => {
+                        // the recursion keeps max(p, d) past values and q innovations
+                        crate::workflow::budget::check_memory(
+                            &format!("{place}: 'd' = {d}"),
+                            "the recursion's state of max(p, d) + q past values",
+                            8.0 * ((*p).max(*d) as f64 + *q as f64),
+                        )?;
+                    }
                     Component::Sinusoid { freq_hz, .. } if *freq_hz >= fs / 2.0 => {
                         return Err(Error::Usage(format!(
-                            "{place}: freq_hz = {freq_hz} is not below the Nyquist frequency {} Hz of the {fs} Hz simulation",
-                            fs / 2.0
+                            "{place}: freq_hz = {} is not below the Nyquist frequency {} Hz of the {} Hz simulation",
+                            crate::fmt::num(*freq_hz),
+                            crate::fmt::num(fs / 2.0),
+                            crate::fmt::num(fs)
                         )));
                     }
                     Component::Outliers { rate_hz, .. } if *rate_hz > fs => {
                         return Err(Error::Usage(format!(
-                            "{place}: rate_hz = {rate_hz} exceeds the sample rate {fs} Hz"
+                            "{place}: rate_hz = {} exceeds the sample rate {} Hz",
+                            crate::fmt::num(*rate_hz),
+                            crate::fmt::num(fs)
                         )));
                     }
                     Component::BiasInstability { .. } => {
                         let (lo, hi) = bi_bounds(comp, req.n_samples, fs);
                         if !(lo > 0.0 && hi > lo) {
                             return Err(Error::Usage(format!(
-                                "{place}: the flicker bounds tau_min_s = {lo} s, tau_max_s = {hi} s are not 0 < min < max (the defaults are 1 / sample rate and the duration)"
+                                "{place}: the flicker bounds tau_min_s = {} s, tau_max_s = {} s are not 0 < min < max (the defaults are 1 / sample rate and the duration)",
+                                crate::fmt::num(lo),
+                                crate::fmt::num(hi)
                             )));
                         }
                         let k = markov::bias_instability_bank(1.0, lo, hi).processes.len();
@@ -380,35 +396,95 @@ impl<'a> Simulator<'a> {
 
     /// A component that is neither heteroskedastic nor cross_axis.
     fn add_plain(&self, channel: usize, component: usize, out: &mut [f64]) -> Result<()> {
+        let mut st = self.new_state(channel, component);
+        self.add_plain_block(channel, component, out, 0, &mut st)
+    }
+
+    /// "channel 'NAME' component K (KIND)".
+    fn what(&self, channel: usize, component: usize) -> String {
+        let ch = &self.spec.channels[channel];
+        format!(
+            "channel '{}' component {} ({})",
+            ch.name,
+            component + 1,
+            ch.components[component].kind()
+        )
+    }
+
+    /// The state of a plain component before its first block.
+    fn new_state(&self, channel: usize, component: usize) -> CompState {
+        let comp = &self.spec.channels[channel].components[component];
+        let fs = self.req.sample_rate_hz;
+        let key = self.key(channel, component);
+        match comp {
+            Component::Quantization { q } => {
+                CompState::Quantization(noise::quantization_init(*q, &key))
+            }
+            Component::BiasInstability { b, .. } => {
+                let (lo, hi) = bi_bounds(comp, self.req.n_samples, fs);
+                CompState::Ar1(markov::bias_instability_comp(*b, lo, hi, fs, &key))
+            }
+            Component::RateRandomWalk { k } => {
+                CompState::Ar1(markov::rate_random_walk_comp(*k, fs))
+            }
+            Component::GaussMarkov { sigma, tau_s } => {
+                CompState::Ar1(markov::gauss_markov_comp(*sigma, *tau_s, fs, &key))
+            }
+            Component::Arma { .. } | Component::Farma(_) => {
+                CompState::Recursion(RecState::default())
+            }
+            Component::ThermalRate { smoothing_s, .. } => match self.req.temperature_c {
+                Some(t) => CompState::Thermal(thermal::smooth(
+                    t,
+                    thermal::smoothing_half_width(*smoothing_s, fs),
+                )),
+                None => CompState::Stateless,
+            },
+            _ => CompState::Stateless,
+        }
+    }
+
+    /// Adds the block of `out.len()` samples from sample `start` (a multiple of
+    /// [`CHUNK`]) of a plain component to `out`, its state carried in `st`; the
+    /// sum is then checked: a non-finite value is an error naming the component.
+    fn add_plain_block(
+        &self,
+        channel: usize,
+        component: usize,
+        out: &mut [f64],
+        start: usize,
+        st: &mut CompState,
+    ) -> Result<()> {
         let ch = &self.spec.channels[channel];
         let comp = &ch.components[component];
         let fs = self.req.sample_rate_hz;
         let key = self.key(channel, component);
-        let what = format!(
-            "channel '{}' component {} ({})",
-            ch.name,
-            component + 1,
-            comp.kind()
-        );
-        match comp {
-            Component::ConstantBias { value } => deterministic::constant_bias(out, *value),
-            Component::WhiteNoise { n } => noise::white_noise(out, *n, fs, &key),
-            Component::Quantization { q } => noise::quantization(out, *q, fs, &key),
-            Component::BiasInstability { b, .. } => {
-                let (lo, hi) = bi_bounds(comp, self.req.n_samples, fs);
-                markov::bias_instability(out, *b, lo, hi, fs, &key)
+        let what = self.what(channel, component);
+        debug_assert_eq!(start % CHUNK, 0);
+        let c0 = (start / CHUNK) as u64;
+        let len = out.len();
+        match (comp, st) {
+            (Component::ConstantBias { value }, _) => deterministic::constant_bias(out, *value),
+            (Component::WhiteNoise { n }, _) => noise::white_noise_from(out, *n, fs, &key, c0),
+            (Component::Quantization { q }, CompState::Quantization(prev)) => {
+                noise::quantization_from(out, *q, fs, &key, c0, prev)
             }
-            Component::RateRandomWalk { k } => markov::rate_random_walk(out, *k, fs, &key),
-            Component::RateRamp { r } => deterministic::rate_ramp(out, *r, fs),
-            Component::GaussMarkov { sigma, tau_s } => {
-                markov::gauss_markov(out, *sigma, *tau_s, fs, &key)
-            }
-            Component::Sinusoid {
-                amplitude,
-                freq_hz,
-                phase_rad,
-            } => deterministic::sinusoid(out, *amplitude, *freq_hz, *phase_rad, fs),
-            Component::Arma { ar, ma, sigma } => {
+            (
+                Component::BiasInstability { .. }
+                | Component::RateRandomWalk { .. }
+                | Component::GaussMarkov { .. },
+                CompState::Ar1(a),
+            ) => a.add_block(out, &key, c0),
+            (Component::RateRamp { r }, _) => deterministic::rate_ramp(out, *r, fs, start),
+            (
+                Component::Sinusoid {
+                    amplitude,
+                    freq_hz,
+                    phase_rad,
+                },
+                _,
+            ) => deterministic::sinusoid(out, *amplitude, *freq_hz, *phase_rad, fs, start),
+            (Component::Arma { ar, ma, sigma }, CompState::Recursion(rs)) => {
                 let r = Recursion {
                     p: ar.len(),
                     d: 1,
@@ -416,11 +492,15 @@ impl<'a> Simulator<'a> {
                     ma,
                     sigma: *sigma,
                 };
-                add_recursion(out, &r, arma_burn_in(ar, ma.len()), 0.0, &key, &what)?
+                let burn = arma_burn_in(ar, ma.len());
+                add_recursion_from(out, &r, burn, 0.0, &key, &what, c0, rs)?
             }
-            Component::Farma(FarmaModel::Inline {
-                p, d, f, ma, sigma, ..
-            }) => {
+            (
+                Component::Farma(FarmaModel::Inline {
+                    p, d, f, ma, sigma, ..
+                }),
+                CompState::Recursion(rs),
+            ) => {
                 let r = Recursion {
                     p: *p,
                     d: *d,
@@ -428,9 +508,9 @@ impl<'a> Simulator<'a> {
                     ma,
                     sigma: *sigma,
                 };
-                add_recursion(out, &r, FARMA_BURN_IN, 0.0, &key, &what)?
+                add_recursion_from(out, &r, FARMA_BURN_IN, 0.0, &key, &what, c0, rs)?
             }
-            Component::Farma(FarmaModel::Fitted { .. }) => {
+            (Component::Farma(FarmaModel::Fitted { .. }), CompState::Recursion(rs)) => {
                 let m = self
                     .saved
                     .get(&(channel, component))
@@ -442,37 +522,71 @@ impl<'a> Simulator<'a> {
                     ma: &m.b,
                     sigma: m.sigma2.sqrt(),
                 };
-                add_recursion(out, &r, FARMA_BURN_IN, m.mean, &key, &what)?
+                add_recursion_from(out, &r, FARMA_BURN_IN, m.mean, &key, &what, c0, rs)?
             }
-            Component::TemperatureBias {
-                coeffs,
-                reference_c,
-            } => {
+            (
+                Component::TemperatureBias {
+                    coeffs,
+                    reference_c,
+                },
+                _,
+            ) => {
                 let (t, mean) = self.temperature()?;
+                let t = &t[start..start + len];
                 thermal::temperature_bias(out, coeffs, reference_c.unwrap_or(mean), t)
             }
-            Component::ThermalRate { coeff, smoothing_s } => {
-                let (t, _) = self.temperature()?;
-                thermal::thermal_rate(out, *coeff, *smoothing_s, fs, t)
+            (Component::ThermalRate { coeff, .. }, CompState::Thermal(smoothed)) => {
+                thermal::thermal_rate_from(out, *coeff, fs, smoothed, start)
             }
-            Component::Warmup { amplitude, tau_s } => {
-                deterministic::warmup(out, *amplitude, *tau_s, fs)
+            (Component::ThermalRate { .. }, _) => {
+                self.temperature()?;
             }
-            Component::Outliers { rate_hz, scale } => {
-                noise::outliers(out, *rate_hz, *scale, fs, &key)
+            (Component::Warmup { amplitude, tau_s }, _) => {
+                deterministic::warmup(out, *amplitude, *tau_s, fs, start)
             }
-            Component::Heteroskedastic { .. } | Component::CrossAxis { .. } => {
+            (Component::Outliers { rate_hz, scale }, _) => {
+                noise::outliers_from(out, *rate_hz, *scale, fs, &key, c0)
+            }
+            (Component::Heteroskedastic { .. } | Component::CrossAxis { .. }, _) => {
                 return Err(Error::Internal(format!("{what}: not a plain component")));
             }
+            _ => return Err(Error::Internal(format!("{what}: state of another kind"))),
         }
-        Ok(())
+        self.finite(out, start, &what)
+    }
+
+    /// An error naming `what` (the component, or the sum it was added to) when `out`
+    /// (samples from `start`) holds a non-finite value: no NaN or Inf is written.
+    fn finite(&self, out: &[f64], start: usize, what: &str) -> Result<()> {
+        match out.iter().position(|v| !v.is_finite()) {
+            None => Ok(()),
+            Some(j) => Err(Error::Usage(format!(
+                "{what} gives a non-finite value ({}) at sample {} (t = {} s): its parameters are beyond the range of f64 for this sample rate and duration",
+                out[j],
+                start + j,
+                crate::fmt::num((start + j) as f64 / self.req.sample_rate_hz)
+            ))),
+        }
     }
 
     /// A channel's own signal: the sum of its components other than cross_axis
     /// (heteroskedastic terms added last, after the signals they modulate).
     pub fn own_signal(&self, channel: usize) -> Result<Vec<f64>> {
+        let mut states = HashMap::new();
+        self.own_signal_block(channel, 0, self.req.n_samples, &mut states)
+    }
+
+    /// The block of `len` samples from sample `start` of [`Simulator::own_signal`],
+    /// the components' states carried in `states` (by component index).
+    fn own_signal_block(
+        &self,
+        channel: usize,
+        start: usize,
+        len: usize,
+        states: &mut HashMap<(usize, usize), CompState>,
+    ) -> Result<Vec<f64>> {
         let ch = &self.spec.channels[channel];
-        let mut out = vec![0.0; self.req.n_samples];
+        let mut out = vec![0.0; len];
         let modulated: Vec<Kind> = ch
             .components
             .iter()
@@ -486,31 +600,36 @@ impl<'a> Simulator<'a> {
         for (k, comp) in ch.components.iter().enumerate() {
             match comp {
                 Component::CrossAxis { .. } | Component::Heteroskedastic { .. } => {}
-                c if modulated.contains(&c.kind()) => {
-                    let base = bases
-                        .entry(c.kind())
-                        .or_insert_with(|| vec![0.0; out.len()]);
-                    self.add_plain(channel, k, base)?;
+                c => {
+                    let st = states
+                        .entry((channel, k))
+                        .or_insert_with(|| self.new_state(channel, k));
+                    if modulated.contains(&c.kind()) {
+                        let base = bases.entry(c.kind()).or_insert_with(|| vec![0.0; len]);
+                        self.add_plain_block(channel, k, base, start, st)?;
+                    } else {
+                        self.add_plain_block(channel, k, &mut out, start, st)?;
+                    }
                 }
-                _ => self.add_plain(channel, k, &mut out)?,
             }
         }
-        for comp in &ch.components {
+        for (k, comp) in ch.components.iter().enumerate() {
             if let Component::Heteroskedastic { of, slope } = comp {
                 let (t, tref) = self.temperature()?;
-                let s = thermal::scale(*slope, tref, t);
+                let s = thermal::scale(*slope, tref, &t[start..start + len]);
                 let base = &bases[of];
                 for ((o, b), s) in out.iter_mut().zip(base).zip(&s) {
                     *o += s * b;
                 }
+                self.finite(&out, start, &self.what(channel, k))?;
             }
         }
         Ok(out)
     }
 
-    /// Simulates the requested channels (own signal plus cross-axis couplings).
-    pub fn run(&self) -> Result<Simulated> {
-        let wanted: Vec<usize> = match &self.req.channels {
+    /// The channels simulated (spec indices, in spec order).
+    fn wanted(&self) -> Result<Vec<usize>> {
+        Ok(match &self.req.channels {
             None => (0..self.spec.channels.len()).collect(),
             Some(names) => {
                 let mut idx: Vec<usize> = names
@@ -521,7 +640,25 @@ impl<'a> Simulator<'a> {
                 idx.dedup();
                 idx
             }
-        };
+        })
+    }
+
+    /// The names of the channels simulated, in the order of [`Simulated::channels`]
+    /// and of [`Blocks::next_block`]'s columns.
+    pub fn channel_names(&self) -> Result<Vec<String>> {
+        Ok(self
+            .wanted()?
+            .into_iter()
+            .map(|ci| self.spec.channels[ci].name.clone())
+            .collect())
+    }
+
+    /// The simulation by blocks of `block` samples (rounded up to a whole number of
+    /// [`CHUNK`]s): each block is what [`Simulator::run`] gives for those samples, bit
+    /// for bit, and the memory held is that of a block (and of thermal_rate's smoothed
+    /// temperature), not of the whole series.
+    pub fn blocks(&self, block: usize) -> Result<Blocks<'_, 'a>> {
+        let wanted = self.wanted()?;
         // Own signals of every channel needed (wanted ones and cross-axis sources).
         let mut needed: Vec<usize> = wanted.clone();
         for &ci in &wanted {
@@ -533,23 +670,32 @@ impl<'a> Simulator<'a> {
         }
         needed.sort_unstable();
         needed.dedup();
-        let mut own: HashMap<usize, Vec<f64>> = HashMap::new();
-        for &ci in &needed {
-            own.insert(ci, self.own_signal(ci)?);
-        }
-        let mut channels = Vec::with_capacity(wanted.len());
-        for &ci in &wanted {
-            let ch = &self.spec.channels[ci];
-            let mut v = own[&ci].clone();
-            for c in &ch.components {
-                if let Component::CrossAxis { from, gain } = c {
-                    let src = &own[&self.channel_index(from)?];
-                    for (o, s) in v.iter_mut().zip(src) {
-                        *o += gain * s;
-                    }
+        Ok(Blocks {
+            sim: self,
+            block: block.max(1).div_ceil(CHUNK) * CHUNK,
+            next: 0,
+            wanted,
+            needed,
+            states: HashMap::new(),
+        })
+    }
+
+    /// Simulates the requested channels (own signal plus cross-axis couplings).
+    pub fn run(&self) -> Result<Simulated> {
+        let mut blocks = self.blocks(self.req.n_samples)?;
+        let mut channels: Vec<(String, Vec<f64>)> = self
+            .channel_names()?
+            .into_iter()
+            .map(|n| (n, Vec::new()))
+            .collect();
+        while let Some((_, cols)) = blocks.next_block()? {
+            for ((_, v), c) in channels.iter_mut().zip(cols) {
+                if v.is_empty() {
+                    *v = c;
+                } else {
+                    v.extend_from_slice(&c);
                 }
             }
-            channels.push((ch.name.clone(), v));
         }
         Ok(Simulated {
             sample_rate_hz: self.req.sample_rate_hz,
@@ -557,6 +703,69 @@ impl<'a> Simulator<'a> {
             replica: self.req.replica,
             channels,
         })
+    }
+}
+
+/// The state a plain component carries from one block to the next.
+pub enum CompState {
+    Stateless,
+    /// quantization: the angle error before the block.
+    Quantization(f64),
+    /// gauss_markov, rate_random_walk, bias_instability.
+    Ar1(markov::Ar1Comp),
+    /// arma, farma.
+    Recursion(RecState),
+    /// thermal_rate: the whole smoothed temperature.
+    Thermal(Vec<f64>),
+}
+
+/// A simulation generated block by block ([`Simulator::blocks`]).
+pub struct Blocks<'s, 'a> {
+    sim: &'s Simulator<'a>,
+    block: usize,
+    next: usize,
+    wanted: Vec<usize>,
+    needed: Vec<usize>,
+    states: HashMap<(usize, usize), CompState>,
+}
+
+impl Blocks<'_, '_> {
+    /// Samples per block (a multiple of [`CHUNK`]).
+    pub fn block_len(&self) -> usize {
+        self.block
+    }
+
+    /// The next block: its first sample and the values of every simulated channel
+    /// ([`Simulator::channel_names`]' order); `None` after the last.
+    pub fn next_block(&mut self) -> Result<Option<(usize, Vec<Vec<f64>>)>> {
+        let sim = self.sim;
+        let n = sim.req.n_samples;
+        if self.next >= n {
+            return Ok(None);
+        }
+        let start = self.next;
+        let len = self.block.min(n - start);
+        let mut own: HashMap<usize, Vec<f64>> = HashMap::new();
+        for &ci in &self.needed {
+            own.insert(ci, sim.own_signal_block(ci, start, len, &mut self.states)?);
+        }
+        let mut cols = Vec::with_capacity(self.wanted.len());
+        for &ci in &self.wanted {
+            let ch = &sim.spec.channels[ci];
+            let mut v = own[&ci].clone();
+            for (k, c) in ch.components.iter().enumerate() {
+                if let Component::CrossAxis { from, gain } = c {
+                    let src = &own[&sim.channel_index(from)?];
+                    for (o, s) in v.iter_mut().zip(src) {
+                        *o += gain * s;
+                    }
+                    sim.finite(&v, start, &sim.what(ci, k))?;
+                }
+            }
+            cols.push(v);
+        }
+        self.next = start + len;
+        Ok(Some((start, cols)))
     }
 }
 

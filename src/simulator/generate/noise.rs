@@ -6,7 +6,7 @@ use rand::Rng;
 use rand_distr::{Distribution, Geometric, StandardNormal};
 use rayon::prelude::*;
 
-use super::streams::{CHUNK, StreamKey, for_chunks};
+use super::streams::{CHUNK, StreamKey, for_chunks_from};
 
 /// white_noise: white rate noise with IEEE Std 952 angle random walk coefficient `n`
 /// [u sqrt(s)]: one-sided PSD n^2, so each sample (an average over dt = 1/rate_hz) has
@@ -14,8 +14,13 @@ use super::streams::{CHUNK, StreamKey, for_chunks};
 /// exactly at every tau = m dt (IEEE Std 952-1997 Annex C, eq. C.13 with the rate
 /// sample being the average rate over dt).
 pub fn white_noise(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey) {
+    white_noise_from(out, n, rate_hz, key, 0)
+}
+
+/// [`white_noise`] for a block starting at sample `c0 * CHUNK` of the series.
+pub fn white_noise_from(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey, c0: u64) {
     let sd = n * rate_hz.sqrt();
-    for_chunks(out, |c, s| {
+    for_chunks_from(out, c0, |c, s| {
         let mut rng = key.rng(0, c);
         for v in s.iter_mut() {
             let w: f64 = StandardNormal.sample(&mut rng);
@@ -33,15 +38,38 @@ pub fn white_noise(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey) {
 /// sum_k rate_k dt = e_k - e_{-1} stays within one quantum. e_{-1} is drawn from the
 /// initial-state stream.
 pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
+    let mut prev = quantization_init(q, key);
+    quantization_from(out, q, rate_hz, key, 0, &mut prev);
+}
+
+/// The angle error e_{-1} before the first sample of [`quantization`].
+pub fn quantization_init(q: f64, key: &StreamKey) -> f64 {
+    12f64.sqrt() * q * (key.init_rng(0).random::<f64>() - 0.5)
+}
+
+/// [`quantization`] for a block starting at sample `c0 * CHUNK`: `prev` holds the
+/// angle error before the block ([`quantization_init`] for the first) and is left
+/// holding the block's last.
+pub fn quantization_from(
+    out: &mut [f64],
+    q: f64,
+    rate_hz: f64,
+    key: &StreamKey,
+    c0: u64,
+    prev: &mut f64,
+) {
+    if out.is_empty() {
+        return;
+    }
     let quantum = 12f64.sqrt() * q;
     let mut e = vec![0.0; out.len()];
-    for_chunks(&mut e, |c, s| {
+    for_chunks_from(&mut e, c0, |c, s| {
         let mut rng = key.rng(0, c);
         for v in s.iter_mut() {
             *v = quantum * (rng.random::<f64>() - 0.5);
         }
     });
-    let e_init = quantum * (key.init_rng(0).random::<f64>() - 0.5);
+    let e_init = *prev;
     let e = &e;
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, s)| {
         let base = c * CHUNK;
@@ -51,6 +79,7 @@ pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
             *v += (e[k] - prev) * rate_hz;
         }
     });
+    *prev = e[e.len() - 1];
 }
 
 /// outliers: at each sample, with probability rate_hz / sample_rate_hz independently
@@ -58,12 +87,26 @@ pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
 /// scale * N(0, 1) \[u\] is added. Positions come from geometric gaps drawn per chunk
 /// (memoryless, so restarting at each chunk start is exact).
 pub fn outliers(out: &mut [f64], rate_hz: f64, scale: f64, sample_rate_hz: f64, key: &StreamKey) {
+    outliers_from(out, rate_hz, scale, sample_rate_hz, key, 0)
+}
+
+/// [`outliers`] for a block starting at sample `c0 * CHUNK` of the series.
+pub fn outliers_from(
+    out: &mut [f64],
+    rate_hz: f64,
+    scale: f64,
+    sample_rate_hz: f64,
+    key: &StreamKey,
+    c0: u64,
+) {
     let p = (rate_hz / sample_rate_hz).min(1.0);
     if p <= 0.0 {
         return;
     }
-    let gaps = Geometric::new(p).expect("0 < p <= 1");
-    for_chunks(out, |c, s| {
+    let Ok(gaps) = Geometric::new(p) else {
+        return; // p is in (0, 1] for every valid spec
+    };
+    for_chunks_from(out, c0, |c, s| {
         let mut rng = key.rng(0, c);
         let mut pos = gaps.sample(&mut rng);
         while (pos as usize) < s.len() {

@@ -9,7 +9,7 @@
 //! for ARMA the burn-in lasts until the AR impulse response has decayed below 1e-12
 //! (at least 100, at most 1,000,000 samples); for FARMA 10,000 samples.
 
-use super::streams::{StreamKey, for_chunks, normals};
+use super::streams::{StreamKey, for_chunks_from, normals};
 use crate::error::{Error, Result};
 use crate::model::Farma;
 
@@ -104,6 +104,15 @@ fn recurse(buf: &mut [f64], r: &Recursion, xs: &mut [f64], es: &mut [f64]) -> Re
     Ok(())
 }
 
+/// The state of a recursion carried from block to block: the last x (newest first)
+/// and e, and whether the burn-in has run.
+#[derive(Debug, Clone, Default)]
+pub struct RecState {
+    xs: Vec<f64>,
+    es: Vec<f64>,
+    started: bool,
+}
+
 /// Adds the recursion's output to `out`. `what` names the component in errors.
 pub fn add_recursion(
     out: &mut [f64],
@@ -113,27 +122,58 @@ pub fn add_recursion(
     key: &StreamKey,
     what: &str,
 ) -> Result<()> {
+    add_recursion_from(
+        out,
+        r,
+        burn_in,
+        offset,
+        key,
+        what,
+        0,
+        &mut RecState::default(),
+    )
+}
+
+/// [`add_recursion`] for a block starting at sample `c0 * CHUNK` of the series, the
+/// recursion's state carried in `state` (a default one for the first block, which
+/// runs the burn-in).
+#[allow(clippy::too_many_arguments)]
+pub fn add_recursion_from(
+    out: &mut [f64],
+    r: &Recursion,
+    burn_in: usize,
+    offset: f64,
+    key: &StreamKey,
+    what: &str,
+    c0: u64,
+    state: &mut RecState,
+) -> Result<()> {
     use rand_distr::{Distribution, StandardNormal};
     let sigma = r.sigma;
     let mut buf = vec![0.0; out.len()];
-    for_chunks(&mut buf, |c, s| {
+    for_chunks_from(&mut buf, c0, |c, s| {
         let mut rng = key.rng(0, c);
         for v in s.iter_mut() {
             let w: f64 = StandardNormal.sample(&mut rng);
             *v = sigma * w;
         }
     });
-    let mut xs = vec![0.0; r.p.max(r.d)];
-    let mut es = vec![0.0; r.ma.len()];
-    let mut burn: Vec<f64> = normals(&mut key.init_rng(0), burn_in);
-    burn.iter_mut().for_each(|v| *v *= sigma);
     let diverged = |t: usize, during: &str| {
         Error::Usage(format!(
             "{what}: the recursion diverged {during} sample {t} (|x| reached 1e150); the AR part or the f_m make it unstable"
         ))
     };
-    recurse(&mut burn, r, &mut xs, &mut es).map_err(|t| diverged(t, "in the burn-in, at"))?;
-    recurse(&mut buf, r, &mut xs, &mut es).map_err(|t| diverged(t, "at"))?;
+    if !state.started {
+        state.xs = vec![0.0; r.p.max(r.d)];
+        state.es = vec![0.0; r.ma.len()];
+        let mut burn: Vec<f64> = normals(&mut key.init_rng(0), burn_in);
+        burn.iter_mut().for_each(|v| *v *= sigma);
+        recurse(&mut burn, r, &mut state.xs, &mut state.es)
+            .map_err(|t| diverged(t, "in the burn-in, at"))?;
+        state.started = true;
+    }
+    let start = c0 as usize * super::streams::CHUNK;
+    recurse(&mut buf, r, &mut state.xs, &mut state.es).map_err(|t| diverged(start + t, "at"))?;
     for (o, x) in out.iter_mut().zip(&buf) {
         *o += x + offset;
     }

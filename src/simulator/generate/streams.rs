@@ -83,9 +83,15 @@ impl StreamKey {
 
 /// Calls `f(chunk_index, chunk)` for every fixed-size chunk of `out`, in parallel.
 pub fn for_chunks(out: &mut [f64], f: impl Fn(u64, &mut [f64]) + Sync) {
+    for_chunks_from(out, 0, f)
+}
+
+/// [`for_chunks`] for a block of a longer series whose first sample is sample
+/// `c0 * CHUNK`: the chunk indices given to `f` are the series' (`c0` and on).
+pub fn for_chunks_from(out: &mut [f64], c0: u64, f: impl Fn(u64, &mut [f64]) + Sync) {
     out.par_chunks_mut(CHUNK)
         .enumerate()
-        .for_each(|(c, s)| f(c as u64, s));
+        .for_each(|(c, s)| f(c0 + c as u64, s));
 }
 
 /// One first-order recursion x_t = phi x_{t-1} + gain w_t (w_t standard normal) of a
@@ -110,6 +116,17 @@ pub struct Ar1 {
 /// Linearity makes the sum exactly the sequential recursion up to rounding, and the
 /// fixed chunking makes the rounding independent of the thread count.
 pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
+    let mut x: Vec<f64> = bank.iter().map(|ar| ar.x_init).collect();
+    ar1_bank_from(out, bank, key, 0, &mut x);
+}
+
+/// [`ar1_bank`] for a block of a longer series whose first sample is sample
+/// `c0 * CHUNK`: `x` holds each recursion's state before the block (its `x_init` for
+/// the first block; the `x_init` of `bank` is not used) and is left holding the state
+/// after it. Blocks of whole chunks give the whole series' values bit for bit: the
+/// chunks draw from the same streams and the carry runs through the same sequence
+/// of operations.
+pub fn ar1_bank_from(out: &mut [f64], bank: &[Ar1], key: &StreamKey, c0: u64, x: &mut [f64]) {
     use rand_distr::{Distribution, StandardNormal};
     let n_chunks = out.len().div_ceil(CHUNK);
     let k = bank.len();
@@ -120,7 +137,7 @@ pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
         .zip(ends.par_chunks_mut(k.max(1)))
         .enumerate()
         .for_each(|(c, (s, end))| {
-            let mut rngs: Vec<ChaCha8Rng> = (0..k).map(|i| key.rng(i, c as u64)).collect();
+            let mut rngs: Vec<ChaCha8Rng> = (0..k).map(|i| key.rng(i, c0 + c as u64)).collect();
             let y = end;
             y.iter_mut().for_each(|v| *v = 0.0);
             for v in s.iter_mut() {
@@ -137,12 +154,13 @@ pub fn ar1_bank(out: &mut [f64], bank: &[Ar1], key: &StreamKey) {
     // Phase 2: the state before each chunk, sequentially.
     let mut starts = vec![0.0; n_chunks * k];
     for (i, ar) in bank.iter().enumerate() {
-        let mut x = ar.x_init;
+        let mut xi = x[i];
         for c in 0..n_chunks {
-            starts[c * k + i] = x;
+            starts[c * k + i] = xi;
             let len = CHUNK.min(out.len() - c * CHUNK);
-            x = ar.phi.powi(len as i32) * x + ends[c * k + i];
+            xi = ar.phi.powi(len as i32) * xi + ends[c * k + i];
         }
+        x[i] = xi;
     }
     // Phase 3: add the homogeneous part phi^(j+1) x_start + prev phi^j x_start (bank
     // order, zero starts skipped).
@@ -234,6 +252,15 @@ mod tests {
         let mut fast = vec![0.0; n];
         ar1_bank(&mut fast, &bank, &key);
         let slow = sequential(n, &bank, &key);
+        // by blocks of 1 and 2 chunks with the carried state: the same bits
+        for block in [CHUNK, 2 * CHUNK] {
+            let mut blocks = vec![0.0; n];
+            let mut x: Vec<f64> = bank.iter().map(|a| a.x_init).collect();
+            for (b, s) in blocks.chunks_mut(block).enumerate() {
+                ar1_bank_from(s, &bank, &key, (b * block / CHUNK) as u64, &mut x);
+            }
+            assert!(blocks == fast, "blocks of {block}");
+        }
         for (t, (a, b)) in fast.iter().zip(&slow).enumerate() {
             assert!(
                 (a - b).abs() <= 1e-11 * (1.0 + b.abs()),

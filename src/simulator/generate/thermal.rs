@@ -63,12 +63,19 @@ pub fn smooth(temp_c: &[f64], h: usize) -> Vec<f64> {
 /// Shupe effect of a fibre-optic gyro: a bias proportional to the rate of change of
 /// temperature (Shupe, Appl. Opt. 19(5), 1980).
 pub fn thermal_rate(out: &mut [f64], coeff: f64, smoothing_s: f64, rate_hz: f64, temp_c: &[f64]) {
-    let n = temp_c.len();
+    let s = smooth(temp_c, smoothing_half_width(smoothing_s, rate_hz));
+    thermal_rate_from(out, coeff, rate_hz, &s, 0)
+}
+
+/// [`thermal_rate`] for the block of `out.len()` samples from sample `start`, given
+/// the whole smoothed temperature `s` ([`smooth`]).
+pub fn thermal_rate_from(out: &mut [f64], coeff: f64, rate_hz: f64, s: &[f64], start: usize) {
+    let n = s.len();
     if n < 2 {
         return;
     }
-    let s = smooth(temp_c, smoothing_half_width(smoothing_s, rate_hz));
-    for (k, o) in out.iter_mut().enumerate() {
+    for (j, o) in out.iter_mut().enumerate() {
+        let k = start + j;
         let d = if k == 0 {
             (s[1] - s[0]) * rate_hz
         } else if k == n - 1 {

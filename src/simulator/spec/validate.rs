@@ -6,6 +6,79 @@
 use std::collections::HashSet;
 
 use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
+use crate::fmt::num;
+
+/// The highest sample rate a simulation may run at, Hz (no gyro log comes near; above
+/// it a second of simulation is beyond the simulator's samples).
+pub const MAX_RATE_HZ: f64 = 1e9;
+/// The largest magnitude of a number of a spec that is simulated: the simulation squares
+/// and sums them (variances, sums of components and of recursions), which overflows
+/// f64 (1.8e308) long before 1e300. A spec as data (parsed, written back) may hold any
+/// finite value; [`Spec::check_simulable`] refuses those beyond.
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Every number of a component, by key (the elements of a list under one key).
+fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
+    let mut v: Vec<(&'static str, f64)> = Vec::new();
+    match c {
+        Component::ConstantBias { value } => v.push(("value", *value)),
+        Component::WhiteNoise { n } => v.push(("n", *n)),
+        Component::Quantization { q } => v.push(("q", *q)),
+        Component::BiasInstability {
+            b,
+            tau_min_s,
+            tau_max_s,
+        } => {
+            v.push(("b", *b));
+            v.extend(tau_min_s.map(|t| ("tau_min_s", t)));
+            v.extend(tau_max_s.map(|t| ("tau_max_s", t)));
+        }
+        Component::RateRandomWalk { k } => v.push(("k", *k)),
+        Component::RateRamp { r } => v.push(("r", *r)),
+        Component::GaussMarkov { sigma, tau_s } => {
+            v.extend([("sigma", *sigma), ("tau_s", *tau_s)]);
+        }
+        Component::Sinusoid {
+            amplitude,
+            freq_hz,
+            phase_rad,
+        } => v.extend([
+            ("amplitude", *amplitude),
+            ("freq_hz", *freq_hz),
+            ("phase_rad", *phase_rad),
+        ]),
+        Component::Arma { ar, ma, sigma } => {
+            v.extend(ar.iter().map(|x| ("ar", *x)));
+            v.extend(ma.iter().map(|x| ("ma", *x)));
+            v.push(("sigma", *sigma));
+        }
+        Component::Farma(FarmaModel::Inline { f, ma, sigma, .. }) => {
+            v.extend(f.iter().flatten().map(|x| ("f", *x)));
+            v.extend(ma.iter().map(|x| ("ma", *x)));
+            v.push(("sigma", *sigma));
+        }
+        Component::Farma(FarmaModel::Fitted { .. }) => {}
+        Component::TemperatureBias {
+            coeffs,
+            reference_c,
+        } => {
+            v.extend(coeffs.iter().map(|x| ("coeffs", *x)));
+            v.extend(reference_c.map(|t| ("reference_c", t)));
+        }
+        Component::ThermalRate { coeff, smoothing_s } => {
+            v.extend([("coeff", *coeff), ("smoothing_s", *smoothing_s)]);
+        }
+        Component::Warmup { amplitude, tau_s } => {
+            v.extend([("amplitude", *amplitude), ("tau_s", *tau_s)]);
+        }
+        Component::Outliers { rate_hz, scale } => {
+            v.extend([("rate_hz", *rate_hz), ("scale", *scale)]);
+        }
+        Component::Heteroskedastic { slope, .. } => v.push(("slope", *slope)),
+        Component::CrossAxis { gain, .. } => v.push(("gain", *gain)),
+    }
+    v
+}
 
 impl Spec {
     /// Checks values and cross-references (module doc); the message names the key.
@@ -16,9 +89,11 @@ impl Spec {
         let rate = self.sample_rate_hz;
         if !(rate.is_finite() && rate > 0.0) {
             return Err(format!(
-                "the top level: 'sample_rate_hz' must be > 0, found {rate}"
+                "the top level: 'sample_rate_hz' must be > 0, found {}",
+                num(rate)
             ));
         }
+
         if let Some(seed) = self.seed
             && seed > i64::MAX as u64
         {
@@ -55,6 +130,38 @@ impl Spec {
         }
         for channel in &self.channels {
             self.validate_channel(channel)?;
+        }
+        Ok(())
+    }
+
+    /// What a simulation of the spec at `rate_hz` needs beyond [`Spec::validate`]:
+    /// the rate at most [`MAX_RATE_HZ`] and every number at most [`MAX_MAGNITUDE`] in
+    /// magnitude (beyond, the simulated values overflow f64); the message names the
+    /// component, the key and the value.
+    pub fn check_simulable(&self, rate_hz: f64) -> Result<(), String> {
+        if rate_hz > MAX_RATE_HZ {
+            return Err(format!(
+                "the sample rate {} Hz (the spec's 'sample_rate_hz' or the --like log's) is out of range: at most {} Hz",
+                num(rate_hz),
+                num(MAX_RATE_HZ)
+            ));
+        }
+        for ch in &self.channels {
+            for (i, c) in ch.components.iter().enumerate() {
+                if let Some((key, x)) = numbers(c)
+                    .into_iter()
+                    .find(|(_, x)| x.abs() > MAX_MAGNITUDE)
+                {
+                    return Err(format!(
+                        "channel '{}' component {} ({}): '{key}' = {} is out of range: beyond {} the simulated values overflow f64 (they are squared and summed)",
+                        ch.name,
+                        i + 1,
+                        c.kind(),
+                        num(x),
+                        num(MAX_MAGNITUDE)
+                    ));
+                }
+            }
         }
         Ok(())
     }
@@ -101,7 +208,9 @@ impl Spec {
                         && lo >= hi
                     {
                         return Err(format!(
-                            "{place}: 'tau_min_s' ({lo}) must be below 'tau_max_s' ({hi})"
+                            "{place}: 'tau_min_s' ({}) must be below 'tau_max_s' ({})",
+                            num(*lo),
+                            num(*hi)
                         ));
                     }
                 }
@@ -118,7 +227,8 @@ impl Spec {
                 } => {
                     if amplitude.is_finite() && *amplitude < 0.0 {
                         return Err(format!(
-                            "{place}: 'amplitude' must be >= 0, found {amplitude} (use 'phase_rad' to flip the sign)"
+                            "{place}: 'amplitude' must be >= 0, found {} (use 'phase_rad' to flip the sign)",
+                            num(*amplitude)
                         ));
                     }
                     check.non_negative("amplitude", *amplitude)?;
@@ -127,7 +237,9 @@ impl Spec {
                     let nyquist = self.sample_rate_hz / 2.0;
                     if *freq_hz >= nyquist {
                         return Err(format!(
-                            "{place}: 'freq_hz' = {freq_hz} must be below the Nyquist frequency {nyquist} Hz (sample_rate_hz / 2)"
+                            "{place}: 'freq_hz' = {} must be below the Nyquist frequency {} Hz (sample_rate_hz / 2)",
+                            num(*freq_hz),
+                            num(nyquist)
                         ));
                     }
                 }
@@ -212,8 +324,9 @@ impl Spec {
                     check.non_negative("scale", *scale)?;
                     if *rate_hz > self.sample_rate_hz {
                         return Err(format!(
-                            "{place}: 'rate_hz' = {rate_hz} exceeds sample_rate_hz = {} (at most one outlier per sample)",
-                            self.sample_rate_hz
+                            "{place}: 'rate_hz' = {} exceeds sample_rate_hz = {} (at most one outlier per sample)",
+                            num(*rate_hz),
+                            num(self.sample_rate_hz)
                         ));
                     }
                 }
@@ -292,7 +405,11 @@ impl Check<'_> {
         if x >= 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be >= 0, found {x}", self.place))
+            Err(format!(
+                "{}: '{key}' must be >= 0, found {}",
+                self.place,
+                num(x)
+            ))
         }
     }
 
@@ -301,7 +418,11 @@ impl Check<'_> {
         if x > 0.0 {
             Ok(())
         } else {
-            Err(format!("{}: '{key}' must be > 0, found {x}", self.place))
+            Err(format!(
+                "{}: '{key}' must be > 0, found {}",
+                self.place,
+                num(x)
+            ))
         }
     }
 }

@@ -185,8 +185,12 @@ pub fn curves(
     ci: CiOptions,
 ) -> Result<Vec<Curve>> {
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(Error::Usage(format!("{what}: sample rate {rate_hz} Hz")));
+        return Err(Error::Usage(format!(
+            "{what}: sample rate {} Hz",
+            crate::fmt::num(rate_hz)
+        )));
     }
+    crate::stats::require_finite(what, y, rate_hz)?;
     for &k in kinds {
         if max_m(k, y.len()) == 0 {
             let need = match k {
@@ -202,7 +206,7 @@ pub fn curves(
         }
     }
     let x = phase(y);
-    Ok(kinds
+    let out: Vec<Curve> = kinds
         .iter()
         .map(|&kind| {
             let ms = grid.factors(kind, y.len());
@@ -230,7 +234,18 @@ pub fn curves(
                 .collect();
             Curve { kind, points }
         })
-        .collect())
+        .collect();
+    for c in &out {
+        if let Some(p) = c.points.iter().find(|p| !p.dev.is_finite()) {
+            return Err(crate::stats::overflow_error(
+                what,
+                c.kind.name(),
+                &format!("tau = {} s", crate::fmt::num(p.tau_s)),
+                y,
+            ));
+        }
+    }
+    Ok(out)
 }
 
 /// Deviations of `kind` at averaging factors `ms` of the rate series `y` (fast path).

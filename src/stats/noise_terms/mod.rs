@@ -267,6 +267,13 @@ pub fn identify_curve(
     rate_hz: f64,
     opts: &Options,
 ) -> Result<Identification> {
+    if let Some(p) = points.iter().find(|p| p.avar.is_infinite()) {
+        // not a short log: the variance overflowed
+        return Err(Error::Data(format!(
+            "{what}: the Allan variance at tau = {} s overflows f64: the values are too large (their squares pass 1.8e308); rescale the channel (other units)",
+            crate::fmt::num(p.tau_s)
+        )));
+    }
     let pts: Vec<AvarPoint> = points
         .iter()
         .copied()
