@@ -108,7 +108,7 @@ impl Page {
         self
     }
 
-    /// A plot (an SVG from [`super::svg`]), inline.
+    /// A plot (an SVG from `super::svg`), inline.
     pub fn plot(&mut self, svg: &str) -> &mut Self {
         let svg = svg.trim_start();
         // an XML declaration cannot stand inside HTML

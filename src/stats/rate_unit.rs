@@ -1,8 +1,8 @@
 //! The rate unit of a gyro channel, and the identified IEEE Std 952 noise terms in the
 //! units a datasheet prints and under the names of MATLAB's `gyroparams`.
 //!
-//! A coefficient identified in the log's rate unit u (q [u s], n [u sqrt(s)], b [u],
-//! k [u/sqrt(s)], r [u/s], sigma [u]: `noise_terms::Term::coef_unit`) is converted with
+//! A coefficient identified in the log's rate unit u (q in u s, n in u sqrt(s), b in u,
+//! k in u/sqrt(s), r in u/s, sigma in u: `noise_terms::Term::coef_unit`) is converted with
 //! c = the unit in deg/s (deg/s 1, rad/s 180/pi, deg/h 1/3600):
 //!
 //! | term | datasheet | factor | gyroparams (SI) | factor |

@@ -135,7 +135,7 @@ impl Spec {
     }
 
     /// What a simulation of the spec at `rate_hz` needs beyond [`Spec::validate`]:
-    /// the rate at most [`MAX_RATE_HZ`] and every number at most [`MAX_MAGNITUDE`] in
+    /// the rate at most `MAX_RATE_HZ` and every number at most `MAX_MAGNITUDE` in
     /// magnitude (beyond, the simulated values overflow f64); the message names the
     /// component, the key and the value.
     pub fn check_simulable(&self, rate_hz: f64) -> Result<(), String> {
