@@ -40,6 +40,13 @@ pub fn run(a: AcfArgs, progress: &Progress) -> Result<()> {
     let rate_hz = store.sample_rate_hz();
     let (start, len) = crate::jobs::longest_segment(&store, &a.log);
     let max_lag = a.max_lag.unwrap_or_else(|| default_max_lag(len));
+    if let Some(flag) = a.max_lag {
+        crate::workflow::budget::check_memory(
+            &format!("--max-lag {flag}"),
+            "the autocorrelation's FFT blocks",
+            crate::stats::acf::planned_bytes(len, max_lag, rayon::current_num_threads()),
+        )?;
+    }
     let mut results: Vec<(String, Acf)> = Vec::new();
     for name in &names {
         let y = &store.column(name)?[start..start + len];

@@ -61,6 +61,13 @@ pub fn run(a: PsdArgs, progress: &Progress) -> Result<()> {
         DetrendArg::Constant => Detrend::Constant,
         DetrendArg::None => Detrend::None,
     };
+    if let Some(l) = a.segment {
+        crate::workflow::budget::check_memory(
+            &format!("--segment {l}"),
+            "the Welch segments' FFT buffers",
+            crate::stats::psd::planned_bytes(len, l, rayon::current_num_threads()),
+        )?;
+    }
     let machine = a.json || a.output.is_some();
     let bands = a.bands_per_decade.unwrap_or(if machine { 0 } else { 10 });
     let job = PsdJob {

@@ -78,6 +78,21 @@ fn mean(y: &[f64]) -> f64 {
     parts.iter().sum::<f64>() / y.len() as f64
 }
 
+/// The memory [`acf`] plans for `n` samples to `max_lag` with `threads` blocks in
+/// flight, in bytes: per block in flight two real buffers of the FFT length f and its
+/// complex spectrum (f/2 + 1 values of 16 bytes), and per block its max_lag + 1 sums.
+pub fn planned_bytes(n: usize, max_lag: usize, threads: usize) -> f64 {
+    let f = (2.0 * (max_lag as f64 + 1.0))
+        .max(32768.0)
+        .log2()
+        .ceil()
+        .exp2();
+    let b = (f - max_lag as f64).max(1.0);
+    let blocks = (n as f64 / b).ceil().max(1.0);
+    threads.max(1) as f64 * (2.0 * f * 8.0 + (f / 2.0 + 1.0) * 16.0)
+        + blocks * (max_lag as f64 + 1.0) * 8.0
+}
+
 /// The autocorrelation of `y` at lags 0..=max_lag by blocked FFT (module doc).
 pub fn acf(what: &str, y: &[f64], max_lag: usize) -> Result<Acf> {
     check(what, y.len(), max_lag)?;

@@ -114,6 +114,18 @@ fn scale_and_freqs(sums: &mut [f64], l: usize, rate_hz: f64, n_seg: usize, w: &[
 /// Segments per parallel work item (partial sums are added in this fixed grouping).
 const CHUNK: usize = 8;
 
+/// The memory [`welch`] plans for `n` samples in segments of `segment_len` with
+/// `threads` chunks in flight, in bytes: the Hann window, per chunk in flight the
+/// segment buffer, its spectrum (16 bytes a bin), an FFT scratch of the same size and
+/// the chunk's sums, and per chunk of segments its l/2 + 1 sums.
+pub fn planned_bytes(n: usize, segment_len: usize, threads: usize) -> f64 {
+    let l = segment_len as f64;
+    let nk = l / 2.0 + 1.0;
+    let segments = (2.0 * n as f64 / l).max(1.0);
+    let chunks = (segments / CHUNK as f64).ceil();
+    l * 8.0 + threads.max(1) as f64 * (l * 8.0 + 2.0 * nk * 16.0 + nk * 8.0) + chunks * nk * 8.0
+}
+
 /// Welch's PSD of `y` (module doc), segments of `segment_len` samples.
 pub fn welch(
     what: &str,

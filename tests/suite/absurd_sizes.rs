@@ -300,3 +300,36 @@ fn adev_and_psd_refuse_a_series_holding_inf_or_overflowing() {
         assert!(longest_word(&err) < 40, "{err}");
     }
 }
+
+/// `acf --max-lag` and `psd --segment` plan their FFT buffers against the limit: over it,
+/// exit 2 naming the flag and the bytes; under it, the same request runs.
+#[test]
+fn acf_max_lag_and_psd_segment_are_planned_against_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = crate::common::fixture("multiaxis.csv");
+    let log = log.to_str().unwrap();
+    for (cmd, flag, value) in [("acf", "--max-lag", "3999"), ("psd", "--segment", "4000")] {
+        let (code, err) = run(
+            &[
+                "--memory-limit",
+                "0.00001",
+                cmd,
+                log,
+                "--channel",
+                "gyro_x",
+                flag,
+                value,
+            ],
+            dir.path(),
+        );
+        assert_eq!(code, Some(2), "{cmd}: {err}");
+        assert!(
+            err.contains(&format!("{flag} {value}"))
+                && err.contains("bytes")
+                && err.contains("--memory-limit"),
+            "{err}"
+        );
+        let (code, err) = run(&[cmd, log, "--channel", "gyro_x", flag, value], dir.path());
+        assert_eq!(code, Some(0), "{cmd}: {err}");
+    }
+}
