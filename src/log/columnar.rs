@@ -234,6 +234,18 @@ fn fill(
     Ok((writer, nonfinite))
 }
 
+/// The bytes of a Parquet file, memory-mapped, for the Parquet decoder. Read from
+/// memory rather than through `File` reads: a damaged page header can state a field
+/// of gigabytes, which the decoder skips (or loops over element by element) with one
+/// `read` call per 8 KiB even past the end of the file; from memory each of those is
+/// a bounds check.
+fn map_bytes(path: &Path) -> Result<bytes::Bytes> {
+    let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
+    // SAFETY: read only, as every reader of the input; see csv.rs.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::input_io(path, e))?;
+    Ok(bytes::Bytes::from_owner(map))
+}
+
 /// Reads a Parquet log into a new store at `target` (not yet finished).
 pub(crate) fn read_parquet(
     path: &Path,
@@ -241,14 +253,14 @@ pub(crate) fn read_parquet(
     opts: &LogOptions,
     progress: &Progress,
 ) -> Result<Parsed> {
-    let file = File::open(path).map_err(|e| Error::input_io(path, e))?;
+    let bytes = map_bytes(path)?;
     let damaged = |what: &str| {
         Error::format(
             path,
             format!("not a readable Parquet file: the Parquet decoder failed on damaged {what}"),
         )
     };
-    let builder = no_panic(|| ParquetRecordBatchReaderBuilder::try_new(file))
+    let builder = no_panic(|| ParquetRecordBatchReaderBuilder::try_new(bytes))
         .map_err(|()| damaged("metadata"))?
         .map_err(|e| Error::format(path, format!("not a readable Parquet file: {e}")))?;
     let schema = builder.schema().clone();
@@ -339,7 +351,7 @@ pub(crate) fn read_parquet(
 /// column (the error path only: the Arrow reader says only that some page failed).
 fn bad_page(path: &Path) -> Option<(usize, usize, String)> {
     use parquet::file::reader::{FileReader, SerializedFileReader};
-    let r = SerializedFileReader::new(File::open(path).ok()?).ok()?;
+    let r = SerializedFileReader::new(map_bytes(path).ok()?).ok()?;
     let n_rg = r.num_row_groups();
     for rg in 0..n_rg {
         let g = r.get_row_group(rg).ok()?;
