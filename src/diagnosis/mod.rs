@@ -13,7 +13,9 @@
 //!   charge for widening the band), the noise
 //!   floor and significance from leave-one-out simulations, the regions out of band;
 //! - [`candidates`]: each candidate effect's parameters, estimated on the training part;
-//! - this file: scoring on the withheld part and the greedy loop ([`diagnose`]);
+//! - this file: scoring on the withheld part and the search ([`diagnose`]): forward
+//!   steps add the best candidate, backward steps take back an earlier effect whose
+//!   share in the joint model fell below `min_shrink`, near-ties are reported as ties;
 //! - [`report`]: Parquet tables and the SVG report.
 
 pub mod bank;
@@ -45,7 +47,7 @@ pub struct GapParams {
     pub n_blocks: usize,
     /// Seed of the ensemble (default: the spec's, else 1).
     pub seed: Option<u64>,
-    /// Most effects the greedy search adds.
+    /// Most effects the search keeps.
     pub max_added: usize,
     /// Smallest relative shrink of the gap for an effect to be added.
     pub min_shrink: f64,
@@ -93,10 +95,35 @@ pub struct Effect {
     pub note: String,
     /// The gap of each statistic family with the effect added.
     pub families: Vec<(Statistic, f64)>,
+    /// For an added effect: 1 - the final gap / the final gap without it (its share
+    /// in the joint model); None for an effect not kept.
+    pub contribution: Option<f64>,
+    /// For an added effect: the search step (1-based) that added it.
+    pub step: Option<usize>,
     #[serde(skip)]
     pub component: Component,
     #[serde(skip)]
     pub replaces: Option<usize>,
+}
+
+/// One step of the search: an effect added (the best of a round, with the runner-up)
+/// or an earlier one taken back.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Step {
+    /// `add` or `remove`.
+    pub action: &'static str,
+    pub kind: String,
+    pub gap_before: f64,
+    pub gap_after: f64,
+    /// The second-best candidate of the round (an `add`) and its gap.
+    pub runner_up: Option<String>,
+    pub runner_up_gap_after: Option<f64>,
+    /// Jackknife standard deviation over the replicas of the difference between the
+    /// runner-up's gap and the best's ([`jackknife_sd`]).
+    pub difference_sd: Option<f64>,
+    /// The difference is within two of those standard deviations: the ensemble cannot
+    /// tell the two apart, and the choice between them is a tie.
+    pub tie: bool,
 }
 
 /// The outcome of a diagnosis.
@@ -114,9 +141,14 @@ pub struct Diagnosis {
     pub where_after: Vec<Region>,
     /// The first round's candidates, best first (shrink relative to gap_before).
     pub effects: Vec<Effect>,
-    /// Effects added by the greedy search, in order (shrink relative to the gap before
-    /// each was added).
+    /// Effects kept by the search, largest contribution to the final model first
+    /// (shrink relative to the gap before each was added; `step` says when).
     pub added: Vec<Effect>,
+    /// The search's steps: additions and removals, in order.
+    pub steps: Vec<Step>,
+    /// The gap after is within the threshold: the spec, with the effects added,
+    /// matches the log on the withheld part (true also when nothing was significant).
+    pub explained: bool,
     pub not_tried: Vec<NotTried>,
     /// The spec with the added effects.
     pub spec_after: Spec,
@@ -220,15 +252,16 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             s
         })
         .collect();
-    let feats_of = |xs: &[Vec<f64>], delta: Option<&candidates::Delta>| -> Vec<Vec<f64>> {
+    // the features of each replica's series xs[r], plus sign * delta[r] when given
+    let feats_of = |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>| -> Vec<Vec<f64>> {
         xs.par_iter()
             .enumerate()
             .map(|(r, x)| {
                 let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
                 match delta {
                     None => test.compute(x, temperature.as_ref(), &o),
-                    Some(d) => {
-                        let y: Vec<f64> = x.iter().zip(d.get(r)).map(|(a, b)| a + b).collect();
+                    Some((d, sign)) => {
+                        let y: Vec<f64> = x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect();
                         test.compute(&y, temperature.as_ref(), &o)
                     }
                 }
@@ -259,8 +292,22 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     };
     let mut first: Option<Vec<Effect>> = None;
     let mut added: Vec<Effect> = Vec::new();
+    let mut slots: Vec<Slot> = Vec::new();
+    let mut steps: Vec<Step> = Vec::new();
     let mut not_tried = Vec::new();
-    loop {
+    let score = |f: &[Vec<f64>]| -> (f64, EnsembleStats, Vec<(Statistic, f64)>) {
+        let e = EnsembleStats::new(f, &defs, None);
+        let z = e.z(&real_feats);
+        let pen = e.spread_penalty(&ens_before);
+        (
+            distance::gap(&z, Some(&pen), &defs),
+            e,
+            distance::family_gaps(&z, Some(&pen), &defs),
+        )
+    };
+    // forward steps add the best candidate; after each, backward steps take back an
+    // earlier effect whose share in the joint model fell below min_shrink
+    for _ in 0..(2 * prm.max_added + 2) {
         let stop_floor = st.gap <= cal.gap_threshold;
         if stop_floor && first.is_some() {
             notes.push(format!(
@@ -292,25 +339,25 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 });
             }
         }
-        let mut scored: Vec<(Effect, EnsembleStats, Proposal)> = props
+        let mut scored: Vec<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)> = props
             .into_iter()
             .map(|p| {
-                let f = feats_of(&st.target, Some(&p.delta));
-                let e = EnsembleStats::new(&f, &defs, None);
-                let z = e.z(&real_feats);
-                let pen = e.spread_penalty(&ens_before);
-                let g = distance::gap(&z, Some(&pen), &defs);
+                let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
+                let f = feats_of(&st.target, Some((&d, 1.0)));
+                let (g, e, families) = score(&f);
                 let eff = Effect {
                     kind: p.kind.clone(),
                     gap_after: g,
                     shrink: 1.0 - g / st.gap,
                     params: p.params.clone(),
                     note: p.note.clone(),
-                    families: distance::family_gaps(&z, Some(&pen), &defs),
+                    families,
+                    contribution: None,
+                    step: None,
                     component: p.component.clone(),
                     replaces: p.replaces,
                 };
-                (eff, e, p)
+                (eff, e, p, f)
             })
             .collect();
         scored.sort_by(|a, b| a.0.gap_after.total_cmp(&b.0.gap_after));
@@ -324,7 +371,11 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ));
             break;
         }
-        let Some((eff, e, p)) = scored.into_iter().next() else {
+        let tie_with = scored.get(1).map(|second| {
+            let sd = jackknife_sd(&scored[0].3, &second.3, &real_feats, &ens_before, &defs);
+            (second.0.kind.clone(), second.0.gap_after, sd)
+        });
+        let Some((mut eff, e, p, _)) = scored.into_iter().next() else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };
@@ -345,12 +396,19 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         }
         match p.replaces {
             Some(k) => {
-                st.spec.channels[channel].components[k] = p.component.clone();
+                let old = std::mem::replace(
+                    &mut st.spec.channels[channel].components[k],
+                    p.component.clone(),
+                );
                 for (r, parts) in st.parts.iter_mut().enumerate() {
                     for (a, v) in parts[k].iter_mut().zip(p.delta.get(r)) {
                         *a += v;
                     }
                 }
+                slots.push(Slot {
+                    comp: k,
+                    replaced: Some((old, p.delta)),
+                });
             }
             None => {
                 st.spec.channels[channel]
@@ -359,11 +417,85 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 for (r, parts) in st.parts.iter_mut().enumerate() {
                     parts.push(p.delta.get(r).to_vec());
                 }
+                slots.push(Slot {
+                    comp: st.spec.channels[channel].components.len() - 1,
+                    replaced: None,
+                });
             }
         }
+        let (runner_up, runner_up_gap_after, difference_sd) = match tie_with {
+            Some((k, g, sd)) => (Some(k), Some(g), Some(sd)),
+            None => (None, None, None),
+        };
+        let tie = match (runner_up_gap_after, difference_sd) {
+            (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
+            _ => false,
+        };
+        if tie {
+            notes.push(format!(
+                "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
+                eff.kind,
+                runner_up.as_deref().unwrap_or(""),
+                eff.gap_after,
+                runner_up_gap_after.unwrap_or(f64::NAN),
+                difference_sd.unwrap_or(f64::NAN),
+                eff.kind
+            ));
+        }
+        steps.push(Step {
+            action: "add",
+            kind: eff.kind.clone(),
+            gap_before: st.gap,
+            gap_after: eff.gap_after,
+            runner_up,
+            runner_up_gap_after,
+            difference_sd,
+            tie,
+        });
+        eff.step = Some(steps.len());
         st.ens = e;
         st.gap = eff.gap_after;
         added.push(eff);
+        // backward: the earlier effect whose removal costs least, while its share is
+        // below min_shrink
+        while added.len() >= 2 {
+            let mut best: Option<(usize, f64, EnsembleStats)> = None;
+            for i in 0..added.len() - 1 {
+                if !removable(&slots, i) {
+                    continue;
+                }
+                let f = feats_of(&st.target, Some((&slot_signal(&slots[i], &st.parts), -1.0)));
+                let (g, e, _) = score(&f);
+                if best.as_ref().is_none_or(|b| g < b.1) {
+                    best = Some((i, g, e));
+                }
+            }
+            let Some((i, g, e)) = best else { break };
+            let share = 1.0 - st.gap / g;
+            if share >= prm.min_shrink {
+                break;
+            }
+            notes.push(format!(
+                "{} taken back: with the later effects its share of the gap is {:.1} %, less than {:.0} %",
+                added[i].kind,
+                100.0 * share,
+                100.0 * prm.min_shrink
+            ));
+            steps.push(Step {
+                action: "remove",
+                kind: added[i].kind.clone(),
+                gap_before: st.gap,
+                gap_after: g,
+                runner_up: None,
+                runner_up_gap_after: None,
+                difference_sd: None,
+                tie: false,
+            });
+            take_back(&mut st, channel, &mut slots, i);
+            added.remove(i);
+            st.ens = e;
+            st.gap = g;
+        }
         if added.len() >= prm.max_added {
             notes.push(format!(
                 "stopped after {} effects (--max-effects)",
@@ -371,6 +503,24 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ));
             break;
         }
+    }
+    // each kept effect's share of the final joint model, the ranking reported
+    for i in 0..added.len() {
+        let f = feats_of(&st.target, Some((&slot_signal(&slots[i], &st.parts), -1.0)));
+        let (g, _, _) = score(&f);
+        added[i].contribution = Some(1.0 - st.gap / g);
+    }
+    added.sort_by(|a, b| {
+        b.contribution
+            .unwrap_or(0.0)
+            .total_cmp(&a.contribution.unwrap_or(0.0))
+    });
+    let explained = st.gap <= cal.gap_threshold;
+    if !explained {
+        notes.push(format!(
+            "unexplained: the gap after {:.3} is above the threshold {:.3}; no candidate explains the regions that remain (where_after)",
+            st.gap, cal.gap_threshold
+        ));
     }
     let z1 = st.ens.z(&real_feats);
     let where_after = distance::regions(&z1, &real_feats, &st.ens, &defs, &cal);
@@ -386,6 +536,8 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         where_after,
         effects: first.unwrap_or_default(),
         added,
+        steps,
+        explained,
         not_tried,
         spec_after: st.spec,
         defs,
@@ -399,4 +551,90 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         seed,
         notes,
     })
+}
+
+/// Where an added effect sits in the spec, so that the search can take it back.
+struct Slot {
+    /// Index of its component in the channel's list.
+    comp: usize,
+    /// For a replacement: the component it replaced and the change applied.
+    replaced: Option<(Component, candidates::Delta)>,
+}
+
+/// Each replica's signal of slot `s`: its component's part, or the change a
+/// replacement made.
+fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
+    (0..parts.len())
+        .map(|r| match &s.replaced {
+            Some((_, d)) => d.get(r),
+            None => parts[r][s.comp].as_slice(),
+        })
+        .collect()
+}
+
+/// A slot can be taken back unless a later one replaced the same component.
+fn removable(slots: &[Slot], i: usize) -> bool {
+    !slots[i + 1..].iter().any(|s| s.comp == slots[i].comp)
+}
+
+/// Takes slot `i` back out of the state: its signal off every replica's sum, its
+/// component removed (or the replaced one restored).
+fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
+    let s = slots.remove(i);
+    for (r, t) in st.target.iter_mut().enumerate() {
+        let sig: &[f64] = match &s.replaced {
+            Some((_, d)) => d.get(r),
+            None => &st.parts[r][s.comp],
+        };
+        for (a, v) in t.iter_mut().zip(sig) {
+            *a -= v;
+        }
+    }
+    match s.replaced {
+        Some((old, d)) => {
+            st.spec.channels[channel].components[s.comp] = old;
+            for (r, parts) in st.parts.iter_mut().enumerate() {
+                for (a, v) in parts[s.comp].iter_mut().zip(d.get(r)) {
+                    *a -= v;
+                }
+            }
+        }
+        None => {
+            st.spec.channels[channel].components.remove(s.comp);
+            for parts in st.parts.iter_mut() {
+                parts.remove(s.comp);
+            }
+            for o in slots.iter_mut() {
+                if o.comp > s.comp {
+                    o.comp -= 1;
+                }
+            }
+        }
+    }
+}
+
+/// Jackknife standard deviation over the M replicas of the difference between two
+/// candidates' gaps (`fa`, `fb`: each replica's features with the candidate added):
+/// d_r is the difference with replica r left out of both ensembles, and
+/// sd = sqrt((M - 1) / M sum_r (d_r - mean d)^2) (Efron and Stein 1981, "The
+/// jackknife estimate of variance", Ann. Statist. 9). The spread term is charged
+/// against the spec's whole ensemble, as in the scoring.
+pub fn jackknife_sd(
+    fa: &[Vec<f64>],
+    fb: &[Vec<f64>],
+    real: &[f64],
+    reference: &EnsembleStats,
+    defs: &[FeatureDef],
+) -> f64 {
+    let m = fa.len();
+    let gap_without = |f: &[Vec<f64>], r: usize| {
+        let e = EnsembleStats::new(f, defs, Some(r));
+        let pen = e.spread_penalty(reference);
+        distance::gap(&e.z(real), Some(&pen), defs)
+    };
+    let d: Vec<f64> = (0..m)
+        .map(|r| gap_without(fa, r) - gap_without(fb, r))
+        .collect();
+    let mean = d.iter().sum::<f64>() / m as f64;
+    ((m as f64 - 1.0) / m as f64 * d.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt()
 }

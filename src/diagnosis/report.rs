@@ -37,6 +37,12 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "noise_floor": d.noise_floor,
         "gap_threshold": d.gap_threshold,
         "significant": d.gap_before > d.gap_threshold,
+        "explained": d.explained,
+        "unexplained": if d.explained {
+            Vec::new()
+        } else {
+            d.where_after.iter().map(region).collect::<Vec<_>>()
+        },
         "where": d.where_before.iter().map(region).collect::<Vec<_>>(),
         "where_after": d.where_after.iter().map(region).collect::<Vec<_>>(),
         "effects": d.effects.iter().map(|e| json!({
@@ -49,6 +55,17 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "added": d.added.iter().map(|e| e.kind.clone()).collect::<Vec<_>>(),
         "added_effects": d.added.iter().map(|e| json!({
             "kind": e.kind, "shrink": e.shrink, "gap_after": e.gap_after, "params": e.params,
+            "contribution": e.contribution.map(finite), "step": e.step,
+        })).collect::<Vec<_>>(),
+        "steps": d.steps.iter().map(|s| json!({
+            "action": s.action,
+            "kind": s.kind,
+            "gap_before": finite(s.gap_before),
+            "gap_after": finite(s.gap_after),
+            "runner_up": s.runner_up,
+            "runner_up_gap_after": s.runner_up_gap_after.map(finite),
+            "difference_sd": s.difference_sd.map(finite),
+            "tie": s.tie,
         })).collect::<Vec<_>>(),
         "not_tried": d.not_tried,
         "families_before": fam(&d.family_before),
@@ -170,6 +187,14 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
         ),
         ("shrink", f64s(rows.iter().map(|r| r.2.shrink).collect())),
         (
+            "contribution",
+            Arc::new(Float64Array::from(
+                rows.iter()
+                    .map(|r| r.2.contribution.filter(|c| c.is_finite()))
+                    .collect::<Vec<_>>(),
+            )) as ArrayRef,
+        ),
+        (
             "params",
             strs(rows.iter().map(|r| r.2.params.to_string()).collect()),
         ),
@@ -246,7 +271,7 @@ pub const GAP_OUTPUTS: [&str; 6] = [
     "report.html",
 ];
 
-/// Whether a first-round candidate is one the greedy search added (same kind and the
+/// Whether a first-round candidate is one the search kept (same kind and the
 /// same estimated parameters: an effect added in a later round was re-estimated).
 fn was_added(d: &Diagnosis, e: &super::Effect) -> bool {
     d.added

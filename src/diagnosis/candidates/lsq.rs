@@ -29,6 +29,22 @@ pub(super) fn ls(
     intercept: bool,
     ranges: &[Range<usize>],
 ) -> Option<(Vec<f64>, f64)> {
+    ls_full(y, regs, intercept, ranges).map(|(mut beta, rss)| {
+        if intercept {
+            beta.remove(0);
+        }
+        (beta, rss)
+    })
+}
+
+/// [`ls`] with every coefficient: the intercept first (when fitted), then the
+/// regressors'.
+pub(super) fn ls_full(
+    y: &[f64],
+    regs: &[&[f64]],
+    intercept: bool,
+    ranges: &[Range<usize>],
+) -> Option<(Vec<f64>, f64)> {
     let k = regs.len() + usize::from(intercept);
     let mut ata = vec![0.0; k * k];
     let mut aty = vec![0.0; k];
@@ -63,8 +79,7 @@ pub(super) fn ls(
             rss += (y[t] - f).powi(2);
         }
     }
-    let coefs = beta[usize::from(intercept)..].to_vec();
-    Some((coefs, rss))
+    Some((beta, rss))
 }
 
 /// `n` points from `lo` to `hi`, evenly spaced in ln.

@@ -1,20 +1,30 @@
 //! Temperature-driven additions (temperature_bias, thermal_rate, heteroskedastic), tried
 //! when the log has the spec's temperature channel; Tm is the log's mean temperature.
-//! - temperature_bias: least squares of the training residual on T - Tm and (T - Tm)^2;
+//! - temperature_bias: least squares of the training residual on T - Tm and (T - Tm)^2
+//!   with an intercept, which sets the reference temperature;
 //! - thermal_rate: least squares on dT/dt for each smoothing of a grid, the best by
 //!   residual sum of squares;
 //! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm gives
 //!   E[d^2] = a (1 + 2 phi slope (T - Tm)) to first order, phi being the share of the
 //!   modulated component in the variance of d (from the ensemble).
 
-use super::lsq::{ls, shrink_ranges};
+use super::lsq::{ls, ls_full, shrink_ranges};
 use super::params::params_json;
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
 use crate::error::Result;
 use crate::simulator::Component;
 
-/// temperature_bias: coefficients of T - Tm and (T - Tm)^2.
+/// temperature_bias: coefficients of T - Tm and (T - Tm)^2 with an intercept c0, by
+/// least squares of the training residual, written in the simulator's form
+/// b1' (T - R) + b2 (T - R)^2 with no constant: the reference R = Tm - delta carries
+/// the intercept. Matching the constant and linear terms in T - Tm gives
+/// b2 delta^2 - b1 delta + c0 = 0 and b1' = b1 - 2 b2 delta; the root of smaller
+/// |delta| is delta = 2 c0 / (b1 + sign(b1) sqrt(b1^2 - 4 b2 c0)) (the form without
+/// cancellation; Press et al., Numerical Recipes, 3rd ed., section 5.6), c0 / b1 when
+/// b2 = 0. A bias of c (T - 22 degC) on a log whose mean temperature is 30 degC thus
+/// comes back with R = 22 degC, not as c (T - 30 degC) short of its 8 c offset. When
+/// the quadratic has no real root, the linear fit with its intercept is used.
 pub(super) fn temperature_bias(
     cx: &Context,
     tr: &Training,
@@ -30,23 +40,53 @@ pub(super) fn temperature_bias(
         coeffs: vec![0.0, 1.0],
         reference_c: Some(tm),
     })?;
-    if let Some((b, _)) = ls(res, &[&u1, &u2], true, ranges) {
-        let sig: Vec<f64> = u1
-            .iter()
-            .zip(&u2)
-            .map(|(a, c)| b[0] * a + b[1] * c)
-            .collect();
-        out.same(
-            "temperature_bias",
-            Component::TemperatureBias {
-                coeffs: b.clone(),
-                reference_c: Some(tm),
-            },
-            sig,
-            "least squares on T - Tm and (T - Tm)^2".into(),
-        );
-    }
+    let quadratic =
+        ls_full(res, &[&u1, &u2], true, ranges).and_then(|(b, _)| with_reference(b[0], b[1], b[2]));
+    let form = match quadratic {
+        Some(f) => Some(f),
+        None => {
+            ls_full(res, &[&u1], true, ranges).and_then(|(b, _)| with_reference(b[0], b[1], 0.0))
+        }
+    };
+    let Some((coeffs, delta)) = form else {
+        return Ok(());
+    };
+    let reference_c = tm - delta;
+    let comp = Component::TemperatureBias {
+        coeffs: coeffs.clone(),
+        reference_c: Some(reference_c),
+    };
+    let sig = cx.unit(comp.clone())?;
+    out.same(
+        "temperature_bias",
+        comp,
+        sig,
+        format!(
+            "least squares on T - Tm and (T - Tm)^2 with an intercept; the intercept puts the reference temperature at {reference_c:.3} degC"
+        ),
+    );
     Ok(())
+}
+
+/// The simulator's form of c0 + b1 (T - Tm) + b2 (T - Tm)^2: (coefficients of T - R
+/// and (T - R)^2, delta = Tm - R), or None when no real R exists or the fit is
+/// degenerate (see [`temperature_bias`]).
+fn with_reference(c0: f64, b1: f64, b2: f64) -> Option<(Vec<f64>, f64)> {
+    let disc = b1 * b1 - 4.0 * b2 * c0;
+    if !(disc >= 0.0) {
+        return None;
+    }
+    let den = b1 + b1.signum() * disc.sqrt();
+    let delta = if c0 == 0.0 { 0.0 } else { 2.0 * c0 / den };
+    if !delta.is_finite() {
+        return None;
+    }
+    let coeffs = if b2 == 0.0 {
+        vec![b1]
+    } else {
+        vec![b1 - 2.0 * b2 * delta, b2]
+    };
+    Some((coeffs, delta))
 }
 
 /// thermal_rate: the coefficient for each smoothing of 0, 10, 30, 100, 300 s, the best
@@ -170,4 +210,37 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
             100.0 * phi
         ),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::with_reference;
+
+    #[test]
+    fn the_reference_form_reproduces_the_polynomial_with_its_constant() {
+        for (c0, b1, b2) in [
+            (0.096, 0.012, 0.0),
+            (0.096, 0.012, 1e-4),
+            (-0.3, 0.05, -2e-3),
+            (0.0, 0.02, 3e-4),
+            (1e-6, -0.01, 1e-5),
+        ] {
+            let (coeffs, delta) = with_reference(c0, b1, b2).expect("a real root");
+            for dt in [-7.0, -1.0, 0.0, 2.5, 11.0] {
+                // T - Tm = dt, T - R = dt + delta
+                let want = c0 + b1 * dt + b2 * dt * dt;
+                let u = dt + delta;
+                let got = coeffs[0] * u + coeffs.get(1).copied().unwrap_or(0.0) * u * u;
+                assert!(
+                    (got - want).abs() < 1e-12 * (1.0 + want.abs()),
+                    "{c0} {b1} {b2} {dt}: {got} vs {want}"
+                );
+            }
+        }
+        // 0.012 (T - 22) on a log at a mean of 30 degC: the reference comes back
+        let (coeffs, delta) = with_reference(0.012 * 8.0, 0.012, 0.0).unwrap();
+        assert!((30.0 - delta - 22.0).abs() < 1e-12 && (coeffs[0] - 0.012).abs() < 1e-15);
+        // no real reference: b2 (T - R)^2 + b1' (T - R) cannot reach this constant
+        assert!(with_reference(1.0, 0.0, 1.0).is_none());
+    }
 }
