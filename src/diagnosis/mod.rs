@@ -388,41 +388,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ));
             break;
         }
-        // apply
-        for (r, t) in st.target.iter_mut().enumerate() {
-            for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
-                *a += v;
-            }
-        }
-        match p.replaces {
-            Some(k) => {
-                let old = std::mem::replace(
-                    &mut st.spec.channels[channel].components[k],
-                    p.component.clone(),
-                );
-                for (r, parts) in st.parts.iter_mut().enumerate() {
-                    for (a, v) in parts[k].iter_mut().zip(p.delta.get(r)) {
-                        *a += v;
-                    }
-                }
-                slots.push(Slot {
-                    comp: k,
-                    replaced: Some((old, p.delta)),
-                });
-            }
-            None => {
-                st.spec.channels[channel]
-                    .components
-                    .push(p.component.clone());
-                for (r, parts) in st.parts.iter_mut().enumerate() {
-                    parts.push(p.delta.get(r).to_vec());
-                }
-                slots.push(Slot {
-                    comp: st.spec.channels[channel].components.len() - 1,
-                    replaced: None,
-                });
-            }
-        }
+        slots.push(apply(&mut st, channel, p));
         let (runner_up, runner_up_gap_after, difference_sd) = match tie_with {
             Some((k, g, sd)) => (Some(k), Some(g), Some(sd)),
             None => (None, None, None),
@@ -577,6 +543,40 @@ fn removable(slots: &[Slot], i: usize) -> bool {
     !slots[i + 1..].iter().any(|s| s.comp == slots[i].comp)
 }
 
+/// Adds proposal `p` to the state: its signal onto every replica's sum, its component
+/// appended (or put in place of the one it replaces); returns where it sits.
+fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
+    for (r, t) in st.target.iter_mut().enumerate() {
+        for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
+            *a += v;
+        }
+    }
+    match p.replaces {
+        Some(k) => {
+            let old = std::mem::replace(&mut st.spec.channels[channel].components[k], p.component);
+            for (r, parts) in st.parts.iter_mut().enumerate() {
+                for (a, v) in parts[k].iter_mut().zip(p.delta.get(r)) {
+                    *a += v;
+                }
+            }
+            Slot {
+                comp: k,
+                replaced: Some((old, p.delta)),
+            }
+        }
+        None => {
+            st.spec.channels[channel].components.push(p.component);
+            for (r, parts) in st.parts.iter_mut().enumerate() {
+                parts.push(p.delta.get(r).to_vec());
+            }
+            Slot {
+                comp: st.spec.channels[channel].components.len() - 1,
+                replaced: None,
+            }
+        }
+    }
+}
+
 /// Takes slot `i` back out of the state: its signal off every replica's sum, its
 /// component removed (or the replaced one restored).
 fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
@@ -637,4 +637,186 @@ pub fn jackknife_sd(
         .collect();
     let mean = d.iter().sum::<f64>() / m as f64;
     ((m as f64 - 1.0) / m as f64 * d.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulator::ChannelSpec;
+
+    fn state() -> State {
+        let spec = Spec {
+            sample_rate_hz: 10.0,
+            temperature_channel: None,
+            seed: None,
+            channels: vec![ChannelSpec {
+                name: "rate".into(),
+                components: vec![
+                    Component::WhiteNoise { n: 0.01 },
+                    Component::ConstantBias { value: 0.5 },
+                ],
+            }],
+        };
+        // two replicas, three samples, two components
+        let parts = vec![
+            vec![vec![0.1, -0.2, 0.3], vec![0.5; 3]],
+            vec![vec![-0.4, 0.0, 0.25], vec![0.5; 3]],
+        ];
+        let target = parts
+            .iter()
+            .map(|p: &Vec<Vec<f64>>| (0..3).map(|t| p[0][t] + p[1][t]).collect())
+            .collect();
+        State {
+            spec,
+            target,
+            parts,
+            ens: EnsembleStats {
+                mean: vec![],
+                sd: vec![],
+            },
+            gap: 1.0,
+        }
+    }
+
+    fn proposal(
+        component: Component,
+        replaces: Option<usize>,
+        delta: candidates::Delta,
+    ) -> Proposal {
+        Proposal {
+            kind: component.kind().as_str().into(),
+            component,
+            replaces,
+            params: Value::Null,
+            delta,
+            note: String::new(),
+        }
+    }
+
+    #[test]
+    fn effects_taken_back_in_any_order_restore_the_state_exactly() {
+        let st0 = state();
+        for order in [[0, 1, 2], [2, 1, 0], [1, 0, 2], [0, 2, 1]] {
+            let mut st = state();
+            let mut slots = vec![
+                apply(
+                    &mut st,
+                    0,
+                    proposal(
+                        Component::RateRamp { r: 1e-3 },
+                        None,
+                        candidates::Delta::Same(vec![0.0, 1e-4, 2e-4]),
+                    ),
+                ),
+                apply(
+                    &mut st,
+                    0,
+                    proposal(
+                        Component::ConstantBias { value: 0.75 },
+                        Some(1),
+                        candidates::Delta::Same(vec![0.25; 3]),
+                    ),
+                ),
+                apply(
+                    &mut st,
+                    0,
+                    proposal(
+                        Component::RateRandomWalk { k: 1e-3 },
+                        None,
+                        candidates::Delta::Each(vec![
+                            vec![0.0, 0.01, 0.03],
+                            vec![0.0, -0.02, -0.01],
+                        ]),
+                    ),
+                ),
+            ];
+            assert_eq!(st.spec.channels[0].components.len(), 4);
+            assert_eq!(
+                st.spec.channels[0].components[1],
+                Component::ConstantBias { value: 0.75 }
+            );
+            // which original slot each position holds now
+            let mut ids: Vec<usize> = vec![0, 1, 2];
+            for want in order {
+                let i = ids.iter().position(|&x| x == want).unwrap();
+                assert!(removable(&slots, i));
+                take_back(&mut st, 0, &mut slots, i);
+                ids.remove(i);
+                // what is left sums to the target, replica by replica
+                for r in 0..2 {
+                    for t in 0..3 {
+                        let sum: f64 = st.parts[r].iter().map(|p| p[t]).sum();
+                        assert!((sum - st.target[r][t]).abs() < 1e-15);
+                    }
+                }
+            }
+            assert_eq!(
+                st.spec.channels[0].components,
+                st0.spec.channels[0].components
+            );
+            for r in 0..2 {
+                for t in 0..3 {
+                    assert!(
+                        (st.target[r][t] - st0.target[r][t]).abs() < 1e-15,
+                        "{order:?}"
+                    );
+                    for c in 0..2 {
+                        assert!((st.parts[r][c][t] - st0.parts[r][c][t]).abs() < 1e-15);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_replaced_component_cannot_be_taken_back_before_its_replacement() {
+        let mut st = state();
+        let mut slots = vec![apply(
+            &mut st,
+            0,
+            proposal(
+                Component::RateRamp { r: 1e-3 },
+                None,
+                candidates::Delta::Same(vec![0.0, 1.0, 2.0]),
+            ),
+        )];
+        slots.push(apply(
+            &mut st,
+            0,
+            proposal(
+                Component::RateRamp { r: 2e-3 },
+                Some(2),
+                candidates::Delta::Same(vec![0.0, 1.0, 2.0]),
+            ),
+        ));
+        assert!(!removable(&slots, 0));
+        assert!(removable(&slots, 1));
+    }
+
+    #[test]
+    fn the_jackknife_sd_of_identical_candidates_is_zero_and_grows_with_their_difference() {
+        use features::Statistic;
+        let defs: Vec<FeatureDef> = (0..3)
+            .map(|k| FeatureDef {
+                statistic: Statistic::Adev,
+                name: format!("f{k}"),
+                lo: k as f64,
+                hi: k as f64 + 1.0,
+                unit: "s".into(),
+                log_scale: true,
+            })
+            .collect();
+        let reps: Vec<Vec<f64>> = (0..8)
+            .map(|r| (0..3).map(|k| ((r * 7 + k * 3) % 5) as f64 * 0.1).collect())
+            .collect();
+        let reference = EnsembleStats::new(&reps, &defs, None);
+        let real = vec![0.3, 0.1, 0.2];
+        assert_eq!(jackknife_sd(&reps, &reps, &real, &reference, &defs), 0.0);
+        let other: Vec<Vec<f64>> = reps
+            .iter()
+            .enumerate()
+            .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
+            .collect();
+        assert!(jackknife_sd(&reps, &other, &real, &reference, &defs) > 0.0);
+    }
 }
