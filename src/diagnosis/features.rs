@@ -630,3 +630,66 @@ fn corr_pairs(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
         0.0
     }
 }
+
+/// The precision a log was printed with: 10^-k for the smallest k in 0..=9 such that
+/// every finite value times 10^k is an integer (to 1e-6, far above the error of a
+/// decimal parsed to binary, far below a step), None when there is no such k or a
+/// value is beyond 1e9 times that step (where a double no longer shows the fraction). A log written as text with k decimals holds
+/// values on this grid whatever the sensor measured; its share of distinct values (and
+/// the distribution of small differences) says how the log was written, not what the
+/// sensor does, so the simulations are rounded to the same grid before they are
+/// compared ([`round_to`]).
+pub fn printed_step(x: &[f64]) -> Option<f64> {
+    let finite: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.len() < 2 {
+        return None;
+    }
+    (0..=9).find_map(|k: i32| {
+        let scale = 10f64.powi(k);
+        finite
+            .iter()
+            .all(|v| {
+                let a = v * scale;
+                a.abs() < 1e9 && (a - a.round()).abs() <= 1e-6
+            })
+            .then(|| 10f64.powi(-k))
+    })
+}
+
+/// `x` rounded to the grid of `step` (round half away from zero, as printing does).
+pub fn round_to(x: &[f64], step: f64) -> Vec<f64> {
+    x.iter().map(|v| (v / step).round() * step).collect()
+}
+
+#[cfg(test)]
+mod printed_tests {
+    use super::{printed_step, round_to};
+
+    #[test]
+    fn the_printed_precision_is_found_and_continuous_values_have_none() {
+        let x: Vec<f64> = (0..2000).map(|k| (k as f64 * 0.731).sin() * 0.37).collect();
+        assert_eq!(printed_step(&x), None);
+        for k in [0, 2, 4, 6] {
+            let step = 10f64.powi(-k);
+            // as a CSV with k decimals would be parsed back
+            let printed: Vec<f64> = x
+                .iter()
+                .map(|v| format!("{v:.prec$}", prec = k as usize).parse().unwrap())
+                .collect();
+            let got = printed_step(&printed).unwrap();
+            assert!((got - step).abs() < 1e-15 * step.max(1.0), "{k}: {got}");
+            let r = round_to(&x, got);
+            assert_eq!(
+                printed_step(&r).map(|s| (s / step).round()),
+                Some(1.0),
+                "{k}"
+            );
+        }
+        // an LSB of 0.05 printed with 2 decimals: the printing step, 0.01
+        let lsb: Vec<f64> = x
+            .iter()
+            .map(|v| format!("{:.2}", (v / 0.05).round() * 0.05).parse().unwrap())
+            .collect();
+        assert!((printed_step(&lsb).unwrap() - 0.01).abs() < 1e-15);
+    }
+}

@@ -252,19 +252,29 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             s
         })
         .collect();
-    // the features of each replica's series xs[r], plus sign * delta[r] when given
+    // a log written as text with k decimals: the simulations are printed alike
+    let printed = features::printed_step(real.x);
+    if let Some(step) = printed {
+        notes.push(format!(
+            "the real log is written with {} decimals: every simulation is rounded to {step:e} u before its statistics are compared",
+            (-step.log10()).round().max(0.0)
+        ));
+    }
+    // the features of each replica's series xs[r], plus sign * delta[r] when given,
+    // rounded to the log's printed precision
     let feats_of = |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>| -> Vec<Vec<f64>> {
         xs.par_iter()
             .enumerate()
             .map(|(r, x)| {
                 let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
-                match delta {
-                    None => test.compute(x, temperature.as_ref(), &o),
-                    Some((d, sign)) => {
-                        let y: Vec<f64> = x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect();
-                        test.compute(&y, temperature.as_ref(), &o)
-                    }
-                }
+                let y: Option<Vec<f64>> =
+                    delta.map(|(d, sign)| x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect());
+                let y = match (printed, y) {
+                    (Some(step), Some(y)) => Some(features::round_to(&y, step)),
+                    (Some(step), None) => Some(features::round_to(x, step)),
+                    (None, y) => y,
+                };
+                test.compute(y.as_deref().unwrap_or(x), temperature.as_ref(), &o)
             })
             .collect()
     };
