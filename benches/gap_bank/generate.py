@@ -206,6 +206,7 @@ class Case:
         ]
         kinds = [k for k, _ in self.effects]
         withheld = set(self.withheld())
+        wcomp = {}   # the contract form of each withheld effect (for the detectability specs)
         # the base, with constant_bias / bias_instability possibly withheld
         x += c0
         x += flicker(rng, n, fs, b, 1.0 / T)
@@ -214,11 +215,13 @@ class Case:
         for k, c in spec_base:
             if k == "constant_bias" and "constant_bias" in withheld:
                 truth.append({"kind": k, "params": {"value": c0}, "form": "constant"})
+                wcomp[k] = c
                 continue
             if k == "bias_instability" and "bias_instability" in withheld:
                 # the withheld flicker is larger than the base one
                 b2 = b * (1 + 2.5 * s)
                 x += flicker(rng, n, fs, math.sqrt(b2 * b2 - b * b), 1.0 / T)
+                wcomp[k] = {"kind": k, "b": b2, "tau_min_s": dt, "tau_max_s": T}
                 truth.append({"kind": k, "params": {"b": b2, "tau_min_s": dt, "tau_max_s": T},
                               "form": "1/f noise shaped by FFT (not a Gauss-Markov bank)"})
                 continue
@@ -257,9 +260,10 @@ class Case:
                 rms = float(np.sqrt(np.mean(sc ** 2)))
                 tm = float(Tread.mean())
                 p = {"of": "white_noise", "slope_per_degC_about_25C": slope,
+                     "scale_floor": 0.15, "share_at_floor": float(np.mean(sc <= 0.15)),
                      "slope_about_mean": slope / (1 + slope * (tm - 25.0)) / 1.0,
                      "white_noise_n_in_spec_is_rms": nd * rms, "mean_temp_c": tm}
-                form = "white noise std * (1 + slope (T - 25 degC)); the spec's n is its RMS"
+                form = "white noise std * max(1 + slope (T - 25 degC), 0.15); the spec's n is its RMS"
                 # the spec's white noise becomes the RMS level
                 for c in spec:
                     if c["kind"] == "white_noise":
@@ -361,6 +365,7 @@ class Case:
                 raise ValueError(kind)
             rec = {"kind": kind, "params": p, "form": form, "variant": var}
             if kind in withheld or kind in ("bias_step", "burst", "telegraph"):
+                wcomp[kind] = comp
                 truth.append(rec)
             elif comp is not None:
                 spec.append(comp)   # a truth component the spec keeps
@@ -392,6 +397,20 @@ class Case:
         note = f"{self.part}/{self.name}: {self.category}, withheld {self.withheld() or 'nothing'}"
         with open(os.path.join(d, "spec.toml"), "w") as f:
             f.write(spec_toml(fs, unit, temp, spec, note))
+        # detectability of each member of a pair: the truth minus that member alone
+        # (spec_only_<kind>.toml; `score.py --oracle` runs them), where the other
+        # member has a contract form
+        oracle = {}
+        if self.category == "pair":
+            for k in self.withheld():
+                others = [wcomp.get(o) for o in self.withheld() if o != k]
+                if any(o is None for o in others):
+                    continue
+                fn = f"spec_only_{k}.toml"
+                with open(os.path.join(d, fn), "w") as f:
+                    f.write(spec_toml(fs, unit, temp, spec + others,
+                                      f"{self.part}/{self.name}: detectability of {k} alone (the other member in the spec)"))
+                oracle[k] = fn
         if self.category == "correct":
             tk = ["none"]
         elif self.category == "non_candidate":
@@ -405,6 +424,7 @@ class Case:
             "contract_kinds": all(k in CONTRACT_KINDS for k in self.withheld()),
             "withheld": truth,
             "spec_components": [c["kind"] for c in spec],
+            "detectability_specs": oracle,
             "base": base_truth,
             "rate_hz": fs, "duration_s": T, "n_samples": n, "unit": unit,
             "temperature": ({"profile": self.tprof, "range_c": list(self.trange),

@@ -23,7 +23,7 @@ Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
 A run that fails, times out or prints no JSON is wrong.
 
 Prints a table per part and category (and per withheld kind for singles) and writes
-RESULTS/scores.csv (one row per case).
+RESULTS/scores.csv (one row per case; scores_<part>.csv with --part).
 """
 
 import argparse
@@ -78,11 +78,11 @@ def score_case(truth, d):
     raise ValueError(cat)
 
 
-def run_case(farma, case_dir, out_base, timeout, extra):
+def run_case(farma, case_dir, out_base, timeout, extra, spec="spec.toml"):
     json_p, err_p, time_p = out_base + ".json", out_base + ".stderr", out_base + ".time"
     cmd = ["nice", "/usr/bin/time", "-f", "%e %M", "-o", time_p, farma, "gap",
            "--real", os.path.join(case_dir, "real.parquet"),
-           "--sim", os.path.join(case_dir, "spec.toml"), "--channel", "rate", "--json"] + extra
+           "--sim", os.path.join(case_dir, spec), "--channel", "rate", "--json"] + extra
     t0 = time.time()
     status = "ok"
     with open(json_p, "w") as fo, open(err_p, "w") as fe:
@@ -126,6 +126,11 @@ def main():
     ap.add_argument("--out", default=None)
     ap.add_argument("--only", default=None)
     ap.add_argument("--rescore", action="store_true")
+    ap.add_argument("--oracle", action="store_true",
+                    help="also check each pair member's detectability: run the pair's "
+                         "spec_only_<kind>.toml (the truth minus that member alone) and "
+                         "report whether its gap is significant (runs only those not saved "
+                         "yet: --rescore --oracle runs just them)")
     ap.add_argument("extra", nargs="*", help="extra arguments of farma gap (after --)")
     a = ap.parse_args()
     out = a.out or os.path.join(a.bank, "results")
@@ -158,6 +163,31 @@ def main():
             for key, st in ex.map(job, todo):
                 statuses[key] = st
 
+    if a.oracle:
+        orows = []
+        for part, c, cd, ob in todo:
+            truth = json.load(open(os.path.join(cd, "truth.json")))
+            for k, fn in (truth.get("detectability_specs") or {}).items():
+                obk = f"{ob}.only_{k}"
+                if load_json(obk + ".json") is None:   # run unless already saved
+                    run_case(os.path.abspath(a.farma), cd, obk, a.timeout, a.extra, spec=fn)
+                d = load_json(obk + ".json")
+                if d is None:
+                    orows.append((part, c, k, "failed", "", ""))
+                    continue
+                thr = d.get("gap_threshold", 2 * d.get("noise_floor", 0))
+                sig = d.get("significant", d.get("gap_before", 0) > thr)
+                orows.append((part, c, k, "significant" if sig else "NOT significant",
+                              f"{d.get('gap_before', float('nan')):.3g} vs {thr:.3g}",
+                              "+".join(d.get("added") or [])))
+        print("\n== detectability of each pair member alone (truth minus that member)")
+        for r in orows:
+            print(f"{r[0]}/{r[1]:<46} {r[2]:<18} {r[3]:<16} gap {r[4]}  added={r[5]}")
+        with open(os.path.join(out, "detectability.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["part", "case", "member", "verdict", "gap_before_vs_threshold", "added"])
+            w.writerows(orows)
+
     rows = []
     for part, c, cd, ob in todo:
         truth = json.load(open(os.path.join(cd, "truth.json")))
@@ -183,7 +213,7 @@ def main():
             "why": why,
         })
     os.makedirs(out, exist_ok=True)
-    csv_p = os.path.join(out, "scores.csv")
+    csv_p = os.path.join(out, "scores.csv" if a.part == "all" else f"scores_{a.part}.csv")
     if rows:
         with open(csv_p, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
