@@ -189,6 +189,10 @@ class Case:
             return math.sqrt(nd * nd / L + (0.664 * b) ** 2)
 
         s = self.size
+        if "constant_bias" in self.withheld():
+            # a withheld bias is sized like every other effect (at least s x 8 sd of a
+            # block mean), not left at the base's few n
+            c0 = math.copysign(max(abs(c0), s * 8 * sig_L(T / 8)), c0)
         temp = self.tprof is not None
         if temp:
             lo, hi = self.trange

@@ -183,7 +183,8 @@ def main():
         print("\n== detectability of each pair member alone (truth minus that member)")
         for r in orows:
             print(f"{r[0]}/{r[1]:<46} {r[2]:<18} {r[3]:<16} gap {r[4]}  added={r[5]}")
-        with open(os.path.join(out, "detectability.csv"), "w", newline="") as f:
+        dname = "detectability.csv" if a.part == "all" else f"detectability_{a.part}.csv"
+        with open(os.path.join(out, dname), "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["part", "case", "member", "verdict", "gap_before_vs_threshold", "added"])
             w.writerows(orows)
@@ -212,13 +213,17 @@ def main():
             "elapsed_s": e if e is not None else "", "peak_rss_mib": round(m / 1024, 1) if m else "",
             "why": why,
         })
-    os.makedirs(out, exist_ok=True)
-    csv_p = os.path.join(out, "scores.csv" if a.part == "all" else f"scores_{a.part}.csv")
-    if rows:
-        with open(csv_p, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+
+    # pairs whose every member (with a contract form) gives a significant gap alone
+    detect = {}
+    for dname in sorted(os.listdir(out)) if os.path.isdir(out) else []:
+        if not (dname.startswith("detectability") and dname.endswith(".csv")):
+            continue
+        for r in csv.DictReader(open(os.path.join(out, dname))):
+            key = (r["part"], r["case"])
+            detect[key] = detect.get(key, True) and r["verdict"] == "significant"
+    for r in rows:
+        r["members_detectable"] = detect.get((r["part"], r["case"]), "")
 
     for part in parts:
         pr = [r for r in rows if r["part"] == part]
@@ -231,6 +236,11 @@ def main():
             if cr:
                 k = sum(r["right"] for r in cr)
                 print(f"{cat:<28}{k:>6}{len(cr):>6}{k / len(cr):>8.0%}")
+            if cat == "pair" and cr and detect:
+                dc = [r for r in cr if detect.get((part, r["case"])) is True]
+                k = sum(r["right"] for r in dc)
+                if dc:
+                    print(f"{'  members detectable alone':<28}{k:>6}{len(dc):>6}{k / len(dc):>8.0%}")
             if cat == "single" and cr:
                 cc = [r for r in cr if r["contract_kinds"] in (True, "True")]
                 k = sum(r["right"] for r in cc)
@@ -245,6 +255,13 @@ def main():
         print(f"{'case':<48}{'ok':>3}  why")
         for r in pr:
             print(f"{r['case']:<48}{'Y' if r['right'] else '-':>3}  [{r['status']}] {r['why']}")
+    os.makedirs(out, exist_ok=True)
+    csv_p = os.path.join(out, "scores.csv" if a.part == "all" else f"scores_{a.part}.csv")
+    if rows:
+        with open(csv_p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
     print(f"\nwrote {csv_p}")
 
 
