@@ -5,6 +5,7 @@
 use std::ops::Range;
 
 use super::lsq::{golden_min, log_grid, ls};
+use super::params::flag_edge;
 use super::{Context, Found, Training};
 use crate::error::Result;
 use crate::simulator::Component;
@@ -90,6 +91,16 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
             sig,
             "least squares over a log grid of 24 time constants, refined by golden section".into(),
         );
+        if let Some(p) = out.props.last_mut() {
+            flag_edge(
+                &mut p.params,
+                &mut p.note,
+                "tau_s",
+                tau,
+                grid[0],
+                grid[grid.len() - 1],
+            );
+        }
     }
     Ok(())
 }

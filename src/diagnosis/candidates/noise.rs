@@ -7,7 +7,7 @@
 //! log grid).
 
 use super::lsq::{fit_nonneg, log_grid};
-use super::params::{params_json, scaled};
+use super::params::{flag_edge, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -78,7 +78,8 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     let fs = tr.fs;
     let max_tau = cx.train.adev_factors().last().copied().unwrap_or(1) as f64 / fs;
     let mut best: Option<(f64, f64, f64, Vec<Vec<f64>>)> = None;
-    for tau in log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8) {
+    let grid = log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8);
+    for &tau in &grid {
         let unit_c = Component::GaussMarkov {
             sigma: 1.0,
             tau_s: tau,
@@ -94,9 +95,19 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                 sigma: c,
                 tau_s: tau,
             };
+            let mut params = params_json(&comp);
+            let mut note = "excess training Allan variance, tau_s over a log grid of 8".to_string();
+            flag_edge(
+                &mut params,
+                &mut note,
+                "tau_s",
+                tau,
+                grid[0],
+                grid[grid.len() - 1],
+            );
             out.props.push(Proposal {
                 kind: "gauss_markov".into(),
-                params: params_json(&comp),
+                params,
                 component: comp,
                 replaces: None,
                 delta: Delta::Each(
@@ -104,7 +115,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                         .map(|v| v.iter().map(|e| e * c).collect())
                         .collect(),
                 ),
-                note: "excess training Allan variance, tau_s over a log grid of 8".into(),
+                note,
             });
         }
         None => out.skip(

@@ -84,6 +84,40 @@ pub(super) fn is_noise(c: &Component) -> bool {
     )
 }
 
+/// Marks parameter `name` of an estimate as stopped at an end of its search range
+/// [lo, hi] (within 1e-6 relative): `at_search_edge` lists such parameters in the
+/// params object, and the note says that the value is a bound, not an estimate.
+/// Returns whether it was at an edge.
+pub(super) fn flag_edge(
+    params: &mut Value,
+    note: &mut String,
+    name: &str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+) -> bool {
+    let near = |a: f64, b: f64| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
+    let side = if near(value, lo) {
+        "lower"
+    } else if near(value, hi) {
+        "upper"
+    } else {
+        return false;
+    };
+    if let Value::Object(m) = params {
+        let list = m
+            .entry("at_search_edge")
+            .or_insert_with(|| Value::Array(Vec::new()));
+        if let Value::Array(a) = list {
+            a.push(Value::String(name.to_string()));
+        }
+    }
+    note.push_str(&format!(
+        "; {name} = {value:.4e} is the {side} end of its search range [{lo:.4e}, {hi:.4e}]: a bound, not an estimate"
+    ));
+    true
+}
+
 /// The parameters of a component as JSON (the keys of contracts.md section 2).
 pub fn params_json(c: &Component) -> Value {
     use Component as C;
@@ -117,5 +151,38 @@ pub fn params_json(c: &Component) -> Value {
         C::Outliers { rate_hz, scale } => json!({ "rate_hz": rate_hz, "scale": scale }),
         C::Heteroskedastic { of, slope } => json!({ "of": of.as_str(), "slope": slope }),
         C::CrossAxis { from, gain } => json!({ "from": from, "gain": gain }),
+    }
+}
+
+#[cfg(test)]
+mod edge_tests {
+    use super::flag_edge;
+    use serde_json::json;
+
+    #[test]
+    fn a_value_at_an_end_of_its_range_is_flagged_and_one_inside_is_not() {
+        let mut p = json!({"sigma": 1.0, "tau_s": 0.02});
+        let mut note = String::from("grid");
+        assert!(flag_edge(&mut p, &mut note, "tau_s", 0.02, 0.02, 400.0));
+        assert_eq!(p["at_search_edge"], json!(["tau_s"]));
+        assert!(
+            note.contains("lower end") && note.contains("a bound, not an estimate"),
+            "{note}"
+        );
+        let mut q = json!({"tau_s": 400.0});
+        let mut note = String::new();
+        assert!(flag_edge(
+            &mut q,
+            &mut note,
+            "tau_s",
+            400.0 * (1.0 + 1e-9),
+            0.02,
+            400.0
+        ));
+        assert!(note.contains("upper end"));
+        let mut r = json!({"tau_s": 3.0});
+        let mut note = String::new();
+        assert!(!flag_edge(&mut r, &mut note, "tau_s", 3.0, 0.02, 400.0));
+        assert!(r.get("at_search_edge").is_none() && note.is_empty());
     }
 }
