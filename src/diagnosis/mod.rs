@@ -337,7 +337,43 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             target: &st.target,
             parts: &st.parts,
         };
-        let (props, skipped) = candidates::propose(&cx)?;
+        // each candidate is scored as it is estimated; only the best (with its
+        // signal) and the runner-up's features are kept
+        let mut all: Vec<Effect> = Vec::new();
+        let mut best: Option<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)> = None;
+        let mut second: Option<(Effect, Vec<Vec<f64>>)> = None;
+        let gap_now = st.gap;
+        let skipped = candidates::propose(&cx, &mut |p: Proposal| {
+            let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
+            let f = feats_of(&st.target, Some((&d, 1.0)));
+            let (g, e, families) = score(&f);
+            let eff = Effect {
+                kind: p.kind.clone(),
+                gap_after: g,
+                shrink: 1.0 - g / gap_now,
+                params: p.params.clone(),
+                note: p.note.clone(),
+                families,
+                contribution: None,
+                step: None,
+                component: p.component.clone(),
+                replaces: p.replaces,
+            };
+            all.push(eff.clone());
+            match &best {
+                Some(b) if g >= b.0.gap_after => {
+                    if second.as_ref().is_none_or(|s| g < s.0.gap_after) {
+                        second = Some((eff, f));
+                    }
+                }
+                _ => {
+                    if let Some((be, _, _, bf)) = best.take() {
+                        second = Some((be, bf));
+                    }
+                    best = Some((eff, e, p, f));
+                }
+            }
+        })?;
         if first.is_none() {
             not_tried = skipped;
             if let Some(q) = resolution {
@@ -349,30 +385,9 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 });
             }
         }
-        let mut scored: Vec<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)> = props
-            .into_iter()
-            .map(|p| {
-                let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
-                let f = feats_of(&st.target, Some((&d, 1.0)));
-                let (g, e, families) = score(&f);
-                let eff = Effect {
-                    kind: p.kind.clone(),
-                    gap_after: g,
-                    shrink: 1.0 - g / st.gap,
-                    params: p.params.clone(),
-                    note: p.note.clone(),
-                    families,
-                    contribution: None,
-                    step: None,
-                    component: p.component.clone(),
-                    replaces: p.replaces,
-                };
-                (eff, e, p, f)
-            })
-            .collect();
-        scored.sort_by(|a, b| a.0.gap_after.total_cmp(&b.0.gap_after));
+        all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
-            first = Some(scored.iter().map(|s| s.0.clone()).collect());
+            first = Some(all);
         }
         if stop_floor {
             notes.push(format!(
@@ -381,11 +396,16 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             ));
             break;
         }
-        let tie_with = scored.get(1).map(|second| {
-            let sd = jackknife_sd(&scored[0].3, &second.3, &real_feats, &ens_before, &defs);
-            (second.0.kind.clone(), second.0.gap_after, sd)
-        });
-        let Some((mut eff, e, p, _)) = scored.into_iter().next() else {
+        let tie_with = match (&best, &second) {
+            (Some(b), Some(s)) => Some((
+                s.0.kind.clone(),
+                s.0.gap_after,
+                jackknife_sd(&b.3, &s.1, &real_feats, &ens_before, &defs),
+            )),
+            _ => None,
+        };
+        drop(second);
+        let Some((mut eff, e, p, _)) = best else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };

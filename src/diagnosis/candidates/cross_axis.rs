@@ -24,7 +24,7 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
                 gain: b[0],
             };
             let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
-            out.props.push(Proposal {
+            out.push(Proposal {
                 kind: "cross_axis".into(),
                 params: params_json(&comp),
                 component: comp,

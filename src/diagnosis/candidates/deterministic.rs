@@ -82,7 +82,7 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
     };
     if let Some((a, tau, u)) = refined {
         let sig: Vec<f64> = u.iter().map(|v| v * a).collect();
-        out.same(
+        let mut p = super::same(
             "warmup",
             Component::Warmup {
                 amplitude: a,
@@ -91,16 +91,15 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
             sig,
             "least squares over a log grid of 24 time constants, refined by golden section".into(),
         );
-        if let Some(p) = out.props.last_mut() {
-            flag_edge(
-                &mut p.params,
-                &mut p.note,
-                "tau_s",
-                tau,
-                grid[0],
-                grid[grid.len() - 1],
-            );
-        }
+        flag_edge(
+            &mut p.params,
+            &mut p.note,
+            "tau_s",
+            tau,
+            grid[0],
+            grid[grid.len() - 1],
+        );
+        out.push(p);
     }
     Ok(())
 }

@@ -219,14 +219,19 @@ impl Training {
     }
 }
 
-/// The candidates found so far: proposals to score, and those not tried.
-#[derive(Default)]
-struct Found {
-    props: Vec<Proposal>,
+/// The candidates found so far: each proposal handed to the caller's sink as soon as
+/// it is estimated (so that only the ones the caller keeps stay in memory), and those
+/// not tried.
+struct Found<'s> {
+    sink: &'s mut dyn FnMut(Proposal),
     skipped: Vec<NotTried>,
 }
 
-impl Found {
+impl Found<'_> {
+    fn push(&mut self, p: Proposal) {
+        (self.sink)(p)
+    }
+
     fn skip(&mut self, kind: &str, why: &str) {
         self.skipped.push(NotTried {
             kind: kind.into(),
@@ -236,25 +241,34 @@ impl Found {
 
     /// A deterministic addition: component `c`, the same signal `sig` in every replica.
     fn same(&mut self, kind: &str, c: Component, sig: Vec<f64>, note: String) {
-        self.props.push(Proposal {
-            kind: kind.into(),
-            params: params_json(&c),
-            component: c,
-            replaces: None,
-            delta: Delta::Same(sig),
-            note,
-        })
+        self.push(same(kind, c, sig, note))
     }
 }
 
-/// Every candidate for the current state: proposals to score, and those not tried.
-/// Each kind of component the target channel lacks is tried as an addition, in this
-/// order, then every component it has is tried for recalibration.
-pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
+/// A deterministic addition: component `c`, the same signal `sig` in every replica.
+fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
+    Proposal {
+        kind: kind.into(),
+        params: params_json(&c),
+        component: c,
+        replaces: None,
+        delta: Delta::Same(sig),
+        note,
+    }
+}
+
+/// Every candidate for the current state, each handed to `sink` as it is estimated;
+/// returns those not tried. Each kind of component the target channel lacks is tried
+/// as an addition, in this order, then every component it has is tried for
+/// recalibration.
+pub fn propose(cx: &Context, sink: &mut dyn FnMut(Proposal)) -> Result<Vec<NotTried>> {
     let comps = &cx.spec.channels[cx.channel].components;
     let has = |k: Kind| comps.iter().any(|c| c.kind() == k);
     let tr = Training::new(cx);
-    let mut out = Found::default();
+    let mut out = Found {
+        sink,
+        skipped: Vec::new(),
+    };
 
     // -- deterministic additions
     if !has(Kind::ConstantBias) {
@@ -318,5 +332,5 @@ pub fn propose(cx: &Context) -> Result<(Vec<Proposal>, Vec<NotTried>)> {
 
     // -- recalibration of what the spec has
     recalibrate::recalibrate(cx, &tr, &mut out)?;
-    Ok((out.props, out.skipped))
+    Ok(out.skipped)
 }

@@ -57,7 +57,7 @@ pub(super) fn power_law(
         return Ok(());
     }
     let comp = scaled(&unit_c, c).expect("noise kinds scale");
-    out.props.push(Proposal {
+    out.push(Proposal {
         kind: kind.as_str().into(),
         params: params_json(&comp),
         component: comp,
@@ -105,7 +105,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                 grid[0],
                 grid[grid.len() - 1],
             );
-            out.props.push(Proposal {
+            out.push(Proposal {
                 kind: "gauss_markov".into(),
                 params,
                 component: comp,

@@ -16,7 +16,7 @@ use crate::stats::special::normal_cdf;
 /// spikes than the simulations.
 pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     match estimate_outliers(cx)? {
-        Some(p) => out.props.push(p),
+        Some(p) => out.push(p),
         None => out.skip(
             "outliers",
             "no more spikes in the training part than in the simulations",

@@ -54,7 +54,7 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, out: &mut Found) -> Resul
             m.insert("factor".into(), json!(s));
             m.insert("component".into(), json!(k + 1));
         }
-        out.props.push(Proposal {
+        out.push(Proposal {
             kind,
             params,
             component: comp,

@@ -129,7 +129,7 @@ pub(super) fn heteroskedastic(
     out: &mut Found,
 ) -> Result<()> {
     match estimate_heteroskedastic(cx, tp, tm)? {
-        Some(p) => out.props.push(p),
+        Some(p) => out.push(p),
         None => out.skip(
             "heteroskedastic",
             "the spec's channel has no noise component to modulate",
