@@ -893,6 +893,18 @@ pub(super) fn fit_releasing(
     out
 }
 
+/// The least and largest of `values` and whether one is NaN (f64::min and max skip
+/// NaN; an infinite value shows as an infinite extreme).
+fn extremes(values: impl Iterator<Item = f64>) -> (f64, f64, bool) {
+    let (mut lo, mut hi, mut nan) = (f64::INFINITY, f64::NEG_INFINITY, false);
+    for c in values {
+        lo = lo.min(c);
+        hi = hi.max(c);
+        nan |= c.is_nan();
+    }
+    (lo, hi, nan)
+}
+
 /// [`fit`] (`copy`: the passes read a centred copy of `series`) or
 /// [`fit_then_release`] (they read `series` less its mean).
 fn fit_series(series: &[f64], params: &ValidParams, copy: bool) -> Result<(Farma, FitReport)> {
@@ -917,20 +929,11 @@ fn fit_series(series: &[f64], params: &ValidParams, copy: bool) -> Result<(Farma
     // the centred series' extremes and the NaN check (f64::min and max skip NaN; an
     // infinite value shows as an infinite extreme), chunks in parallel, with the
     // centred copy written in the same pass when there is one
-    let extremes = |c: &mut dyn Iterator<Item = f64>| {
-        let (mut lo, mut hi, mut nan) = (f64::INFINITY, f64::NEG_INFINITY, false);
-        for c in c {
-            lo = lo.min(c);
-            hi = hi.max(c);
-            nan |= c.is_nan();
-        }
-        (lo, hi, nan)
-    };
     let copied: Vec<f64>;
     let (x, parts) = if copy {
         let parts;
         (copied, parts) = buffers::filled(n, |at, out: &mut [f64]| {
-            extremes(&mut out.iter_mut().zip(&series[at..]).map(|(o, v)| {
+            extremes(out.iter_mut().zip(&series[at..]).map(|(o, v)| {
                 *o = v - mean;
                 *o
             }))
@@ -940,7 +943,7 @@ fn fit_series(series: &[f64], params: &ValidParams, copy: bool) -> Result<(Farma
         use rayon::prelude::*;
         let parts: Vec<_> = series
             .par_chunks(buffers::FILL_CHUNK)
-            .map(|vs| extremes(&mut vs.iter().map(|v| v - mean)))
+            .map(|vs| extremes(vs.iter().map(|v| v - mean)))
             .collect();
         (Centred::new(series, mean), parts)
     };
