@@ -11,6 +11,7 @@
 //! with step halving; an MA part outside the invertible region is rejected.
 
 use super::linalg::normal_equations;
+use super::series::Centred;
 
 /// A fitted linear ARMA model.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,15 +53,16 @@ fn lagged_ls(
     if k > 2 && cols.iter().enumerate().all(|(i, c)| *c == (0, i + 1)) {
         return lagged_ls_one_series(y, series[0], k, rows);
     }
-    let (ata, aty) = lagged_normal(y, series, cols, rows);
+    let series: Vec<Centred> = series.iter().map(|s| Centred::plain(s)).collect();
+    let (ata, aty) = lagged_normal(Centred::plain(y), &series, cols, rows);
     normal_equations(&ata, &aty, k)
 }
 
 /// The normal equations (A'A row-major, A'y) of `lagged_ls`'s regression, summed
 /// over rows t in `rows` in order.
 pub fn lagged_normal(
-    y: &[f64],
-    series: &[&[f64]],
+    y: Centred,
+    series: &[Centred],
     cols: &[(usize, usize)],
     rows: std::ops::Range<usize>,
 ) -> (Vec<f64>, Vec<f64>) {
@@ -70,7 +72,7 @@ pub fn lagged_normal(
     let mut v = vec![0.0; k];
     for t in rows {
         for (i, (s, lag)) in cols.iter().enumerate() {
-            v[i] = series[*s][t - lag];
+            v[i] = series[*s].at(t - lag);
         }
         // the upper triangle only (v_i v_j = v_j v_i exactly: the mirrored sums are
         // the same bits)
@@ -79,7 +81,7 @@ pub fn lagged_normal(
             for (a, vj) in ata[i * k + i..(i + 1) * k].iter_mut().zip(&v[i..]) {
                 *a += vi * vj;
             }
-            aty[i] += vi * y[t];
+            aty[i] += vi * y.at(t);
         }
     }
     for i in 0..k {
@@ -203,7 +205,13 @@ pub fn ma_root_modulus(b: &[f64]) -> f64 {
 /// 7.2): returns the RSS over t >= `start` and the Gauss-Newton normal equations J'J
 /// and -J'e (k = p + q unknowns, row-major). The recursions keep only the last q
 /// values of e and of the derivatives: nothing N-long is allocated.
-pub fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+pub fn arma_pass<'a>(
+    x: impl Into<Centred<'a>>,
+    start: usize,
+    a: &[f64],
+    b: &[f64],
+) -> (f64, Vec<f64>, Vec<f64>) {
+    let x = x.into();
     arma_pass_fixed_orders(x, start, a, b, None).unwrap_or_else(|| arma_pass_any(x, start, a, b))
 }
 
@@ -211,20 +219,21 @@ pub fn arma_pass(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64
 /// (a, b), the values of [`arma_residuals`] bit for bit (the same operations, tested).
 /// None, with nothing written, for orders without a kernel of their own (p <= 3 and
 /// q <= 2 have one).
-pub fn arma_pass_into(
-    x: &[f64],
+pub fn arma_pass_into<'a>(
+    x: impl Into<Centred<'a>>,
     start: usize,
     a: &[f64],
     b: &[f64],
     e: &mut [f64],
 ) -> Option<(f64, Vec<f64>, Vec<f64>)> {
+    let x = x.into();
     assert_eq!(e.len(), x.len());
     arma_pass_fixed_orders(x, start, a, b, Some(e))
 }
 
 /// [`arma_pass_fixed`] for the orders that have a kernel; None for the others.
 fn arma_pass_fixed_orders(
-    x: &[f64],
+    x: Centred,
     start: usize,
     a: &[f64],
     b: &[f64],
@@ -253,14 +262,14 @@ fn arma_pass_fixed_orders(
 /// Where the pass of one chunk of rows reads x_t and writes e_t: the chunk of the
 /// series, and the chunk of the residual buffer when one is filled.
 struct ReadWrite<'a> {
-    x: &'a [f64],
+    x: Centred<'a>,
     e: &'a mut [f64],
 }
 
 impl RowIo for ReadWrite<'_> {
     #[inline]
     fn get(&self, i: usize) -> f64 {
-        self.x[i]
+        self.x.at(i)
     }
     #[inline]
     fn put(&mut self, i: usize, e: f64) {
@@ -284,7 +293,7 @@ impl RowIo for ReadWrite<'_> {
 /// (first `lead` rows, then the rest) in chunk order, in both cases: the result
 /// depends on N and b, not on the threads.
 fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
-    x: &[f64],
+    x: Centred,
     start: usize,
     a: &[f64],
     b: &[f64],
@@ -305,7 +314,7 @@ fn arma_pass_fixed<const P: usize, const Q: usize, const K: usize>(
                es: Option<&mut [f64]>,
                st: &mut PassState<P, Q, K>,
                sums: &mut PassSums<K>| {
-        let xs = &x[r.clone()];
+        let xs = x.range(r.clone());
         match es {
             Some(e) => pass_rows(
                 ReadWrite { x: xs, e },
@@ -426,11 +435,11 @@ pub(super) struct PassState<const P: usize, const Q: usize, const K: usize> {
 impl<const P: usize, const Q: usize, const K: usize> PassState<P, Q, K> {
     /// Before row t: the x lags from the series (zeros before the first sample), a
     /// zero MA state.
-    pub(super) fn at(x: &[f64], t: usize) -> Self {
+    pub(super) fn at(x: Centred, t: usize) -> Self {
         let mut xh = [0.0f64; P];
         for (m, v) in xh.iter_mut().enumerate() {
             if t > m {
-                *v = x[t - m - 1];
+                *v = x.at(t - m - 1);
             }
         }
         PassState {
@@ -506,6 +515,15 @@ impl RowIo for &[f64] {
     #[inline]
     fn get(&self, i: usize) -> f64 {
         self[i]
+    }
+    #[inline]
+    fn put(&mut self, _i: usize, _e: f64) {}
+}
+
+impl RowIo for Centred<'_> {
+    #[inline]
+    fn get(&self, i: usize) -> f64 {
+        self.at(i)
     }
     #[inline]
     fn put(&mut self, _i: usize, _e: f64) {}
@@ -592,7 +610,7 @@ pub(super) fn pass_rows<const P: usize, const Q: usize, const K: usize, IO: RowI
 }
 
 /// [`arma_pass`] for any order.
-fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+fn arma_pass_any(x: Centred, start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
     let (p, q) = (a.len(), b.len());
     let k = p + q;
     let n = x.len();
@@ -604,10 +622,10 @@ fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64
     let mut jte = vec![0.0; k];
     let mut rss = 0.0;
     for t in 0..n {
-        let mut s = x[t];
+        let mut s = x.at(t);
         for (m, am) in a.iter().enumerate() {
             if t > m {
-                s -= am * x[t - m - 1];
+                s -= am * x.at(t - m - 1);
             }
         }
         for (m, bm) in b.iter().enumerate() {
@@ -617,7 +635,7 @@ fn arma_pass_any(x: &[f64], start: usize, a: &[f64], b: &[f64]) -> (f64, Vec<f64
         }
         for j in 0..k {
             let mut v = if j < p {
-                if t > j { -x[t - j - 1] } else { 0.0 }
+                if t > j { -x.at(t - j - 1) } else { 0.0 }
             } else if t > j - p {
                 -ehist[j - p]
             } else {
@@ -768,7 +786,7 @@ mod tests {
         ];
         for (a, b) in cases {
             let chunked = arma_pass(&x, 2, a, b);
-            let one = arma_pass_any(&x, 2, a, b);
+            let one = arma_pass_any(Centred::plain(&x), 2, a, b);
             let close = |u: f64, v: f64| (u - v).abs() <= 1e-12 * v.abs().max(1.0);
             assert!(
                 close(chunked.0, one.0),
@@ -869,7 +887,7 @@ mod tests {
             let (a, b) = (&a_all[..p], &b_all[..q]);
             for start in [p.max(q), 5] {
                 let fast = arma_pass(&x, start, a, b);
-                let slow = arma_pass_any(&x, start, a, b);
+                let slow = arma_pass_any(Centred::plain(&x), start, a, b);
                 assert_eq!(fast.0.to_bits(), slow.0.to_bits(), "({p},{q}) rss");
                 for (u, v) in fast
                     .1

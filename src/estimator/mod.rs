@@ -24,6 +24,7 @@ pub mod linalg;
 pub mod moments;
 pub mod multivariate;
 pub mod problem;
+pub mod series;
 pub mod update;
 
 pub use fit::{

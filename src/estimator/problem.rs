@@ -7,10 +7,13 @@
 //! sum_t K((U_t - u_g)/h) (y_t - X_t' (a + c (U_t - u_g)/h))^2,
 //! so f(u_g) = a and f'(u_g) = c / h (Fan and Gijbels 1996, ch. 3; Cai, Fan and Yao 2000).
 
+use super::series::Centred;
+
 /// The regression data (borrowed; nothing is copied).
 #[derive(Clone, Copy, Debug)]
 pub struct VcProblem<'a> {
-    pub x: &'a [f64],
+    /// The series (read with its mean taken out when it is a store's column).
+    pub x: Centred<'a>,
     /// Residuals for the MA part (empty when q = 0).
     pub e: &'a [f64],
     /// MA coefficients b_1..b_q.
@@ -28,9 +31,9 @@ pub struct VcProblem<'a> {
 impl<'a> VcProblem<'a> {
     /// The problem of series `x` with residuals `e`, MA coefficients `b` (q of them),
     /// order p and delay d, from its first usable row max(p, q, d).
-    pub fn new(x: &'a [f64], e: &'a [f64], b: &'a [f64], p: usize, d: usize) -> Self {
+    pub fn new(x: impl Into<Centred<'a>>, e: &'a [f64], b: &'a [f64], p: usize, d: usize) -> Self {
         VcProblem {
-            x,
+            x: x.into(),
             e,
             b,
             p,
@@ -48,7 +51,7 @@ impl<'a> VcProblem<'a> {
     /// Index U_t.
     #[inline]
     pub fn u(&self, t: usize) -> f64 {
-        self.x[t - self.d]
+        self.x.at(t - self.d)
     }
 
     /// Response y_t.
@@ -57,7 +60,7 @@ impl<'a> VcProblem<'a> {
         if let Some((r, lag)) = self.resp {
             return r[t - lag];
         }
-        let mut y = self.x[t];
+        let mut y = self.x.at(t);
         for (m, bm) in self.b.iter().enumerate() {
             y -= bm * self.e[t - m - 1];
         }
@@ -67,7 +70,7 @@ impl<'a> VcProblem<'a> {
     /// Regressor m (0-based: x_{t-1-m}).
     #[inline]
     pub fn xr(&self, t: usize, m: usize) -> f64 {
-        self.x[t - 1 - m]
+        self.x.at(t - 1 - m)
     }
 
     /// Fills `v` with (X_t, y_t): p + 1 values.

@@ -127,7 +127,7 @@ pub fn ma_step(
     refill: impl FnMut(&mut [f64]),
 ) -> (Vec<f64>, f64) {
     let q = b0.len();
-    let (rss0, jtj, jte) = arma_pass(buf, start, &[], b0);
+    let (rss0, jtj, jte) = arma_pass(&*buf, start, &[], b0);
     let b1: Vec<f64> = match normal_equations(&jtj, &jte, q) {
         Some(step) => b0.iter().zip(&step).map(|(b, s)| b + s).collect(),
         None => b0.to_vec(),

@@ -133,6 +133,7 @@ use crate::estimator::moments::MomentTable;
 use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
+use crate::estimator::series::Centred;
 pub use crate::model::report::{AlternationTiming, FitReport, FitTimings, GcvRow};
 use crate::model::{Coef, Farma, Order, StartReason};
 pub use bstep::{SMALL_STEP, ma_cls, ma_step};
@@ -838,20 +839,75 @@ pub(super) fn mix_parts<H: Copy>(
     (trace, factors)
 }
 
-/// Fits a FARMA model to `series`.
+/// Fits a FARMA model to `series`, from a centred copy of it (N values held beside
+/// the series while the fit runs): the in-memory path that
+/// [`fit_then_release`]'s reading of the series itself is tested against.
 pub fn fit(series: &[f64], params: &ValidParams) -> Result<(Farma, FitReport)> {
-    fit_then_release(series, params, || {})
+    fit_series(series, params, true)
 }
 
-/// [`fit`], calling `release` once the centred copy of `series` is made and `series`
-/// is no longer read: a caller whose series is a store's mapped column drops its pages
-/// from the resident set there ([`crate::store::Store::release`]), so that the fit holds
-/// the copy, not both.
+/// How often [`fit_then_release`] calls its `release` while the fit runs.
+pub const RELEASE_EVERY: std::time::Duration = std::time::Duration::from_millis(10);
+
+/// [`fit`] without the centred copy: every pass reads `series` itself with the mean
+/// taken out on the fly ([`Centred`]: the copy's values, bit for bit, so the same
+/// fit), and a thread calls `release` every [`RELEASE_EVERY`] while the fit runs and
+/// once after it. A caller whose series is a store's mapped column drops the column's
+/// pages from the resident set there ([`crate::store::Store::release`]): the pages a
+/// pass reads are faulted back in from the page cache, and released behind it, so
+/// the fit's resident set holds its own vectors (the residuals, the interval indexes)
+/// and the pages read in the last few milliseconds, not the column (measured on 1e8
+/// samples: BENCHMARKS.md).
 pub fn fit_then_release(
     series: &[f64],
     params: &ValidParams,
-    release: impl FnOnce(),
+    release: impl Fn() + Sync,
 ) -> Result<(Farma, FitReport)> {
+    fit_releasing(series, params, release, RELEASE_EVERY)
+}
+
+/// [`fit_then_release`] with `release` called every `every` (the tests release all
+/// the time: `every` zero).
+pub(super) fn fit_releasing(
+    series: &[f64],
+    params: &ValidParams,
+    release: impl Fn() + Sync,
+    every: std::time::Duration,
+) -> Result<(Farma, FitReport)> {
+    let release = &release;
+    let out = std::thread::scope(|s| {
+        // `stop` is dropped at the fit's end, or while a panic of the fit unwinds out
+        // of this closure (before the scope joins the thread)
+        let (stop, stopped) = std::sync::mpsc::channel::<()>();
+        s.spawn(move || {
+            use std::sync::mpsc::RecvTimeoutError;
+            while let Err(RecvTimeoutError::Timeout) = stopped.recv_timeout(every) {
+                release();
+            }
+        });
+        let out = fit_series(series, params, false);
+        drop(stop);
+        out
+    });
+    release();
+    out
+}
+
+/// The least and largest of `values` and whether one is NaN (f64::min and max skip
+/// NaN; an infinite value shows as an infinite extreme).
+fn extremes(values: impl Iterator<Item = f64>) -> (f64, f64, bool) {
+    let (mut lo, mut hi, mut nan) = (f64::INFINITY, f64::NEG_INFINITY, false);
+    for c in values {
+        lo = lo.min(c);
+        hi = hi.max(c);
+        nan |= c.is_nan();
+    }
+    (lo, hi, nan)
+}
+
+/// [`fit`] (`copy`: the passes read a centred copy of `series`) or
+/// [`fit_then_release`] (they read `series` less its mean).
+fn fit_series(series: &[f64], params: &ValidParams, copy: bool) -> Result<(Farma, FitReport)> {
     let prm = params.params();
     let (p, q, d) = (prm.p, prm.q, prm.d);
     let n = series.len();
@@ -870,25 +926,31 @@ pub fn fit_then_release(
     } else {
         0.0
     };
-    // the centred series, with its extremes and the NaN check in the same pass
-    // (f64::min and max skip NaN; an infinite value shows as an infinite extreme),
-    // chunks in parallel
-    let (x, parts) = buffers::filled(n, |at, out: &mut [f64]| {
-        let (mut lo, mut hi, mut nan) = (f64::INFINITY, f64::NEG_INFINITY, false);
-        for (o, v) in out.iter_mut().zip(&series[at..]) {
-            let c = v - mean;
-            *o = c;
-            lo = lo.min(c);
-            hi = hi.max(c);
-            nan |= c.is_nan();
-        }
-        (lo, hi, nan)
-    });
+    // the centred series' extremes and the NaN check (f64::min and max skip NaN; an
+    // infinite value shows as an infinite extreme), chunks in parallel, with the
+    // centred copy written in the same pass when there is one
+    let copied: Vec<f64>;
+    let (x, parts) = if copy {
+        let parts;
+        (copied, parts) = buffers::filled(n, |at, out: &mut [f64]| {
+            extremes(out.iter_mut().zip(&series[at..]).map(|(o, v)| {
+                *o = v - mean;
+                *o
+            }))
+        });
+        (Centred::plain(&copied), parts)
+    } else {
+        use rayon::prelude::*;
+        let parts: Vec<_> = series
+            .par_chunks(buffers::FILL_CHUNK)
+            .map(|vs| extremes(vs.iter().map(|v| v - mean)))
+            .collect();
+        (Centred::new(series, mean), parts)
+    };
     let (xmin, xmax, nan) = parts.into_iter().fold(
         (f64::INFINITY, f64::NEG_INFINITY, false),
         |(a, b, nan), (lo, hi, n)| (a.min(lo), b.max(hi), nan | n),
     );
-    release();
     if nan || !xmin.is_finite() || !xmax.is_finite() {
         return Err(Error::Data(
             "the channel holds NaN or infinite values".into(),
@@ -902,7 +964,7 @@ pub fn fit_then_release(
     }
     check_magnitude("the channel", xmin, xmax, prm.path).map_err(Error::Data)?;
     let qs = quantiles(
-        |t| x[t - d],
+        |t| x.at(t - d),
         pp..n,
         &[prm.grid_quantiles.0, prm.grid_quantiles.1],
     );
@@ -924,12 +986,12 @@ pub fn fit_then_release(
     // then uses every sample; on longer series the linear ARMA's own passes would
     // cost as much as the alternation, and its work arrays several copies of the
     // series)
-    let x_start = &x[..n.min(START_MAX)];
+    let x_start = &x.prefix(n.min(START_MAX)).to_vec();
     // the residuals at the start: written by the linear start's last pass over every
     // sample when it evaluated the returned (a, b), else by arma_residuals_rss
     let mut e_start = vec![0.0; if prm.init == Init::Arma { n } else { 0 }];
     let (a0, b, start_holds) = match prm.init {
-        Init::Arma => match linear_start_into(&x, p, q, pp, Some(&mut e_start)) {
+        Init::Arma => match linear_start_into(x, p, q, pp, Some(&mut e_start)) {
             Some(abh) => abh,
             None => {
                 return Err(Error::Data(
@@ -958,7 +1020,7 @@ pub fn fit_then_release(
         (e_start, rss)
     } else {
         drop(e_start);
-        arma_residuals_rss(&x, &a0, &b, pp)
+        arma_residuals_rss(x, &a0, &b, pp)
     };
     timings.start_s = lap();
     let start = Iterate {
@@ -980,7 +1042,7 @@ pub fn fit_then_release(
         ));
     }
     let mut sm = LagSmoother::new(
-        &x,
+        x,
         &grid,
         (p, q, d),
         prm.path,
@@ -1008,7 +1070,7 @@ pub fn fit_then_release(
     // trace, GCV and standard errors at the final bandwidth: the trace and the
     // standard errors depend on X and U only (not on the residuals), and the GCV is
     // the returned model's, from its own RSS
-    let sm = LagStep::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+    let sm = LagStep::new(x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
     let prob = sm.prob;
     let m = (n - pp) as f64;
     let sigma2 = rss / (n - pp) as f64;
@@ -1018,12 +1080,12 @@ pub fn fit_then_release(
         let Some(h) = at else {
             // the linear model with constant f_m: trace p, the least-squares standard
             // errors of a_m
-            return (Some(p as f64), linear_se_factors(&x, p, pp).repeat(g));
+            return (Some(p as f64), linear_se_factors(x, p, pp).repeat(g));
         };
         if h.is_infinite() {
             // the ladder's limit: the global fit's trace and standard errors (its
             // design is the one the alternation fitted with)
-            let sm = LagStep::new(&x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
+            let sm = LagStep::new(x, &e, &b, (p, d), &grid, prm.path, (xmin, xmax));
             return match sm.limit_fit(&mut cache) {
                 Some((f, rt)) => (rt.map(|(_, tr)| tr), global::GlobalFit::se_factors(&f)),
                 None => (None, vec![f64::NAN; g * p]),

@@ -11,13 +11,22 @@ use crate::estimator::moments::BELOW_GRID;
 use crate::estimator::moments::IntervalIndex;
 use crate::estimator::moments::IntervalLookup;
 use crate::estimator::problem::GridFit;
+use crate::estimator::series::Centred;
 use std::ops::Range;
 
 /// e_t = x_t - sum f_m(U_t) x_{t-m} - sum b_m e_{t-m}, zeros before the first sample,
 /// U_t = x_{t-d} (0 before the first sample). First w_t = x_t - sum f_m(U_t) x_{t-m}
 /// (independent rows: chunks in parallel), then the MA recursion in place; the same
 /// operations in the same order as the one-loop recursion, so the same bits.
-pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e: &mut [f64]) {
+pub fn residuals<'a>(
+    x: impl Into<Centred<'a>>,
+    d: usize,
+    grid: &[f64],
+    coef: &GridFit,
+    b: &[f64],
+    e: &mut [f64],
+) {
+    let x = x.into();
     let lookup = IntervalLookup::new(grid);
     let warm = coef.p.max(d).min(x.len());
     let cell = |_t: usize, u: f64| grid_cell(grid, &lookup, u);
@@ -32,8 +41,8 @@ pub fn residuals(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, b: &[f64], e
 /// [`residuals`] with the grid cell of every row from `start` on read from `index`
 /// (built over breakpoints that hold every grid point, for this series and d):
 /// the same values, bit for bit.
-pub fn residuals_indexed(
-    x: &[f64],
+pub fn residuals_indexed<'a>(
+    x: impl Into<Centred<'a>>,
     d: usize,
     grid: &[f64],
     coef: &GridFit,
@@ -41,6 +50,7 @@ pub fn residuals_indexed(
     e: &mut [f64],
     index: &IntervalIndex,
 ) {
+    let x = x.into();
     let p = coef.p;
     let warm = p.max(d).max(index.start()).min(x.len());
     let cells = index.grid_cells(grid);
@@ -111,7 +121,7 @@ pub(super) fn cell_segments<const P: usize>(
 
 /// w_t for rows `warm..` with p known at compile time, chunks in parallel.
 pub(super) fn w_indexed<const P: usize>(
-    x: &[f64],
+    x: Centred,
     d: usize,
     segs: &[CellSegment<P>],
     index: &IntervalIndex,
@@ -128,7 +138,7 @@ pub(super) fn w_indexed<const P: usize>(
 
 /// w_t for rows t0..t0 + out.len() (all at or after the warm rows), into `out`.
 pub(super) fn w_indexed_span<const P: usize>(
-    x: &[f64],
+    x: Centred,
     d: usize,
     segs: &[CellSegment<P>],
     index: &IntervalIndex,
@@ -138,11 +148,11 @@ pub(super) fn w_indexed_span<const P: usize>(
     for (i, w) in out.iter_mut().enumerate() {
         let t = t0 + i;
         let r = &segs[index.interval(t)];
-        let u = x[t - d];
+        let u = x.at(t - d);
         let lam = (u - r.base) / r.width;
-        let mut s = x[t];
+        let mut s = x.at(t);
         for m in 0..P {
-            s -= (r.fa[m] + lam * r.diff[m]) * x[t - m - 1];
+            s -= (r.fa[m] + lam * r.diff[m]) * x.at(t - m - 1);
         }
         *w = s;
     }
@@ -152,7 +162,7 @@ pub(super) fn w_indexed_span<const P: usize>(
 /// rows t0..t0 + out.len() (the same operations, so the same bits: the warm rows one
 /// by one when the span starts at row 0, which it then covers). None for p > 4.
 pub(super) fn w_indexed_filler<'a>(
-    x: &'a [f64],
+    x: Centred<'a>,
     d: usize,
     grid: &'a [f64],
     coef: &'a GridFit,
@@ -195,16 +205,16 @@ pub(super) fn w_indexed_filler<'a>(
 
 /// w_t = x_t - sum f_m(U_t) x_{t-m} for the first rows, `e.len()` of them, one by one
 /// (some lags fall before the first sample; U_t = 0 before it; cells by search).
-pub(super) fn w_head(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, e: &mut [f64]) {
+pub(super) fn w_head(x: Centred, d: usize, grid: &[f64], coef: &GridFit, e: &mut [f64]) {
     let lookup = IntervalLookup::new(grid);
     let p = coef.p;
     let mut f = [0.0f64; 8];
     for (t, w) in e.iter_mut().enumerate() {
-        let u = if t >= d { x[t - d] } else { 0.0 };
+        let u = if t >= d { x.at(t - d) } else { 0.0 };
         eval_cell(coef, grid, grid_cell(grid, &lookup, u), u, &mut f[..p]);
-        let mut s = x[t];
+        let mut s = x.at(t);
         for m in 0..p.min(t) {
-            s -= f[m] * x[t - m - 1];
+            s -= f[m] * x.at(t - m - 1);
         }
         *w = s;
     }
@@ -213,7 +223,7 @@ pub(super) fn w_head(x: &[f64], d: usize, grid: &[f64], coef: &GridFit, e: &mut 
 /// w_t for rows `warm..` (every lag inside the series: the sums without the checks),
 /// chunks in parallel, `cell(t, U_t)` giving the grid cell.
 pub(super) fn w_rows<F: Fn(usize, f64) -> u32 + Sync>(
-    x: &[f64],
+    x: Centred,
     d: usize,
     grid: &[f64],
     coef: &GridFit,
@@ -233,11 +243,11 @@ pub(super) fn w_rows<F: Fn(usize, f64) -> u32 + Sync>(
             let t0 = warm + c * CHUNK;
             for (i, w) in out.iter_mut().enumerate() {
                 let t = t0 + i;
-                let u = x[t - d];
+                let u = x.at(t - d);
                 eval_cell(coef, grid, cell(t, u), u, f);
-                let mut s = x[t];
+                let mut s = x.at(t);
                 for (m, fm) in f.iter().enumerate() {
-                    s -= fm * x[t - m - 1];
+                    s -= fm * x.at(t - m - 1);
                 }
                 *w = s;
             }
@@ -518,7 +528,7 @@ pub(super) fn ma_filter_gn<const Q: usize>(
     fill: Option<&SpanFill<'_>>,
     refill: impl FnOnce(&mut [f64]),
 ) -> PassSums<Q> {
-    let zero = PassState::<0, Q, Q>::at(&[], 0);
+    let zero = PassState::<0, Q, Q>::at(Centred::plain(&[]), 0);
     let run =
         |rows: &mut [f64], t0: usize, st: &mut PassState<0, Q, Q>| gn_rows(rows, b, t0, st, start);
     let n = buf.len();

@@ -24,6 +24,7 @@ use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
 use crate::estimator::problem::VcProblem;
+use crate::estimator::series::Centred;
 
 /// Fills failed grid points by linear interpolation between the nearest Ok points
 /// (constant beyond the outermost). Returns which were filled; None if none is Ok.
@@ -71,7 +72,7 @@ impl<'a> LagStep<'a> {
     /// The smoother for series `x`, residuals `e`, MA coefficients `b`, shape
     /// (p, d) (first row max(p, q, d)), on `grid`, with index values in `span`.
     pub(super) fn new(
-        x: &'a [f64],
+        x: Centred<'a>,
         e: &'a [f64],
         b: &'a [f64],
         (p, d): (usize, usize),
@@ -193,7 +194,7 @@ impl StepCache {
 
 /// [`residuals`], with the grid cells from `index` when there is one.
 pub(super) fn residuals_at(
-    x: &[f64],
+    x: Centred,
     d: usize,
     grid: &[f64],
     (coef, b): (&GridFit, &[f64]),
@@ -210,7 +211,7 @@ pub(super) fn residuals_at(
 /// f-step to the next) and its b-step, by Gauss-Newton (`Init::Arma`) or the paper's
 /// least-squares step (`Init::Literal`), as the module doc of [`super`] describes.
 pub(super) struct LagSmoother<'a> {
-    x: &'a [f64],
+    x: Centred<'a>,
     grid: &'a [f64],
     /// (p, q, d) and the first row max(p, q, d).
     pqd: (usize, usize, usize),
@@ -234,7 +235,7 @@ impl<'a> LagSmoother<'a> {
     /// The smoother of series `x` (centred, extremes `span`) on `grid`.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
-        x: &'a [f64],
+        x: Centred<'a>,
         grid: &'a [f64],
         (p, q, d): (usize, usize, usize),
         path: FitPath,
@@ -408,10 +409,10 @@ impl Smoother for LagSmoother<'_> {
             let mut ata = vec![0.0; q * q];
             let mut aty = vec![0.0; q];
             for t in pp..x.len() {
-                eval_with(coef, grid, &lookup, x[t - d], &mut f);
-                let mut w = x[t];
+                eval_with(coef, grid, &lookup, x.at(t - d), &mut f);
+                let mut w = x.at(t);
                 for m in 0..p {
-                    w -= f[m] * x[t - m - 1];
+                    w -= f[m] * x.at(t - m - 1);
                 }
                 for i in 0..q {
                     for j in 0..q {

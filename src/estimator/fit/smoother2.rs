@@ -35,6 +35,7 @@ use super::{
 use crate::error::{Error, Result};
 use crate::estimator::arma::fit_arma;
 use crate::estimator::problem::PointStatus;
+use crate::estimator::series::Centred;
 use crate::model::report::{FitReport2, FitTimings, GcvRow};
 use crate::model::{Coef, Farma, Order, SecondIndex};
 
@@ -491,7 +492,10 @@ pub fn fit2(series: &[f64], z: &[f64], params: &Farma2Params) -> Result<(Farma, 
     let mut part = |at: Option<(f64, f64)>| -> (Option<f64>, Vec<f64>) {
         match at {
             // the linear model with constant f_m (as the 1-D fit's)
-            None => (Some(p as f64), linear_se_factors(&x, p, pp).repeat(gl)),
+            None => (
+                Some(p as f64),
+                linear_se_factors(Centred::plain(&x), p, pp).repeat(gl),
+            ),
             Some(hh) => {
                 let (final_fit, rt) = step.at(hh);
                 let factors = se_factors2(&prob, &index, &grid, &final_fit);

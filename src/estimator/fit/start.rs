@@ -11,6 +11,7 @@ use crate::estimator::arma::ma_invertible;
 use crate::estimator::buffers;
 use crate::estimator::linalg::normal_equations;
 use crate::estimator::linalg::spd_solve_inverse;
+use crate::estimator::series::Centred;
 
 /// Gauss-Newton for the linear ARMA(p,q) on every sample, from (a0, b0): (a, b)
 /// minimise sum_{t >= start} e_t^2 (`arma_pass`), with step halving and the MA part
@@ -38,7 +39,7 @@ pub fn arma_cls_within(
     max_iter: usize,
     enough: f64,
 ) -> (Vec<f64>, Vec<f64>, f64) {
-    let (a, b, rss, _) = arma_cls_residuals(x, start, ab0, max_iter, enough, None);
+    let (a, b, rss, _) = arma_cls_residuals(Centred::plain(x), start, ab0, max_iter, enough, None);
     (a, b, rss)
 }
 
@@ -48,7 +49,7 @@ pub fn arma_cls_within(
 /// was the last to write), false when it must be filled again (a rejected trial
 /// step wrote last, or nothing was written).
 pub(super) fn arma_cls_residuals(
-    x: &[f64],
+    x: Centred,
     start: usize,
     (a0, b0): (&[f64], &[f64]),
     max_iter: usize,
@@ -59,7 +60,7 @@ pub(super) fn arma_cls_residuals(
     let k = p + q;
     // the (a, b) whose residuals `e` holds
     let mut written: Option<(Vec<f64>, Vec<f64>)> = None;
-    let mut pass = |x: &[f64], start: usize, a: &[f64], b: &[f64]| {
+    let mut pass = |x: Centred, start: usize, a: &[f64], b: &[f64]| {
         let into = e
             .as_deref_mut()
             .and_then(|e| arma_pass_into(x, start, a, b, e));
@@ -144,20 +145,21 @@ pub(super) fn same_bits(u: &[f64], v: &[f64]) -> bool {
 /// at 1e7 samples (timing prints, BENCHMARKS.md): 5 passes over every sample from a
 /// fit on the first 2^16, 4 from the prefixes, 2 with [`START_ENOUGH`] as well.
 pub fn linear_start(x: &[f64], p: usize, q: usize, start: usize) -> Option<(Vec<f64>, Vec<f64>)> {
-    linear_start_into(x, p, q, start, None).map(|(a, b, _)| (a, b))
+    linear_start_into(Centred::plain(x), p, q, start, None).map(|(a, b, _)| (a, b))
 }
 
 /// [`linear_start`], the passes over every sample writing their residuals to `e`
 /// (when given); the last value says whether `e` holds the residuals at the
 /// returned (a, b) ([`arma_cls_residuals`]).
 pub(super) fn linear_start_into(
-    x: &[f64],
+    x: Centred,
     p: usize,
     q: usize,
     start: usize,
     mut e: Option<&mut [f64]>,
 ) -> Option<(Vec<f64>, Vec<f64>, bool)> {
-    let m = fit_arma(&x[..x.len().min(START_MAX)], p, q)?;
+    // (a copy of the first START_MAX values: the same values)
+    let m = fit_arma(&x.prefix(x.len().min(START_MAX)).to_vec(), p, q)?;
     let (mut a, mut b) = (m.ar, m.ma);
     // N / RATIO^k for k = ..., 2, 1, 0, those longer than the first fit's
     let mut lens: Vec<usize> = std::iter::successors(Some(x.len()), |l| Some(l / REFINE_RATIO))
@@ -171,7 +173,8 @@ pub(super) fn linear_start_into(
         } else {
             None
         };
-        (a, b, _, holds) = arma_cls_residuals(&x[..len], start, (&a, &b), 30, START_ENOUGH, out);
+        (a, b, _, holds) =
+            arma_cls_residuals(x.prefix(len), start, (&a, &b), 30, START_ENOUGH, out);
     }
     Some((a, b, holds))
 }
@@ -181,15 +184,20 @@ pub(super) fn linear_start_into(
 /// [`super::arma::arma_residuals`], in the same operations), and their RSS over t >= `start` in
 /// [`rss_from`]'s order: w_t = x_t - sum a_m x_{t-m} in parallel, then the MA filter
 /// ([`ma_filter_rss`], in parallel chunks for q = 1, 2).
-pub(super) fn arma_residuals_rss(x: &[f64], a: &[f64], b: &[f64], start: usize) -> (Vec<f64>, f64) {
+pub(super) fn arma_residuals_rss(
+    x: Centred,
+    a: &[f64],
+    b: &[f64],
+    start: usize,
+) -> (Vec<f64>, f64) {
     use rayon::prelude::*;
     let w_rows = |t0: usize, rows: &mut [f64]| {
         for (i, v) in rows.iter_mut().enumerate() {
             let t = t0 + i;
-            let mut s = x[t];
+            let mut s = x.at(t);
             for (m, am) in a.iter().enumerate() {
                 if t > m {
-                    s -= am * x[t - m - 1];
+                    s -= am * x.at(t - m - 1);
                 }
             }
             *v = s;
@@ -226,7 +234,7 @@ pub const START_MAX: usize = 1 << 14;
 /// over the rows from `start` on: the linear model with constant f_m has trace p (the
 /// least-squares hat matrix on X_1..X_p) and Var(a) = sigma^2 (X'X)^-1 with the MA
 /// part sum b_m e_{t-m} taken as a known offset. NaN where X'X is singular.
-pub(super) fn linear_se_factors(x: &[f64], p: usize, start: usize) -> Vec<f64> {
+pub(super) fn linear_se_factors(x: Centred, p: usize, start: usize) -> Vec<f64> {
     let lags: Vec<(usize, usize)> = (1..=p).map(|m| (0, m)).collect();
     let (xtx, _) = lagged_normal(x, &[x], &lags, start..x.len());
     let rhs = vec![0.0; p];

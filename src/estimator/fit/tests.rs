@@ -16,6 +16,7 @@ use crate::estimator::moments::breakpoints;
 use crate::estimator::problem::GridFit;
 use crate::estimator::problem::PointStatus;
 use crate::estimator::problem::VcProblem;
+use crate::estimator::series::Centred;
 
 fn uniform(n: usize, seed: u64) -> Vec<f64> {
     let mut s = seed;
@@ -279,7 +280,7 @@ fn w_written_span_by_span_is_the_indexed_residuals_w() {
             let ix = IntervalIndex::build(&prob, breakpoints(&grid, &[0.07])).unwrap();
             let mut want = vec![0.0; x.len()];
             residuals_indexed(&x, d, &grid, &coef, &[], &mut want, &ix);
-            let fill = w_indexed_filler(&x, d, &grid, &coef, &ix).unwrap();
+            let fill = w_indexed_filler(Centred::plain(&x), d, &grid, &coef, &ix).unwrap();
             let mut got = vec![f64::NAN; x.len()];
             for (c, rows) in got.chunks_mut(70_001).enumerate() {
                 fill(c * 70_001, rows);
@@ -290,7 +291,7 @@ fn w_written_span_by_span_is_the_indexed_residuals_w() {
     let coef = GridFit::new(grid.len(), 5, 0.1);
     let prob = VcProblem::new(&x, &[], &[], 5, 1);
     let ix = IntervalIndex::build(&prob, breakpoints(&grid, &[0.07])).unwrap();
-    assert!(w_indexed_filler(&x, 1, &grid, &coef, &ix).is_none());
+    assert!(w_indexed_filler(Centred::plain(&x), 1, &grid, &coef, &ix).is_none());
 }
 
 #[test]
@@ -310,7 +311,7 @@ fn the_starts_parallel_residuals_are_the_serial_recursions_bit_for_bit() {
             let mut want = vec![0.0; n];
             super::super::arma::arma_residuals(&w, a, b, &mut want);
             let rss_want = rss_from(&want, start);
-            let (got, rss) = arma_residuals_rss(&w, a, b, start);
+            let (got, rss) = arma_residuals_rss(Centred::plain(&w), a, b, start);
             assert!(same_bits(&got, &want), "n = {n}, a = {a:?}, b = {b:?}");
             assert_eq!(
                 rss.to_bits(),
@@ -373,14 +374,15 @@ fn the_starts_residuals_from_its_last_pass_are_those_filled_afresh() {
     for (p, q) in [(2, 1), (1, 2), (3, 1)] {
         let start = p.max(q);
         let mut e = vec![0.0; x.len()];
-        let (a, b, holds) = linear_start_into(&x, p, q, start, Some(&mut e)).unwrap();
+        let (a, b, holds) =
+            linear_start_into(Centred::plain(&x), p, q, start, Some(&mut e)).unwrap();
         assert!(
             holds,
             "({p}, {q}): the last pass evaluated the returned (a, b)"
         );
         let (a2, b2) = linear_start(&x, p, q, start).unwrap();
         assert!(same_bits(&a, &a2) && same_bits(&b, &b2));
-        let (want, rss) = arma_residuals_rss(&x, &a, &b, start);
+        let (want, rss) = arma_residuals_rss(Centred::plain(&x), &a, &b, start);
         assert!(same_bits(&e, &want), "({p}, {q})");
         assert_eq!(rss_from(&e, start).to_bits(), rss.to_bits());
     }
@@ -591,5 +593,91 @@ fn a_2d_model_gives_the_residuals_of_its_fit() {
             &mut f,
         );
         assert_eq!(f, [r.local.f[2 * g], r.local.f[2 * g + 1]]);
+    }
+}
+
+#[test]
+fn a_fit_reading_the_mapped_column_while_its_pages_are_released_is_the_copys_fit() {
+    // the fit of a store's column read in place, less its mean, while another thread
+    // drops the column's pages all the time (every pass faults them back in), against
+    // the fit of a centred copy (`fit`, the in-memory path): the same fit, bit for
+    // bit. FARMA(2,1,1) plus a constant, long enough for the chunked passes (more
+    // than two filter chunks)
+    use crate::store::{STORE_FORMAT_VERSION, Segment, Store, StoreMeta, StoreWriter};
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let n = 2 * FILTER_CHUNK + 50_000;
+    let z = uniform(n, 78);
+    let mut x = vec![0.0; n];
+    let (mut x1, mut x2, mut e1) = (0.0f64, 0.0f64, 0.0f64);
+    for t in 0..n {
+        let e = 3.4 * z[t];
+        let f1 = 0.3 + 0.4 * (-x1 * x1).exp();
+        let f2 = -0.2 + 0.1 * x1.tanh();
+        let v = f1 * x1 + f2 * x2 + e - 0.5 * e1;
+        x[t] = v + 0.25;
+        (x2, x1, e1) = (x1, v, e);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.arrow");
+    let names = vec!["x".to_string()];
+    let mut w = StoreWriter::create(&path, &names, n).unwrap();
+    w.columns_mut()[0].copy_from_slice(&x);
+    let meta = StoreMeta {
+        format_version: STORE_FORMAT_VERSION,
+        farma_version: env!("CARGO_PKG_VERSION").to_string(),
+        sample_rate_hz: 100.0,
+        time_source: "flag".into(),
+        time_col: None,
+        segments: vec![Segment {
+            start: 0,
+            len: n as u64,
+            t0_s: 0.0,
+        }],
+        repairs: vec![],
+        source: "test".into(),
+        source_format: "arrow".into(),
+        source_size: 0,
+        source_mtime_ns: 0,
+        nonfinite: vec![],
+    };
+    w.finish(&meta).unwrap();
+    let store = Store::open(&path).unwrap();
+    let col = store.column("x").unwrap();
+    assert!(same_bits(col, &x));
+    for init in [super::Init::Arma, super::Init::Literal] {
+        let params = FarmaParams {
+            grid_size: 41,
+            init,
+            ..FarmaParams::default()
+        }
+        .validate(n)
+        .unwrap();
+        let want = fit(&x, &params).unwrap();
+        let released = AtomicUsize::new(0);
+        let release = || {
+            store.release(col);
+            released.fetch_add(1, Ordering::Relaxed);
+        };
+        let got = super::fit_releasing(col, &params, release, std::time::Duration::ZERO).unwrap();
+        assert!(released.load(Ordering::Relaxed) > 10, "{released:?}");
+        let (m, r) = (&got.0, &got.1);
+        let (mw, rw) = (&want.0, &want.1);
+        assert!(rw.iterations >= 2, "{}", rw.iterations);
+        assert_eq!(m.mean.to_bits(), mw.mean.to_bits());
+        assert!(same_bits(&m.coef.grid, &mw.coef.grid));
+        assert!(same_bits(&m.coef.f, &mw.coef.f));
+        assert!(same_bits(&m.coef.se, &mw.coef.se));
+        assert!(same_bits(&r.local.slope, &rw.local.slope));
+        assert!(same_bits(&m.b, &mw.b));
+        assert_eq!(m.bandwidth.to_bits(), mw.bandwidth.to_bits());
+        assert_eq!(m.sigma2.to_bits(), mw.sigma2.to_bits());
+        assert_eq!(r.rss.to_bits(), rw.rss.to_bits());
+        assert_eq!(r.trace.to_bits(), rw.trace.to_bits());
+        assert_eq!(r.gcv.to_bits(), rw.gcv.to_bits());
+        assert!(same_bits(&r.rss_history, &rw.rss_history));
+        assert!(same_bits(&r.residuals, &rw.residuals));
+        assert_eq!(format!("{:?}", r.gcv_table), format!("{:?}", rw.gcv_table));
+        assert_eq!(r.iterations, rw.iterations);
+        assert_eq!(r.notes, rw.notes);
     }
 }

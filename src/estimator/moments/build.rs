@@ -272,7 +272,7 @@ impl MomentTable {
         let mut v = [0.0f64; 8];
         v[p + 1] = 1.0;
         for t in rows {
-            let u = x[t - d];
+            let u = x.at(t - d);
             let e = find(t, u);
             count[e] += 1;
             let z = (u - centre[e]) / half[e];
@@ -281,14 +281,14 @@ impl MomentTable {
                 pw[k] = pw[k - 1] * z;
             }
             for (mm, vm) in v[..p].iter_mut().enumerate() {
-                *vm = x[t - 1 - mm];
+                *vm = x.at(t - 1 - mm);
             }
             // y_t = x_t - sum b_m e_{t-m} (as VcProblem::y), when a family holds it
             if with_y {
                 v[p] = match prob.resp {
                     Some((r, lag)) => r[t - lag],
                     None => {
-                        let mut y = x[t];
+                        let mut y = x.at(t);
                         for (mm, bm) in bb.iter().enumerate() {
                             y -= bm * ee[t - mm - 1];
                         }
@@ -324,7 +324,7 @@ impl MomentTable {
         let (x, ee, bb) = (prob.x, prob.e, prob.b);
         let (centre, half) = (&self.centre[..], &self.half[..]);
         for t in rows {
-            let u = x[t - d];
+            let u = x.at(t - d);
             let e = find(t, u);
             count[e] += 1;
             let z = (u - centre[e]) / half[e];
@@ -332,13 +332,13 @@ impl MomentTable {
             for k in 1..D1 {
                 pw[k] = pw[k - 1] * z;
             }
-            let mut y = x[t];
+            let mut y = x.at(t);
             for (mm, bm) in bb.iter().enumerate() {
                 y -= bm * ee[t - mm - 1];
             }
             let row: &mut [f64] = &mut m[e * width..(e + 1) * width];
             for a in 0..P {
-                let val = x[t - 1 - a] * y;
+                let val = x.at(t - 1 - a) * y;
                 let chunk: &mut [f64; D1] = (&mut row[a * D1..(a + 1) * D1]).try_into().unwrap();
                 for k in 0..D1 {
                     chunk[k] += val * pw[k];

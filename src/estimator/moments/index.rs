@@ -32,7 +32,7 @@ impl IntervalIndex {
         let (rows, _) = crate::estimator::buffers::filled(prob.n_rows(), |at, out: &mut [u16]| {
             let t0 = start + at;
             for (i, r) in out.iter_mut().enumerate() {
-                *r = lookup.find(x[t0 + i - d]) as u16;
+                *r = lookup.find(x.at(t0 + i - d)) as u16;
             }
         });
         Some(IntervalIndex {
