@@ -52,6 +52,7 @@
 
 mod cross_axis;
 mod deterministic;
+mod farma;
 mod lsq;
 mod noise;
 mod outliers;
@@ -321,13 +322,14 @@ pub fn propose(cx: &Context, sink: &mut dyn FnMut(Proposal)) -> Result<Vec<NotTr
     if !has(Kind::CrossAxis) {
         cross_axis::cross_axis(cx, &tr, &mut out)?;
     }
-    for k in [Kind::Arma, Kind::Farma] {
-        if !has(k) {
-            out.skip(
-                k.as_str(),
-                "not estimated as an added effect: the state statistic shows state-dependent dynamics; fit them with `farma fit` and add the model",
-            );
-        }
+    if !has(Kind::Arma) {
+        out.skip(
+            "arma",
+            "not estimated as an added effect: fit the drift with `farma fit` and add the model",
+        );
+    }
+    if !has(Kind::Farma) {
+        farma::farma(cx, &tr, &mut out)?;
     }
 
     // -- recalibration of what the spec has

@@ -139,7 +139,17 @@ pub fn params_json(c: &Component) -> Value {
             phase_rad,
         } => json!({ "amplitude": amplitude, "freq_hz": freq_hz, "phase_rad": phase_rad }),
         C::Arma { ar, ma, sigma } => json!({ "ar": ar, "ma": ma, "sigma": sigma }),
-        C::Farma(_) => json!({}),
+        C::Farma(crate::simulator::FarmaModel::Inline {
+            p,
+            q,
+            d,
+            f,
+            ma,
+            sigma,
+        }) => json!({ "p": p, "q": q, "d": d, "f": f, "ma": ma, "sigma": sigma }),
+        C::Farma(crate::simulator::FarmaModel::Fitted { model, channel }) => {
+            json!({ "model": model.display().to_string(), "channel": channel })
+        }
         C::TemperatureBias {
             coeffs,
             reference_c,
