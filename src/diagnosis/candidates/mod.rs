@@ -55,6 +55,7 @@ mod deterministic;
 mod lsq;
 mod noise;
 mod outliers;
+pub mod output_path;
 mod params;
 mod recalibrate;
 mod resolution;
