@@ -80,7 +80,10 @@ fn the_output_path_is_applied_in_order_and_carried_across_blocks() {
         }
         assert!(got == x, "blocks of {block} differ from the whole series");
     }
-    assert!(x.iter().all(|v| (v / 0.05 - (v / 0.05).round()).abs() < 1e-9));
+    assert!(
+        x.iter()
+            .all(|v| (v / 0.05 - (v / 0.05).round()).abs() < 1e-9)
+    );
     // saturation at 1.0 then rounding: never beyond the limit's grid value
     assert!(x.iter().all(|v| v.abs() <= 1.0 + 1e-9));
     assert!(x.iter().filter(|v| (v.abs() - 1.0).abs() < 1e-9).count() > 10);
@@ -139,46 +142,50 @@ fn simulate_writes_values_on_the_grid() {
         .filter_map(|l| l.split(',').nth(col)?.parse().ok())
         .collect();
     assert_eq!(x.len(), 6000);
-    let g = value_grid(&x).present().expect("the written values sit on a grid");
+    let g = value_grid(&x)
+        .present()
+        .expect("the written values sit on a grid");
     assert!((g.quantum - 0.05).abs() < 1e-9, "{g:?}");
 }
 
-/// The real ADIS16405 run 1, gyro_x_dps at 100 Hz: the 0.05 deg/s output step is
-/// found; the filter and saturation estimates are printed for the record.
+/// The real ADIS16405 runs 1-4, gyro_x_dps at 100 Hz: the 0.05 deg/s output step is
+/// found in each; the filter and saturation estimates are printed for the record.
 #[test]
-fn adis16405_run1_output_step() {
-    let Some(parquet) = realdata("imudata-adis16405/adis_16405_imu1.parquet") else {
-        println!("SKIPPED: ../shared/realdata (ADIS16405 run 1) not present");
-        return;
-    };
-    let cache = tempfile::tempdir().unwrap();
-    let store = open_log(
-        &parquet,
-        &LogOptions::default(),
-        &CachePolicy::Dir(cache.path().to_path_buf()),
-        &Progress::hidden(),
-    )
-    .unwrap();
-    let rate_hz = store.sample_rate_hz();
-    let x = store.column("gyro_x_dps").unwrap();
-    let g = value_grid(x).present().expect("the ADIS16405 output step");
-    assert!((g.quantum - 0.05).abs() < 1e-6, "{g:?}");
-    assert!(g.offset.abs() < 1e-6 && !g.decimal, "{g:?}");
-    let f = output_filter(x, rate_hz, Some(&g)).unwrap();
-    let s = saturation(x, Some(g.quantum));
-    println!("ADIS16405 run 1 gyro_x_dps: grid {g:?}\nfilter {f:?}\nsaturation {s:?}");
-    // a static gyro at +-0.35 deg/s rms is nowhere near its +-150 deg/s range
-    assert!(!s.is_present(), "{s:?}");
+fn adis16405_runs_output_step() {
+    for run in 1..=4 {
+        let Some(parquet) = realdata(&format!("imudata-adis16405/adis_16405_imu{run}.parquet"))
+        else {
+            println!("SKIPPED: ../shared/realdata (ADIS16405 run {run}) not present");
+            continue;
+        };
+        let cache = tempfile::tempdir().unwrap();
+        let store = open_log(
+            &parquet,
+            &LogOptions::default(),
+            &CachePolicy::Dir(cache.path().to_path_buf()),
+            &Progress::hidden(),
+        )
+        .unwrap();
+        let rate_hz = store.sample_rate_hz();
+        let x = store.column("gyro_x_dps").unwrap();
+        let g = value_grid(x).present().expect("the ADIS16405 output step");
+        assert!((g.quantum - 0.05).abs() < 1e-6, "run {run}: {g:?}");
+        assert!(g.offset.abs() < 1e-6 && !g.decimal, "run {run}: {g:?}");
+        let f = output_filter(x, rate_hz, Some(&g)).unwrap();
+        let s = saturation(x, Some(g.quantum));
+        println!("ADIS16405 run {run} gyro_x_dps: grid {g:?}\nfilter {f:?}\nsaturation {s:?}");
+        // a static gyro at +-0.35 deg/s rms is nowhere near its +-150 deg/s range
+        assert!(!s.is_present(), "run {run}: {s:?}");
+    }
 }
 
 /// The ADIS16405 datasheet spec (white noise and bias instability, no output path)
 /// simulated as long as a run: no grid, no filter, no saturation.
 #[test]
 fn a_datasheet_simulation_has_no_output_path() {
-    let spec = farma::simulator::load_spec(&crate::common::fixture(
-        "specs/adis16405_datasheet.toml",
-    ))
-    .unwrap();
+    let spec =
+        farma::simulator::load_spec(&crate::common::fixture("specs/adis16405_datasheet.toml"))
+            .unwrap();
     let mut req = SimRequest::new(1_000_000, 100.0);
     req.channels = Some(vec!["gyro_x_dps".into()]);
     let out = Simulator::new(&spec, req).unwrap().run().unwrap();

@@ -308,6 +308,14 @@ fn component(body: &str) -> String {
     format!("{HEAD}[[channel.component]]\n{body}\n")
 }
 
+/// One component appended to HEAD after a white noise (an output-path stage needs a
+/// component to act on).
+fn behind_noise(body: &str) -> String {
+    format!(
+        "{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\n{body}\n"
+    )
+}
+
 fn assert_has(msg: &str, parts: &[&str]) {
     for part in parts {
         assert!(msg.contains(part), "message {msg:?} lacks {part:?}");
@@ -568,47 +576,47 @@ fn bad_specs_name_the_key_and_the_problem() {
         ),
         // The output path.
         (
-            component("kind = \"output_filter\"\norder = 3\nbandwidth_hz = 1.0"),
+            behind_noise("kind = \"output_filter\"\norder = 3\nbandwidth_hz = 1.0"),
             vec!["(output_filter): 'order' must be 1 or 2, found an integer (3)"],
         ),
         (
-            component("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 0.0"),
+            behind_noise("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 0.0"),
             vec!["(output_filter): 'bandwidth_hz' must be > 0, found 0"],
         ),
         (
-            component("kind = \"output_filter\"\norder = 2\nbandwidth_hz = inf"),
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = inf"),
             vec!["(output_filter): 'bandwidth_hz' must be finite"],
         ),
         (
-            component("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 1.0\ndamping = 0.7"),
+            behind_noise("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 1.0\ndamping = 0.7"),
             vec!["(output_filter): 'damping' is a parameter of a second-order filter"],
         ),
         (
-            component("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = -0.7"),
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = -0.7"),
             vec!["(output_filter): 'damping' must be > 0, found -0.7"],
         ),
         (
-            component("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = 1e9"),
-            vec!["(output_filter): 'damping' = 1000000000 is out of range"],
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = 1e9"),
+            vec!["(output_filter): 'damping' = 1e9 is out of range"],
         ),
         (
-            component("kind = \"output_filter\"\nbandwidth_hz = 1.0"),
+            behind_noise("kind = \"output_filter\"\nbandwidth_hz = 1.0"),
             vec!["(output_filter): missing parameter 'order'"],
         ),
         (
-            component("kind = \"saturation\"\nlimit = -3"),
+            behind_noise("kind = \"saturation\"\nlimit = -3"),
             vec!["(saturation): 'limit' must be > 0, found -3"],
         ),
         (
-            component("kind = \"saturation\"\nlimit = nan"),
+            behind_noise("kind = \"saturation\"\nlimit = nan"),
             vec!["(saturation): 'limit' must be finite"],
         ),
         (
-            component("kind = \"output_resolution\"\nquantum = 0"),
+            behind_noise("kind = \"output_resolution\"\nquantum = 0"),
             vec!["(output_resolution): 'quantum' must be > 0, found 0"],
         ),
         (
-            component("kind = \"output_resolution\"\nquantum = 0.05\non_angle = 1"),
+            behind_noise("kind = \"output_resolution\"\nquantum = 0.05\non_angle = 1"),
             vec!["(output_resolution): 'on_angle' must be a boolean (true or false), found an integer (1)"],
         ),
         (

@@ -453,7 +453,13 @@ pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
             .iter()
             .copied()
             .filter(|a| a.is_finite() && sign * (ext - a) > tol)
-            .fold(f64::NAN, |m, a| if m.is_nan() || sign * (a - m) > 0.0 { a } else { m });
+            .fold(f64::NAN, |m, a| {
+                if m.is_nan() || sign * (a - m) > 0.0 {
+                    a
+                } else {
+                    m
+                }
+            });
         let n_next = if next.is_nan() {
             0
         } else {
@@ -491,7 +497,14 @@ mod tests {
 
     /// `n` samples at `rate_hz` of white noise `sd` (u) plus a constant `bias` through
     /// the output path `path`.
-    fn sim(n: usize, rate_hz: f64, sd: f64, bias: f64, path: Vec<Component>, seed: u64) -> Vec<f64> {
+    fn sim(
+        n: usize,
+        rate_hz: f64,
+        sd: f64,
+        bias: f64,
+        path: Vec<Component>,
+        seed: u64,
+    ) -> Vec<f64> {
         let mut comps = vec![
             Component::ConstantBias { value: bias },
             Component::WhiteNoise {
@@ -584,7 +597,10 @@ mod tests {
                 }],
                 4,
             );
-            let f = output_filter(&x, fs, None).unwrap().present().expect("a filter");
+            let f = output_filter(&x, fs, None)
+                .unwrap()
+                .present()
+                .expect("a filter");
             assert_eq!(f.order, order, "{f:?}");
             assert!((f.bandwidth_hz / bw - 1.0).abs() < 0.05, "{f:?}");
             if let Some(z) = z {
@@ -635,7 +651,10 @@ mod tests {
         );
         let g = value_grid(&xf).present().unwrap();
         assert!((g.quantum - q).abs() < 1e-9);
-        let f = output_filter(&xf, fs, Some(&g)).unwrap().present().expect("a filter");
+        let f = output_filter(&xf, fs, Some(&g))
+            .unwrap()
+            .present()
+            .expect("a filter");
         assert!(f.on_angle && f.order == 1, "{f:?}");
         assert!((f.bandwidth_hz / 10.0 - 1.0).abs() < 0.1, "{f:?}");
     }

@@ -65,7 +65,11 @@ impl LowPass {
         let (f0, f1) = if z < 1.0 {
             let b = wn * (1.0 - z * z).sqrt();
             let e = (-s * dt).exp();
-            let g = if b * dt < 1e-8 { dt } else { (b * dt).sin() / b };
+            let g = if b * dt < 1e-8 {
+                dt
+            } else {
+                (b * dt).sin() / b
+            };
             (e * (b * dt).cos(), e * g)
         } else if z > 1.0 {
             // real poles l_fast = -(s + b), l_slow = w_n^2 / l_fast (their product is w_n^2)
@@ -232,15 +236,9 @@ impl OutputPath {
     /// The output path of a channel with `components` at `rate_hz`; with `before`
     /// (an output-path kind), only the stages that come before that kind's stage
     /// (with `include`, that stage too). Empty when the channel has none.
-    pub fn of(
-        components: &[Component],
-        rate_hz: f64,
-        upto: Option<(Kind, bool)>,
-    ) -> OutputPath {
-        let limit = upto.and_then(|(k, include)| {
-            k.output_stage()
-                .map(|s| if include { s + 1 } else { s })
-        });
+    pub fn of(components: &[Component], rate_hz: f64, upto: Option<(Kind, bool)>) -> OutputPath {
+        let limit =
+            upto.and_then(|(k, include)| k.output_stage().map(|s| if include { s + 1 } else { s }));
         let mut staged: Vec<(usize, Stage)> = components
             .iter()
             .filter_map(|c| {
@@ -388,7 +386,11 @@ mod tests {
         // on the rate: each sample within half a quantum
         let mut y = x0.clone();
         Quantizer::new(q, false).apply(&mut y);
-        assert!(x0.iter().zip(&y).all(|(u, v)| (u - v).abs() <= q / 2.0 + 1e-12));
+        assert!(
+            x0.iter()
+                .zip(&y)
+                .all(|(u, v)| (u - v).abs() <= q / 2.0 + 1e-12)
+        );
     }
 
     #[test]
