@@ -129,7 +129,7 @@ pub fn value_grid(x: &[f64]) -> Finding<Grid> {
         ));
     }
     let g_min = gaps.iter().copied().fold(f64::INFINITY, f64::min);
-    if !(g_min > 0.0) {
+    if g_min <= 0.0 {
         return Finding::Absent("no positive gap between distinct values".into());
     }
     let quantum = (1..=16).map(|m| g_min / m as f64).find(|&q| {
@@ -218,7 +218,7 @@ fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
     if r < 0.0 {
         (w, r) = (ay / aa, 0.0);
     }
-    if !(w > 0.0) {
+    if w.is_nan() || w <= 0.0 {
         w = 1e-300;
     }
     let cost = sp
@@ -441,7 +441,7 @@ pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
         lo = lo.min(a);
         hi = hi.max(a);
     }
-    if !(hi > lo) {
+    if hi <= lo {
         return Finding::Absent("fewer than two distinct finite values".into());
     }
     let tol = quantum.map_or(1e-9 * lo.abs().max(hi.abs()), |q| q / 4.0);
