@@ -71,7 +71,7 @@ fn every_component() -> Spec {
                     },
                     Component::Saturation { limit: 5.0 },
                     Component::OutputResolution {
-                        quantum: 0.0005,
+                        quantum: 0.0001,
                         on_angle: true,
                     },
                 ],
@@ -111,7 +111,7 @@ fn every_component() -> Spec {
                         damping: None,
                     },
                     Component::OutputResolution {
-                        quantum: 0.001,
+                        quantum: 0.00001,
                         on_angle: false,
                     },
                 ],
