@@ -380,7 +380,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 not_tried.push(NotTried {
                     kind: "output_resolution".into(),
                     reason: format!(
-                        "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate); the spec contract has no component that rounds the simulated rate, so the distribution statistics keep this difference"
+                        "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate): add an output_resolution component with quantum = {q:.6e} to the spec (the search does not add output-path components yet), else the distribution statistics keep this difference"
                     ),
                 });
             }

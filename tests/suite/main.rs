@@ -29,6 +29,7 @@ mod ingest;
 mod input_kinds;
 mod noise_terms;
 mod output_commit;
+mod output_path;
 mod parquet_checksums;
 mod psd_acf;
 mod reports;

@@ -64,6 +64,16 @@ fn every_component() -> Spec {
                         from: "gyro_y".into(),
                         gain: 0.002,
                     },
+                    Component::OutputFilter {
+                        order: 2,
+                        bandwidth_hz: 2.0,
+                        damping: Some(0.6),
+                    },
+                    Component::Saturation { limit: 5.0 },
+                    Component::OutputResolution {
+                        quantum: 0.0001,
+                        on_angle: true,
+                    },
                 ],
             },
             ChannelSpec {
@@ -86,14 +96,25 @@ fn every_component() -> Spec {
             },
             ChannelSpec {
                 name: "gyro_z".into(),
-                components: vec![Component::Farma(FarmaModel::Inline {
-                    p: 2,
-                    q: 1,
-                    d: 1,
-                    f: vec![vec![0.5, 0.1, -0.02], vec![0.1]],
-                    ma: vec![0.2],
-                    sigma: 0.003,
-                })],
+                components: vec![
+                    Component::Farma(FarmaModel::Inline {
+                        p: 2,
+                        q: 1,
+                        d: 1,
+                        f: vec![vec![0.5, 0.1, -0.02], vec![0.1]],
+                        ma: vec![0.2],
+                        sigma: 0.003,
+                    }),
+                    Component::OutputFilter {
+                        order: 1,
+                        bandwidth_hz: 1.0,
+                        damping: None,
+                    },
+                    Component::OutputResolution {
+                        quantum: 0.00001,
+                        on_angle: false,
+                    },
+                ],
             },
         ],
     }
@@ -285,6 +306,14 @@ fn reject(text: &str) -> String {
 /// One component appended to HEAD.
 fn component(body: &str) -> String {
     format!("{HEAD}[[channel.component]]\n{body}\n")
+}
+
+/// One component appended to HEAD after a white noise (an output-path stage needs a
+/// component to act on).
+fn behind_noise(body: &str) -> String {
+    format!(
+        "{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\n{body}\n"
+    )
 }
 
 fn assert_has(msg: &str, parts: &[&str]) {
@@ -544,6 +573,59 @@ fn bad_specs_name_the_key_and_the_problem() {
         (
             HEAD.to_string(),
             vec!["channel 'rate' has no components"],
+        ),
+        // The output path.
+        (
+            behind_noise("kind = \"output_filter\"\norder = 3\nbandwidth_hz = 1.0"),
+            vec!["(output_filter): 'order' must be 1 or 2, found an integer (3)"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 0.0"),
+            vec!["(output_filter): 'bandwidth_hz' must be > 0, found 0"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = inf"),
+            vec!["(output_filter): 'bandwidth_hz' must be finite"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 1.0\ndamping = 0.7"),
+            vec!["(output_filter): 'damping' is a parameter of a second-order filter"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = -0.7"),
+            vec!["(output_filter): 'damping' must be > 0, found -0.7"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 2\nbandwidth_hz = 1.0\ndamping = 1e9"),
+            vec!["(output_filter): 'damping' = 1e9 is out of range"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nbandwidth_hz = 1.0"),
+            vec!["(output_filter): missing parameter 'order'"],
+        ),
+        (
+            behind_noise("kind = \"saturation\"\nlimit = -3"),
+            vec!["(saturation): 'limit' must be > 0, found -3"],
+        ),
+        (
+            behind_noise("kind = \"saturation\"\nlimit = nan"),
+            vec!["(saturation): 'limit' must be finite"],
+        ),
+        (
+            behind_noise("kind = \"output_resolution\"\nquantum = 0"),
+            vec!["(output_resolution): 'quantum' must be > 0, found 0"],
+        ),
+        (
+            behind_noise("kind = \"output_resolution\"\nquantum = 0.05\non_angle = 1"),
+            vec!["(output_resolution): 'on_angle' must be a boolean (true or false), found an integer (1)"],
+        ),
+        (
+            component("kind = \"output_resolution\"\nquantum = 0.05"),
+            vec!["channel 'rate' has only output-path components"],
+        ),
+        (
+            format!("{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"saturation\"\nlimit = 1\n[[channel.component]]\nkind = \"saturation\"\nlimit = 2\n"),
+            vec!["component 3 (saturation): a second saturation in channel 'rate'"],
         ),
     ];
     for (text, parts) in &cases {

@@ -56,6 +56,7 @@ mod farma;
 mod lsq;
 mod noise;
 mod outliers;
+pub mod output_path;
 mod params;
 mod recalibrate;
 mod resolution;

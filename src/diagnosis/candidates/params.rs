@@ -66,7 +66,11 @@ pub fn scaled(c: &Component, s: f64) -> Option<Component> {
             from: from.clone(),
             gain: gain * s,
         },
-        C::Farma(_) | C::Heteroskedastic { .. } => return None,
+        C::Farma(_)
+        | C::Heteroskedastic { .. }
+        | C::OutputFilter { .. }
+        | C::Saturation { .. }
+        | C::OutputResolution { .. } => return None,
     })
 }
 
@@ -161,6 +165,15 @@ pub fn params_json(c: &Component) -> Value {
         C::Outliers { rate_hz, scale } => json!({ "rate_hz": rate_hz, "scale": scale }),
         C::Heteroskedastic { of, slope } => json!({ "of": of.as_str(), "slope": slope }),
         C::CrossAxis { from, gain } => json!({ "from": from, "gain": gain }),
+        C::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+        } => json!({ "order": order, "bandwidth_hz": bandwidth_hz, "damping": damping }),
+        C::Saturation { limit } => json!({ "limit": limit }),
+        C::OutputResolution { quantum, on_angle } => {
+            json!({ "quantum": quantum, "on_angle": on_angle })
+        }
     }
 }
 

@@ -1,32 +1,17 @@
 //! The output resolution of a log: the grid step (LSB) its rate values sit on, when
 //! they sit on one.
 
+use super::output_path::value_grid;
+
 /// The step of the grid the values of `x` sit on, when they sit on one: an output
-/// resolution (LSB) in the rate itself, which no component of the spec contract
-/// reproduces (`quantization` is the IEEE 952 angle quantization, white in the
-/// angle). The distinct values are sorted; the step is the smallest gap between
-/// neighbours, and a grid is reported only when there are at most 1 % as many distinct
-/// values as samples and every gap between neighbours is an integer multiple of the
-/// step to 1e-6 of the step.
+/// resolution (LSB) in the rate itself, the spec's `output_resolution` (not the
+/// IEEE 952 `quantization`, white in the angle). The grid is
+/// [`value_grid`]'s (robust to float printing noise), reported here only when there
+/// are at most 1 % as many distinct values as samples and its step is not a power of
+/// ten (which may be the precision the log was printed with).
 pub fn output_resolution(x: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = x.iter().copied().filter(|a| a.is_finite()).collect();
-    v.sort_by(f64::total_cmp);
-    v.dedup();
-    if v.len() < 2 || v.len() as f64 > 0.01 * x.len() as f64 {
-        return None;
-    }
-    let step = v
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .fold(f64::INFINITY, f64::min);
-    if !step.is_finite() || step <= 0.0 {
-        return None;
-    }
-    let on_grid = v.windows(2).all(|w| {
-        let k = (w[1] - w[0]) / step;
-        (k - k.round()).abs() <= 1e-6 * k.round().max(1.0)
-    });
-    on_grid.then_some(step)
+    let g = value_grid(x).present()?;
+    (g.levels as f64 <= 0.01 * x.len() as f64 && !g.decimal).then_some(g.quantum)
 }
 
 #[cfg(test)]

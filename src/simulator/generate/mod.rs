@@ -7,7 +7,13 @@
 //! - heteroskedastic's signal is (scale_k - 1) times the signal of the channel's
 //!   component(s) of kind `of` (so adding it turns their scale from 1 into scale_k),
 //! - cross_axis's signal is `gain` times the `from` channel's own signal (its
-//!   components other than cross_axis).
+//!   components other than cross_axis and the output path),
+//! - an output-path stage's signal (output_filter, saturation, output_resolution) is
+//!   what it changes: the sum of the other components (cross_axis included) passed
+//!   through the stages up to and including it, minus that sum passed through the
+//!   stages before it ([`output`]; the stages run in the order filter -> saturation ->
+//!   resolution). The channel is the sum of the other components passed through the
+//!   whole output path.
 //!
 //! Determinism: every draw comes from a stream keyed by (seed, replica, channel index,
 //! component index, sub-process, chunk) ([`streams`]); a component's values depend only
@@ -23,6 +29,7 @@
 pub mod deterministic;
 pub mod markov;
 pub mod noise;
+pub mod output;
 pub mod recursion;
 pub mod streams;
 pub mod thermal;
@@ -381,6 +388,27 @@ impl<'a> Simulator<'a> {
                 }
                 Ok(())
             }
+            c if c.kind().is_output_path() => {
+                let fs = self.req.sample_rate_hz;
+                let mut before = self.own_signal(channel)?;
+                for c in &ch.components {
+                    if let Component::CrossAxis { from, gain } = c {
+                        let own = self.own_signal(self.channel_index(from)?)?;
+                        for (o, v) in before.iter_mut().zip(&own) {
+                            *o += gain * v;
+                        }
+                    }
+                }
+                let mut after = before.clone();
+                output::OutputPath::of(&ch.components, fs, Some((c.kind(), false)))
+                    .apply(&mut before);
+                output::OutputPath::of(&ch.components, fs, Some((c.kind(), true)))
+                    .apply(&mut after);
+                for ((o, a), b) in out.iter_mut().zip(&after).zip(&before) {
+                    *o += a - b;
+                }
+                self.finite(out, 0, &self.what(channel, component))
+            }
             _ => self.add_plain(channel, component, out),
         }
     }
@@ -547,7 +575,14 @@ impl<'a> Simulator<'a> {
             (Component::Outliers { rate_hz, scale }, _) => {
                 noise::outliers_from(out, *rate_hz, *scale, fs, &key, c0)
             }
-            (Component::Heteroskedastic { .. } | Component::CrossAxis { .. }, _) => {
+            (
+                Component::Heteroskedastic { .. }
+                | Component::CrossAxis { .. }
+                | Component::OutputFilter { .. }
+                | Component::Saturation { .. }
+                | Component::OutputResolution { .. },
+                _,
+            ) => {
                 return Err(Error::Internal(format!("{what}: not a plain component")));
             }
             _ => return Err(Error::Internal(format!("{what}: state of another kind"))),
@@ -569,8 +604,8 @@ impl<'a> Simulator<'a> {
         }
     }
 
-    /// A channel's own signal: the sum of its components other than cross_axis
-    /// (heteroskedastic terms added last, after the signals they modulate).
+    /// A channel's own signal: the sum of its components other than cross_axis and the
+    /// output path (heteroskedastic terms added last, after the signals they modulate).
     pub fn own_signal(&self, channel: usize) -> Result<Vec<f64>> {
         let mut states = HashMap::new();
         self.own_signal_block(channel, 0, self.req.n_samples, &mut states)
@@ -600,6 +635,7 @@ impl<'a> Simulator<'a> {
         for (k, comp) in ch.components.iter().enumerate() {
             match comp {
                 Component::CrossAxis { .. } | Component::Heteroskedastic { .. } => {}
+                c if c.kind().is_output_path() => {}
                 c => {
                     let st = states
                         .entry((channel, k))
@@ -677,6 +713,7 @@ impl<'a> Simulator<'a> {
             wanted,
             needed,
             states: HashMap::new(),
+            paths: HashMap::new(),
         })
     }
 
@@ -727,6 +764,8 @@ pub struct Blocks<'s, 'a> {
     wanted: Vec<usize>,
     needed: Vec<usize>,
     states: HashMap<(usize, usize), CompState>,
+    /// The output path of each channel that has one, with its stages' states.
+    paths: HashMap<usize, output::OutputPath>,
 }
 
 impl Blocks<'_, '_> {
@@ -761,6 +800,13 @@ impl Blocks<'_, '_> {
                     }
                     sim.finite(&v, start, &sim.what(ci, k))?;
                 }
+            }
+            let path = self.paths.entry(ci).or_insert_with(|| {
+                output::OutputPath::of(&ch.components, sim.req.sample_rate_hz, None)
+            });
+            if !path.is_empty() {
+                path.apply(&mut v);
+                sim.finite(&v, start, &format!("channel '{}' output path", ch.name))?;
             }
             cols.push(v);
         }

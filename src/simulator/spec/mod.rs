@@ -43,6 +43,13 @@
 //!   channel. `heteroskedastic.of` must be a noise kind (white_noise, quantization,
 //!   bias_instability, rate_random_walk, gauss_markov, arma, farma, outliers) present in
 //!   the same channel, at most one heteroskedastic per kind.
+//! - The sensor's output path (output_filter, saturation, output_resolution) is not a
+//!   term of the sum: it acts on the sum of the channel's other components, cross_axis
+//!   included, in the order filter -> saturation -> resolution (the order of a
+//!   sensor's output chain) whatever their order in the spec; at most one of each per
+//!   channel, and a channel needs at least one component besides them. cross_axis
+//!   couples the `from` channel's signal before its output path (the rate the other
+//!   axis senses, not what it outputs).
 //! - A farma `model` path is kept as written (relative paths are for the generator to
 //!   resolve against the spec's folder); its existence is checked when it is loaded.
 //!
@@ -149,7 +156,31 @@ pub enum Component {
     Heteroskedastic { of: Kind, slope: f64 },
     /// Cross-axis coupling: `gain` (any sign) times the signal of channel `from`.
     CrossAxis { from: String, gain: f64 },
+    /// Output resolution: every output sample rounded to a multiple of `quantum` \[u\]
+    /// (> 0, the LSB in the rate unit). With `on_angle` (default false) the angle is
+    /// quantized instead, to steps of `quantum` / sample_rate_hz \[u s\], and the rate
+    /// is its first difference divided by the sample interval (as FOG outputs are):
+    /// the rate values still sit on the grid of `quantum`, and the rounding error is
+    /// carried from sample to sample instead of lost. Last stage of the output path.
+    OutputResolution { quantum: f64, on_angle: bool },
+    /// The sensor's low-pass output filter, of `order` 1 or 2, with natural frequency
+    /// `bandwidth_hz` \[Hz\] > 0 (the -3 dB frequency of order 1, and of order 2 at
+    /// damping 1/sqrt(2)) and, for order 2, `damping` ratio > 0 (default 1/sqrt(2),
+    /// Butterworth). Discretized by zero-order hold (each sample held over its
+    /// interval), which is exact for any bandwidth, even above the Nyquist frequency.
+    /// First stage of the output path.
+    OutputFilter {
+        order: usize,
+        bandwidth_hz: f64,
+        damping: Option<f64>,
+    },
+    /// Saturation at the measurement range: every sample clamped to \[-limit, limit\],
+    /// `limit` \[u\] > 0. Between the filter and the output resolution.
+    Saturation { limit: f64 },
 }
+
+/// The default damping ratio of a second-order output filter (Butterworth).
+pub const DEFAULT_DAMPING: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// A farma component: a model written by `farma fit`, or an inline FARMA(p,q,d).
 #[derive(Debug, Clone, PartialEq)]
@@ -191,11 +222,14 @@ pub enum Kind {
     Outliers,
     Heteroskedastic,
     CrossAxis,
+    OutputFilter,
+    Saturation,
+    OutputResolution,
 }
 
 impl Kind {
     /// Every kind, in the order of the contract's table.
-    pub const ALL: [Kind; 16] = [
+    pub const ALL: [Kind; 19] = [
         Kind::ConstantBias,
         Kind::WhiteNoise,
         Kind::Quantization,
@@ -212,6 +246,9 @@ impl Kind {
         Kind::Outliers,
         Kind::Heteroskedastic,
         Kind::CrossAxis,
+        Kind::OutputFilter,
+        Kind::Saturation,
+        Kind::OutputResolution,
     ];
 
     /// The name used in the spec.
@@ -233,6 +270,9 @@ impl Kind {
             Kind::Outliers => "outliers",
             Kind::Heteroskedastic => "heteroskedastic",
             Kind::CrossAxis => "cross_axis",
+            Kind::OutputFilter => "output_filter",
+            Kind::Saturation => "saturation",
+            Kind::OutputResolution => "output_resolution",
         }
     }
 
@@ -254,6 +294,27 @@ impl Kind {
                 | Kind::Farma
                 | Kind::Outliers
         )
+    }
+
+    /// A stage of the sensor's output path (output_filter, saturation,
+    /// output_resolution): applied to the sum of the channel's other components (its
+    /// cross_axis couplings included), in the fixed order filter -> saturation ->
+    /// resolution whatever their order in the spec; not a term of the sum.
+    pub fn is_output_path(self) -> bool {
+        matches!(
+            self,
+            Kind::OutputFilter | Kind::Saturation | Kind::OutputResolution
+        )
+    }
+
+    /// The position of an output-path stage in the output path (0 first), else None.
+    pub fn output_stage(self) -> Option<usize> {
+        match self {
+            Kind::OutputFilter => Some(0),
+            Kind::Saturation => Some(1),
+            Kind::OutputResolution => Some(2),
+            _ => None,
+        }
     }
 
     /// Driven by the temperature channel.
@@ -283,6 +344,9 @@ impl Kind {
             Kind::Outliers => &["rate_hz", "scale"],
             Kind::Heteroskedastic => &["of", "slope"],
             Kind::CrossAxis => &["from", "gain"],
+            Kind::OutputFilter => &["order", "bandwidth_hz", "damping"],
+            Kind::Saturation => &["limit"],
+            Kind::OutputResolution => &["quantum", "on_angle"],
         }
     }
 }
@@ -313,6 +377,9 @@ impl Component {
             Component::Outliers { .. } => Kind::Outliers,
             Component::Heteroskedastic { .. } => Kind::Heteroskedastic,
             Component::CrossAxis { .. } => Kind::CrossAxis,
+            Component::OutputFilter { .. } => Kind::OutputFilter,
+            Component::Saturation { .. } => Kind::Saturation,
+            Component::OutputResolution { .. } => Kind::OutputResolution,
         }
     }
 }

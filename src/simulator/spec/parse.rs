@@ -115,6 +115,14 @@ impl<'t> Fields<'t> {
         }
     }
 
+    fn opt_bool(&self, key: &str) -> Result<Option<bool>, String> {
+        match self.table.get(key) {
+            None => Ok(None),
+            Some(Value::Boolean(b)) => Ok(Some(*b)),
+            Some(v) => Err(self.wrong(key, "a boolean (true or false)", v)),
+        }
+    }
+
     fn string(&self, key: &str) -> Result<String, String> {
         let v = self.get(key)?;
         v.as_str()
@@ -384,6 +392,25 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
         Kind::CrossAxis => Component::CrossAxis {
             from: p.string("from")?,
             gain: p.f64("gain")?,
+        },
+        Kind::OutputFilter => {
+            let v = p.get("order")?;
+            let order = match v.as_integer() {
+                Some(o @ (1 | 2)) => o as usize,
+                _ => return Err(p.wrong("order", "1 or 2", v)),
+            };
+            Component::OutputFilter {
+                order,
+                bandwidth_hz: p.f64("bandwidth_hz")?,
+                damping: p.opt_f64("damping")?,
+            }
+        }
+        Kind::Saturation => Component::Saturation {
+            limit: p.f64("limit")?,
+        },
+        Kind::OutputResolution => Component::OutputResolution {
+            quantum: p.f64("quantum")?,
+            on_angle: p.opt_bool("on_angle")?.unwrap_or(false),
         },
     })
 }

@@ -150,6 +150,22 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
             line(out, "from", string(from));
             line(out, "gain", float(*gain));
         }
+        Component::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+        } => {
+            line(out, "order", order.to_string());
+            line(out, "bandwidth_hz", float(*bandwidth_hz));
+            if let Some(z) = damping {
+                line(out, "damping", float(*z));
+            }
+        }
+        Component::Saturation { limit } => line(out, "limit", float(*limit)),
+        Component::OutputResolution { quantum, on_angle } => {
+            line(out, "quantum", float(*quantum));
+            line(out, "on_angle", on_angle.to_string());
+        }
     }
     Ok(())
 }

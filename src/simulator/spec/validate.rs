@@ -16,6 +16,10 @@ pub const MAX_RATE_HZ: f64 = 1e9;
 /// f64 (1.8e308) long before 1e300. A spec as data (parsed, written back) may hold any
 /// finite value; [`Spec::check_simulable`] refuses those beyond.
 pub const MAX_MAGNITUDE: f64 = 1e100;
+/// The largest damping ratio of a second-order output filter: far beyond critical
+/// damping (1) a second-order low-pass is a first-order one (its slow pole at about
+/// bandwidth_hz / (2 damping)) and its fast pole only a numerical hazard.
+pub const MAX_DAMPING: f64 = 1e3;
 
 /// Every number of a component, by key (the elements of a list under one key).
 fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
@@ -76,6 +80,16 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
         }
         Component::Heteroskedastic { slope, .. } => v.push(("slope", *slope)),
         Component::CrossAxis { gain, .. } => v.push(("gain", *gain)),
+        Component::OutputFilter {
+            bandwidth_hz,
+            damping,
+            ..
+        } => {
+            v.push(("bandwidth_hz", *bandwidth_hz));
+            v.extend(damping.map(|z| ("damping", z)));
+        }
+        Component::Saturation { limit } => v.push(("limit", *limit)),
+        Component::OutputResolution { quantum, .. } => v.push(("quantum", *quantum)),
     }
     v
 }
@@ -174,6 +188,12 @@ impl Spec {
             ));
         }
         let kinds: HashSet<Kind> = channel.components.iter().map(Component::kind).collect();
+        if channel.components.iter().all(|c| c.kind().is_output_path()) {
+            return Err(format!(
+                "channel '{name}' has only output-path components (output_filter, saturation, output_resolution), which act on the sum of the others: add a noise or bias component"
+            ));
+        }
+        let mut stages = HashSet::new();
         let mut modulated = HashSet::new();
         let mut sources = HashSet::new();
         for (i, component) in channel.components.iter().enumerate() {
@@ -183,6 +203,12 @@ impl Spec {
                 component.kind()
             );
             let check = Check { place: &place };
+            if component.kind().is_output_path() && !stages.insert(component.kind()) {
+                return Err(format!(
+                    "{place}: a second {} in channel '{name}' (the output path has one of each stage)",
+                    component.kind()
+                ));
+            }
             if component.kind().needs_temperature() && self.temperature_channel.is_none() {
                 return Err(format!(
                     "{place}: needs a temperature: set 'temperature_channel' at the top level"
@@ -348,6 +374,35 @@ impl Spec {
                             "{place}: a second heteroskedastic component for '{of}' in channel '{name}'"
                         ));
                     }
+                }
+                Component::OutputFilter {
+                    order,
+                    bandwidth_hz,
+                    damping,
+                } => {
+                    if !(1..=2).contains(order) {
+                        return Err(format!("{place}: 'order' must be 1 or 2, found {order}"));
+                    }
+                    check.positive("bandwidth_hz", *bandwidth_hz)?;
+                    if let Some(z) = damping {
+                        if *order == 1 {
+                            return Err(format!(
+                                "{place}: 'damping' is a parameter of a second-order filter (order = 2), found with order = 1"
+                            ));
+                        }
+                        check.positive("damping", *z)?;
+                        if *z > MAX_DAMPING {
+                            return Err(format!(
+                                "{place}: 'damping' = {} is out of range: at most {} (beyond, the filter is a first-order one of bandwidth bandwidth_hz / (2 damping))",
+                                num(*z),
+                                num(MAX_DAMPING)
+                            ));
+                        }
+                    }
+                }
+                Component::Saturation { limit } => check.positive("limit", *limit)?,
+                Component::OutputResolution { quantum, .. } => {
+                    check.positive("quantum", *quantum)?
                 }
                 Component::CrossAxis { from, gain } => {
                     check.finite("gain", *gain)?;

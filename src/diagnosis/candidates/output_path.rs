@@ -1,0 +1,720 @@
+//! The sensor's output path read off a log: the output resolution (the value grid), the
+//! low-pass output filter (the PSD's roll-off) and saturation (clipped values piling at
+//! the extremes), each estimated in the form the simulator uses
+//! ([`crate::simulator::generate::output`]) and each able to say "absent".
+//!
+//! - [`value_grid`]: the greatest common step of the distinct values. Values closer
+//!   than 1e-9 of the largest magnitude are merged first (a float printed as
+//!   0.15000000000000002 is 0.15), the gaps g_j between neighbouring distinct values are
+//!   taken, and the quantum is the largest q = g_min / m (m = 1, 2, ..., 16) of which
+//!   every gap is an integer multiple to 0.02 q (a tolerance that also absorbs a
+//!   quantum printed with few decimals, 1/3 as 0.3333). Evidence that the grid is no
+//!   coincidence: with k gaps each within 0.02 q of a multiple by chance with
+//!   probability 0.04 (the gaps of continuous values are spread over many quanta),
+//!   at least 6 distinct values (0.04^5 = 1e-7) or, with fewer, at most one distinct
+//!   value per 10 samples (values repeat, which continuous values never do). The grid's
+//!   offset (the distinct values minus their nearest multiple of q, averaged) is
+//!   reported, and whether q is a power of ten (then it may be the precision the log
+//!   was printed with rather than the sensor's LSB). At most [`GRID_SAMPLE`] values are
+//!   read (a stride over the log: a grid holds on any subset).
+//! - [`output_filter`]: a low-pass magnitude response times a white level, fitted to
+//!   Welch's PSD (segments of 1024 samples, bins from 1 % of the Nyquist frequency
+//!   up): the model is S(f) = (W + R / f^2) |H(f)|^2 + S_q(f), R >= 0 a red part
+//!   (drift) that keeps the low bins from being read as a roll-off, with
+//!   |H|^2 the simulator's own power response ([`LowPass::power_response`]) and S_q the
+//!   rounding noise of a known grid (q^2 / 12 per sample: 2 (q^2 / 12) / f_s flat when
+//!   the rate is rounded, times 4 sin^2(pi f / f_s) when the angle is, the error being
+//!   then the first difference of a white angle error). The fit minimizes
+//!   sum (ln P_k - ln S(f_k))^2 (the log of a Welch average has nearly constant
+//!   variance, about 1 / segments): W and R by weighted least squares for each
+//!   shape (see `fit_level`), order 1 over a log grid of bandwidths from f_s / 500 to 5 f_s, order 2 over
+//!   that grid times a log grid of damping from 0.2 to 5, then refined by golden-section
+//!   searches. "absent" unless the best filter lowers the cost against the flat model
+//!   (no filter) by at least [`FILTER_MIN_DEVIANCE`] times the residual variance per
+//!   bin, and attenuates the PSD at the Nyquist frequency by at least 10 % (a bandwidth
+//!   far above the Nyquist frequency changes nothing measurable); order 2 is chosen
+//!   over order 1 when it lowers the cost by a further [`ORDER2_MIN_DEVIANCE`] residual
+//!   variances. A bandwidth or damping at the end of its search range is flagged
+//!   (`at_edge`), not reported as an estimate. Whether the rounding is on the angle is
+//!   decided by the same fit: both forms of S_q are tried and the angle form kept when
+//!   it lowers the cost by [`ORDER2_MIN_DEVIANCE`] residual variances.
+//! - [`saturation`]: the count of samples at the largest value (within a quarter of
+//!   the quantum, or 1e-9 of the magnitude) against the count at the next level below
+//!   (the next distinct value): a clipped tail piles at the limit, an unclipped one
+//!   thins out, so a side is clipped when its extreme holds at least 5 samples and at
+//!   least twice as many as the next level (continuous values never repeat: any pile
+//!   of 5 equal values at the extreme is a clip). The limit is the largest magnitude
+//!   of a clipped extreme; both sides are reported.
+
+use crate::error::Result;
+use crate::simulator::generate::output::LowPass;
+use crate::stats::psd::{Detrend, welch};
+
+/// The most values [`value_grid`] reads (a stride over longer logs).
+pub const GRID_SAMPLE: usize = 2_000_000;
+/// Smallest cost reduction of a filter against no filter, in residual variances per
+/// PSD bin, for the filter to be present.
+pub const FILTER_MIN_DEVIANCE: f64 = 50.0;
+/// Smallest further cost reduction for order 2 over order 1 (and for the angle form of
+/// the rounding noise over the rate form).
+pub const ORDER2_MIN_DEVIANCE: f64 = 10.0;
+
+/// An estimate, or why the effect is absent.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Finding<T> {
+    Present(T),
+    Absent(String),
+}
+
+impl<T> Finding<T> {
+    /// The estimate, if present.
+    pub fn present(self) -> Option<T> {
+        match self {
+            Finding::Present(t) => Some(t),
+            Finding::Absent(_) => None,
+        }
+    }
+    /// Whether the effect was found.
+    pub fn is_present(&self) -> bool {
+        matches!(self, Finding::Present(_))
+    }
+}
+
+/// A value grid: the values of the log are offset + k quantum.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// The step, in the rate unit of the log.
+    pub quantum: f64,
+    /// The mean distance of the values from the nearest multiple of the quantum, in
+    /// \[-quantum/2, quantum/2\] (0 for a grid through zero, as the simulator's).
+    pub offset: f64,
+    /// Distinct values read.
+    pub levels: usize,
+    /// The quantum is a power of ten: maybe the precision the log was printed with.
+    pub decimal: bool,
+}
+
+/// The value grid of `x` (module doc), or why there is none.
+pub fn value_grid(x: &[f64]) -> Finding<Grid> {
+    let stride = x.len().div_ceil(GRID_SAMPLE).max(1);
+    let mut v: Vec<f64> = x
+        .iter()
+        .step_by(stride)
+        .copied()
+        .filter(|a| a.is_finite())
+        .collect();
+    let n = v.len();
+    if n < 3 {
+        return Finding::Absent(format!("{n} finite values: too few to tell a grid"));
+    }
+    v.sort_by(f64::total_cmp);
+    let scale = v[0].abs().max(v[n - 1].abs());
+    let merge = 1e-9 * scale;
+    let mut d: Vec<f64> = Vec::new();
+    for a in v {
+        match d.last() {
+            Some(&b) if a - b <= merge => {}
+            _ => d.push(a),
+        }
+    }
+    let levels = d.len();
+    if levels < 2 {
+        return Finding::Absent("the values are all equal: a constant, no grid to read".into());
+    }
+    let gaps: Vec<f64> = d.windows(2).map(|w| w[1] - w[0]).collect();
+    let repeat = levels * 10 <= n;
+    if levels < 6 && !repeat {
+        return Finding::Absent(format!(
+            "{levels} distinct values in {n} samples: too few to tell a grid from chance"
+        ));
+    }
+    let g_min = gaps.iter().copied().fold(f64::INFINITY, f64::min);
+    if g_min <= 0.0 {
+        return Finding::Absent("no positive gap between distinct values".into());
+    }
+    let quantum = (1..=16).map(|m| g_min / m as f64).find(|&q| {
+        gaps.iter().all(|&g| {
+            let k = g / q;
+            (k - k.round()).abs() <= 0.02
+        })
+    });
+    let Some(q) = quantum else {
+        return Finding::Absent(format!(
+            "the gaps between the {levels} distinct values are not multiples of one step (the smallest is {})",
+            crate::fmt::num(g_min)
+        ));
+    };
+    // refine: the least-squares step through the levels' integer indices from d[0]
+    let ks: Vec<f64> = d.iter().map(|a| ((a - d[0]) / q).round()).collect();
+    let kk: f64 = ks.iter().map(|k| k * k).sum();
+    let q = if kk > 0.0 {
+        ks.iter().zip(&d).map(|(k, a)| k * (a - d[0])).sum::<f64>() / kk
+    } else {
+        q
+    };
+    let offset = d.iter().map(|a| a - (a / q).round() * q).sum::<f64>() / levels as f64;
+    let decade = q.log10();
+    let decimal = (decade - decade.round()).abs() < 1e-6;
+    Finding::Present(Grid {
+        quantum: q,
+        offset,
+        levels,
+        decimal,
+    })
+}
+
+/// A fitted output filter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilterFit {
+    /// 1 or 2.
+    pub order: usize,
+    /// The natural frequency, Hz (the -3 dB frequency of order 1).
+    pub bandwidth_hz: f64,
+    /// The damping ratio (order 2).
+    pub damping: Option<f64>,
+    /// W: the one-sided PSD of the input before the filter, u^2/Hz.
+    pub white_psd: f64,
+    /// A parameter stopped at the end of its search range: not an estimate.
+    pub at_edge: bool,
+    /// Cost reduction against no filter, in residual variances per PSD bin.
+    pub deviance: f64,
+    /// The rounding noise was fitted as that of an angle quantizer.
+    pub on_angle: bool,
+}
+
+/// What [`output_filter`] fits to: the log's PSD bins above 10 % of the Nyquist
+/// frequency, their logarithms and frequencies.
+struct Spectrum {
+    f_hz: Vec<f64>,
+    ln_p: Vec<f64>,
+    rate_hz: f64,
+}
+
+/// The cost of shape `g` (|H|^2 per bin) plus rounding noise `sq` (u^2/Hz per bin):
+/// sum (ln P - ln S)^2 with S = (W + R / f^2) g + sq, and W. W >= 0 and R >= 0 (the red
+/// part: drift below the roll-off, itself filtered) are the least squares of the
+/// relative residual (P - S) / P (the first-order expansion of ln P - ln S), a 2x2
+/// system, R dropped when it comes out negative.
+fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
+    // columns a = g / P, b = g / (f^2 P), target y = (P - sq) / P
+    let (mut aa, mut ab, mut bb, mut ay, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (((lp, gi), s), f) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz) {
+        let p = lp.exp();
+        let a = gi / p;
+        let b = gi / (f * f * p);
+        let y = (p - s) / p;
+        aa += a * a;
+        ab += a * b;
+        bb += b * b;
+        ay += a * y;
+        by += b * y;
+    }
+    let det = aa * bb - ab * ab;
+    let (mut w, mut r) = if det > 1e-12 * aa * bb {
+        ((ay * bb - by * ab) / det, (aa * by - ab * ay) / det)
+    } else {
+        (ay / aa, 0.0)
+    };
+    if r < 0.0 {
+        (w, r) = (ay / aa, 0.0);
+    }
+    if w.is_nan() || w <= 0.0 {
+        w = 1e-300;
+    }
+    let cost = sp
+        .ln_p
+        .iter()
+        .zip(g)
+        .zip(sq)
+        .zip(&sp.f_hz)
+        .map(|(((lp, gi), s), f)| {
+            let d = lp - ((w + r / (f * f)) * gi + s).max(1e-300).ln();
+            d * d
+        })
+        .sum();
+    (cost, w)
+}
+
+/// Golden-section minimum of `f` on \[lo, hi\]: (argmin, min).
+fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, iters: usize) -> (f64, f64) {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let mut a = hi - r * (hi - lo);
+    let mut b = lo + r * (hi - lo);
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..iters {
+        if fa <= fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - r * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + r * (hi - lo);
+            fb = f(b);
+        }
+    }
+    if fa <= fb { (a, fa) } else { (b, fb) }
+}
+
+/// The shape |H|^2 at the spectrum's bins.
+fn shape(sp: &Spectrum, order: usize, bandwidth_hz: f64, damping: Option<f64>) -> Vec<f64> {
+    let h = LowPass::new(order, bandwidth_hz, damping, sp.rate_hz);
+    sp.f_hz
+        .iter()
+        .map(|&f| h.power_response(f, sp.rate_hz))
+        .collect()
+}
+
+/// The low-pass output filter of `x` sampled at `rate_hz` (module doc); `grid`: the
+/// log's value grid, whose rounding noise is part of the model.
+pub fn output_filter(x: &[f64], rate_hz: f64, grid: Option<&Grid>) -> Result<Finding<FilterFit>> {
+    let l = 1024usize.min(crate::stats::psd::default_segment_len(x.len()));
+    if x.len() < 4 * 256 || l < 256 {
+        return Ok(Finding::Absent(format!(
+            "{} samples: too few for a PSD with 256-sample segments",
+            x.len()
+        )));
+    }
+    let psd = welch("output filter", x, rate_hz, l, Detrend::Constant)?;
+    let nyq = rate_hz / 2.0;
+    let (mut f_hz, mut ln_p) = (Vec::new(), Vec::new());
+    for (f, p) in psd.freq_hz.iter().zip(&psd.psd) {
+        if *f >= 0.01 * nyq && *p > 0.0 {
+            f_hz.push(*f);
+            ln_p.push(p.ln());
+        }
+    }
+    if f_hz.len() < 20 {
+        return Ok(Finding::Absent(
+            "the PSD has too few positive bins above 1 % of the Nyquist frequency".into(),
+        ));
+    }
+    let sp = Spectrum {
+        f_hz,
+        ln_p,
+        rate_hz,
+    };
+    let nb = sp.f_hz.len();
+    // rounding noise of the grid, on the rate and on the angle
+    let v_q = grid.map_or(0.0, |g| g.quantum * g.quantum / 12.0);
+    let sq_rate: Vec<f64> = vec![2.0 * v_q / rate_hz; nb];
+    let sq_angle: Vec<f64> = sp
+        .f_hz
+        .iter()
+        .map(|f| {
+            let s = (std::f64::consts::PI * f / rate_hz).sin();
+            2.0 * v_q / rate_hz * 4.0 * s * s
+        })
+        .collect();
+    let ones = vec![1.0; nb];
+
+    let (lo, hi) = (rate_hz / 500.0, 5.0 * rate_hz);
+    let grid_bw: Vec<f64> = (0..=60)
+        .map(|i| lo * (hi / lo).powf(i as f64 / 60.0))
+        .collect();
+    let grid_z: Vec<f64> = (0..=14)
+        .map(|i| 0.2 * (25.0f64).powf(i as f64 / 14.0))
+        .collect();
+
+    struct Best {
+        cost: f64,
+        w: f64,
+        bw: f64,
+        z: Option<f64>,
+        edge: bool,
+    }
+    let fit_order = |order: usize, sq: &[f64]| -> Best {
+        let mut best = (f64::INFINITY, 0usize, 0usize);
+        let zs: &[f64] = if order == 1 { &[f64::NAN] } else { &grid_z };
+        for (i, &bw) in grid_bw.iter().enumerate() {
+            for (j, &z) in zs.iter().enumerate() {
+                let zo = (order == 2).then_some(z);
+                let (c, _) = fit_level(&sp, &shape(&sp, order, bw, zo), sq);
+                if c < best.0 {
+                    best = (c, i, j);
+                }
+            }
+        }
+        let (_, i, j) = best;
+        let edge_bw = i == 0 || i == grid_bw.len() - 1;
+        let edge_z = order == 2 && (j == 0 || j == grid_z.len() - 1);
+        let mut bw = grid_bw[i];
+        let mut z = (order == 2).then(|| grid_z[j]);
+        let step = (hi / lo).powf(1.0 / 60.0);
+        let zstep = 25f64.powf(1.0 / 14.0);
+        // refine: alternate golden searches on ln bandwidth and ln damping
+        for _ in 0..if order == 2 { 3 } else { 1 } {
+            let (u, _) = golden(
+                |u| fit_level(&sp, &shape(&sp, order, u.exp(), z), sq).0,
+                (bw / step).max(lo).ln(),
+                (bw * step).min(hi).ln(),
+                30,
+            );
+            bw = u.exp();
+            if let Some(zz) = z {
+                let (u, _) = golden(
+                    |u| fit_level(&sp, &shape(&sp, order, bw, Some(u.exp())), sq).0,
+                    (zz / zstep).max(0.2).ln(),
+                    (zz * zstep).min(5.0).ln(),
+                    30,
+                );
+                z = Some(u.exp());
+            }
+        }
+        let (cost, w) = fit_level(&sp, &shape(&sp, order, bw, z), sq);
+        Best {
+            cost,
+            w,
+            bw,
+            z,
+            edge: edge_bw || edge_z,
+        }
+    };
+
+    // the rounding noise's form: angle or rate (only with a grid)
+    let (sq, on_angle) = if v_q > 0.0 {
+        let (c_rate, _) = fit_level(&sp, &ones, &sq_rate);
+        let (c_angle, _) = fit_level(&sp, &ones, &sq_angle);
+        let r1 = fit_order(1, &sq_rate);
+        let a1 = fit_order(1, &sq_angle);
+        let var = r1.cost.min(a1.cost).min(c_rate).min(c_angle) / (nb as f64 - 3.0);
+        if r1.cost.min(c_rate) - a1.cost.min(c_angle) > ORDER2_MIN_DEVIANCE * var {
+            (sq_angle, true)
+        } else {
+            (sq_rate, false)
+        }
+    } else {
+        (vec![0.0; nb], false)
+    };
+    let (c_flat, _) = fit_level(&sp, &ones, &sq);
+    let b1 = fit_order(1, &sq);
+    let b2 = fit_order(2, &sq);
+    let var = b2.cost.min(b1.cost) / (nb as f64 - 3.0);
+    let var = var.max(1e-12);
+    let (best, order) = if b1.cost - b2.cost > ORDER2_MIN_DEVIANCE * var {
+        (b2, 2)
+    } else {
+        (b1, 1)
+    };
+    let deviance = (c_flat - best.cost) / var;
+    let h = LowPass::new(order, best.bw, best.z, rate_hz);
+    let at_nyquist = h.power_response(nyq, rate_hz);
+    if deviance < FILTER_MIN_DEVIANCE || at_nyquist > 0.9 || best.bw >= hi * 0.999 {
+        return Ok(Finding::Absent(format!(
+            "the PSD's high-frequency part is flat: the best filter ({} order, {} Hz) lowers the cost by {} residual variances (needs {}) and keeps {} of the power at the Nyquist frequency",
+            if order == 1 { "first" } else { "second" },
+            crate::fmt::num(best.bw),
+            crate::fmt::num(deviance),
+            crate::fmt::num(FILTER_MIN_DEVIANCE),
+            crate::fmt::num(at_nyquist)
+        )));
+    }
+    Ok(Finding::Present(FilterFit {
+        order,
+        bandwidth_hz: best.bw,
+        damping: best.z,
+        white_psd: best.w,
+        at_edge: best.edge,
+        deviance,
+        on_angle,
+    }))
+}
+
+/// Saturation found in a log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    /// The measurement range: the largest magnitude of a clipped extreme, u.
+    pub limit: f64,
+    /// Samples at the largest value when that side is clipped.
+    pub n_high: Option<usize>,
+    /// Samples at the smallest value when that side is clipped.
+    pub n_low: Option<usize>,
+}
+
+/// Saturation of `x` (module doc); `quantum`: the value grid's step, if any.
+pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &a in x.iter().filter(|a| a.is_finite()) {
+        lo = lo.min(a);
+        hi = hi.max(a);
+    }
+    if hi <= lo {
+        return Finding::Absent("fewer than two distinct finite values".into());
+    }
+    let tol = quantum.map_or(1e-9 * lo.abs().max(hi.abs()), |q| q / 4.0);
+    // (count at the extreme, the next distinct value inwards, count at that value)
+    let side = |ext: f64, sign: f64| -> (usize, usize) {
+        let at = x.iter().filter(|a| (**a - ext).abs() <= tol).count();
+        // the next level: the extreme-most value more than tol inside
+        let next = x
+            .iter()
+            .copied()
+            .filter(|a| a.is_finite() && sign * (ext - a) > tol)
+            .fold(f64::NAN, |m, a| {
+                if m.is_nan() || sign * (a - m) > 0.0 {
+                    a
+                } else {
+                    m
+                }
+            });
+        let n_next = if next.is_nan() {
+            0
+        } else {
+            x.iter().filter(|a| (**a - next).abs() <= tol).count()
+        };
+        (at, n_next)
+    };
+    let clipped = |(at, next): (usize, usize)| at >= 5 && at >= 2 * next;
+    let (h, l) = (side(hi, 1.0), side(lo, -1.0));
+    let n_high = clipped(h).then_some(h.0);
+    let n_low = clipped(l).then_some(l.0);
+    let limit = match (n_high, n_low) {
+        (Some(_), Some(_)) => hi.abs().max(lo.abs()),
+        (Some(_), None) => hi.abs(),
+        (None, Some(_)) => lo.abs(),
+        (None, None) => {
+            return Finding::Absent(format!(
+                "no pile at the extremes: {} sample(s) at the largest value against {} at the next level, {} at the smallest against {}",
+                h.0, h.1, l.0, l.1
+            ));
+        }
+    };
+    Finding::Present(Clip {
+        limit,
+        n_high,
+        n_low,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulator::generate::{SimRequest, Simulator};
+    use crate::simulator::{ChannelSpec, Component, Spec};
+
+    /// `n` samples at `rate_hz` of white noise `sd` (u) plus a constant `bias` through
+    /// the output path `path`.
+    fn sim(
+        n: usize,
+        rate_hz: f64,
+        sd: f64,
+        bias: f64,
+        path: Vec<Component>,
+        seed: u64,
+    ) -> Vec<f64> {
+        let mut comps = vec![
+            Component::ConstantBias { value: bias },
+            Component::WhiteNoise {
+                n: sd / rate_hz.sqrt(),
+            },
+        ];
+        comps.extend(path);
+        let spec = Spec {
+            sample_rate_hz: rate_hz,
+            temperature_channel: None,
+            seed: Some(seed),
+            channels: vec![ChannelSpec {
+                name: "x".into(),
+                components: comps,
+            }],
+        };
+        spec.validate().unwrap();
+        let out = Simulator::new(&spec, SimRequest::new(n, rate_hz))
+            .unwrap()
+            .run()
+            .unwrap();
+        out.channels[0].1.clone()
+    }
+
+    #[test]
+    fn the_grid_is_found_through_print_noise_and_absent_on_continuous_values() {
+        let q = 0.05;
+        let x = sim(
+            200_000,
+            100.0,
+            0.35,
+            0.1,
+            vec![Component::OutputResolution {
+                quantum: q,
+                on_angle: false,
+            }],
+            1,
+        );
+        // printed through text with float noise: 0.15000000000000002 and the like
+        let printed: Vec<f64> = x.iter().map(|v| (v / q).round() * 0.05).collect();
+        for v in [&x, &printed] {
+            let g = value_grid(v).present().expect("a grid");
+            assert!((g.quantum - q).abs() < 1e-9, "{g:?}");
+            assert!(g.offset.abs() < 1e-9 && !g.decimal, "{g:?}");
+        }
+        // a quantum of 1/3 printed with 4 decimals
+        let third: Vec<f64> = x
+            .iter()
+            .map(|v| (((v / q).round() / 3.0) * 1e4).round() / 1e4)
+            .collect();
+        let g = value_grid(&third).present().expect("a grid");
+        assert!((g.quantum - 1.0 / 3.0).abs() < 1e-4, "{g:?}");
+        // on the angle: the same grid
+        let a = sim(
+            200_000,
+            100.0,
+            0.35,
+            0.1,
+            vec![Component::OutputResolution {
+                quantum: q,
+                on_angle: true,
+            }],
+            2,
+        );
+        assert!((value_grid(&a).present().unwrap().quantum - q).abs() < 1e-9);
+        // continuous values, and the same with a grid far finer than the values' spread
+        let c = sim(200_000, 100.0, 0.35, 0.1, vec![], 3);
+        assert!(!value_grid(&c).is_present(), "{:?}", value_grid(&c));
+        // a log printed with 4 decimals sits on 1e-4: found, flagged as decimal
+        let p4: Vec<f64> = c.iter().map(|v| (v * 1e4).round() / 1e4).collect();
+        let g = value_grid(&p4).present().unwrap();
+        assert!((g.quantum - 1e-4).abs() < 1e-12 && g.decimal, "{g:?}");
+        // few values: no grid claimed
+        assert!(!value_grid(&[0.1, 0.3, 0.7]).is_present());
+    }
+
+    #[test]
+    fn the_filter_bandwidth_is_recovered_and_absent_without_a_filter() {
+        let fs = 100.0;
+        for (order, bw, z) in [(1, 8.0, None), (2, 12.0, Some(0.5)), (2, 6.0, Some(1.5))] {
+            let x = sim(
+                400_000,
+                fs,
+                1.0,
+                0.0,
+                vec![Component::OutputFilter {
+                    order,
+                    bandwidth_hz: bw,
+                    damping: z,
+                }],
+                4,
+            );
+            let f = output_filter(&x, fs, None)
+                .unwrap()
+                .present()
+                .expect("a filter");
+            assert_eq!(f.order, order, "{f:?}");
+            assert!((f.bandwidth_hz / bw - 1.0).abs() < 0.05, "{f:?}");
+            if let Some(z) = z {
+                assert!((f.damping.unwrap() / z - 1.0).abs() < 0.1, "{f:?}");
+            }
+            assert!(!f.at_edge, "{f:?}");
+            // W = 2 sd^2 / fs (less sharp: the red part R trades with W when the slow
+            // pole of an overdamped filter is low)
+            assert!((f.white_psd / (2.0 / fs) - 1.0).abs() < 0.15, "{f:?}");
+        }
+        // no filter: absent, with and without a grid
+        let x = sim(400_000, fs, 1.0, 0.0, vec![], 5);
+        let f = output_filter(&x, fs, None).unwrap();
+        assert!(!f.is_present(), "{f:?}");
+        let q = 0.5;
+        let xq = sim(
+            400_000,
+            fs,
+            1.0,
+            0.0,
+            vec![Component::OutputResolution {
+                quantum: q,
+                on_angle: true,
+            }],
+            6,
+        );
+        let g = value_grid(&xq).present().unwrap();
+        let f = output_filter(&xq, fs, Some(&g)).unwrap();
+        assert!(!f.is_present(), "{f:?}");
+        // a filtered and angle-quantized log: both found, the angle form recognized
+        let xf = sim(
+            400_000,
+            fs,
+            1.0,
+            0.0,
+            vec![
+                Component::OutputFilter {
+                    order: 1,
+                    bandwidth_hz: 10.0,
+                    damping: None,
+                },
+                Component::OutputResolution {
+                    quantum: q,
+                    on_angle: true,
+                },
+            ],
+            7,
+        );
+        let g = value_grid(&xf).present().unwrap();
+        assert!((g.quantum - q).abs() < 1e-9);
+        let f = output_filter(&xf, fs, Some(&g))
+            .unwrap()
+            .present()
+            .expect("a filter");
+        assert!(f.on_angle && f.order == 1, "{f:?}");
+        assert!((f.bandwidth_hz / 10.0 - 1.0).abs() < 0.1, "{f:?}");
+    }
+
+    #[test]
+    fn saturation_is_found_at_the_pile_and_absent_otherwise() {
+        let x = sim(
+            100_000,
+            100.0,
+            1.0,
+            0.2,
+            vec![Component::Saturation { limit: 2.5 }],
+            8,
+        );
+        let c = saturation(&x, None).present().expect("clipped");
+        assert_eq!(c.limit, 2.5);
+        assert!(c.n_high.unwrap() > 100 && c.n_low.unwrap() > 10, "{c:?}");
+        // one side only
+        let y = sim(
+            100_000,
+            100.0,
+            1.0,
+            1.5,
+            vec![Component::Saturation { limit: 3.0 }],
+            9,
+        );
+        let c = saturation(&y, None).present().expect("clipped");
+        assert_eq!((c.limit, c.n_low), (3.0, None), "{c:?}");
+        // with a grid: the pile is told from the grid's repeats
+        let z = sim(
+            100_000,
+            100.0,
+            1.0,
+            0.0,
+            vec![
+                Component::Saturation { limit: 2.0 },
+                Component::OutputResolution {
+                    quantum: 0.1,
+                    on_angle: false,
+                },
+            ],
+            10,
+        );
+        let c = saturation(&z, Some(0.1)).present().expect("clipped");
+        assert!((c.limit - 2.0).abs() < 1e-9, "{c:?}");
+        // absent: continuous, and on a grid
+        let w = sim(100_000, 100.0, 1.0, 0.0, vec![], 11);
+        assert!(!saturation(&w, None).is_present());
+        let wq = sim(
+            100_000,
+            100.0,
+            1.0,
+            0.0,
+            vec![Component::OutputResolution {
+                quantum: 0.1,
+                on_angle: false,
+            }],
+            12,
+        );
+        let s = saturation(&wq, Some(0.1));
+        assert!(!s.is_present(), "{s:?}");
+    }
+}
