@@ -172,6 +172,10 @@ struct State {
     parts: Vec<Vec<Vec<f64>>>,
     ens: EnsembleStats,
     gap: f64,
+    /// The grid every simulation is rounded to before its features: the rate
+    /// quantum of an `output_resolution` component (in the spec or added), else the
+    /// real log's printed precision.
+    round_step: Option<f64>,
 }
 
 /// Finds where `spec` differs from the real log, which effects explain it, and how far
@@ -260,25 +264,39 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             (-step.log10()).round().max(0.0)
         ));
     }
+    // an output resolution in the rate that the spec has: applied to every candidate's
+    // sum too (a continuous change added to rounded simulations would leave the grid)
+    let spec_quantum = spec.channels[channel]
+        .components
+        .iter()
+        .find_map(|c| match c {
+            Component::OutputResolution {
+                quantum,
+                on_angle: false,
+            } => Some(*quantum),
+            _ => None,
+        });
+    let base_step = spec_quantum.or(printed);
     // the features of each replica's series xs[r], plus sign * delta[r] when given,
-    // rounded to the log's printed precision
-    let feats_of = |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>| -> Vec<Vec<f64>> {
-        xs.par_iter()
-            .enumerate()
-            .map(|(r, x)| {
-                let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
-                let y: Option<Vec<f64>> =
-                    delta.map(|(d, sign)| x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect());
-                let y = match (printed, y) {
-                    (Some(step), Some(y)) => Some(features::round_to(&y, step)),
-                    (Some(step), None) => Some(features::round_to(x, step)),
-                    (None, y) => y,
-                };
-                test.compute(y.as_deref().unwrap_or(x), temperature.as_ref(), &o)
-            })
-            .collect()
-    };
-    let feats = feats_of(&target, None);
+    // rounded to `step`
+    let feats_of =
+        |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>, step: Option<f64>| -> Vec<Vec<f64>> {
+            xs.par_iter()
+                .enumerate()
+                .map(|(r, x)| {
+                    let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
+                    let y: Option<Vec<f64>> = delta
+                        .map(|(d, sign)| x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect());
+                    let y = match (step, y) {
+                        (Some(step), Some(y)) => Some(features::round_to(&y, step)),
+                        (Some(step), None) => Some(features::round_to(x, step)),
+                        (None, y) => y,
+                    };
+                    test.compute(y.as_deref().unwrap_or(x), temperature.as_ref(), &o)
+                })
+                .collect()
+        };
+    let feats = feats_of(&target, None, base_step);
     let cal = Calibration::new(&feats, &defs);
     let ens = EnsembleStats::new(&feats, &defs, None);
     let z0 = ens.z(&real_feats);
@@ -299,6 +317,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         parts,
         ens,
         gap: gap_before,
+        round_step: base_step,
     };
     let mut first: Option<Vec<Effect>> = None;
     let mut added: Vec<Effect> = Vec::new();
@@ -314,6 +333,17 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             e,
             distance::family_gaps(&z, Some(&pen), &defs),
         )
+    };
+    // each replica's features without the effect of slot `s`
+    let feats_without = |st: &State, s: &Slot| -> Vec<Vec<f64>> {
+        match s.rounding {
+            Some(prev) => feats_of(&st.target, None, prev),
+            None => feats_of(
+                &st.target,
+                Some((&slot_signal(s, &st.parts), -1.0)),
+                st.round_step,
+            ),
+        }
     };
     // forward steps add the best candidate; after each, backward steps take back an
     // earlier effect whose share in the joint model fell below min_shrink
@@ -345,7 +375,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         let gap_now = st.gap;
         let skipped = candidates::propose(&cx, &mut |p: Proposal| {
             let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
-            let f = feats_of(&st.target, Some((&d, 1.0)));
+            let f = feats_of(&st.target, Some((&d, 1.0)), st.round_step);
             let (g, e, families) = score(&f);
             let eff = Effect {
                 kind: p.kind.clone(),
@@ -374,16 +404,57 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 }
             }
         })?;
+        // output resolution: the simulations rounded to the real log's value grid
+        let has_quantum = st.spec.channels[channel]
+            .components
+            .iter()
+            .any(|c| matches!(c, Component::OutputResolution { .. }));
+        if let (Some(q), false) = (resolution, has_quantum) {
+            let f = feats_of(&st.target, None, Some(q));
+            let (g, e, families) = score(&f);
+            let component = Component::OutputResolution {
+                quantum: q,
+                on_angle: false,
+            };
+            let p = Proposal {
+                kind: "output_resolution".into(),
+                params: candidates::params_json(&component),
+                component: component.clone(),
+                replaces: None,
+                delta: candidates::Delta::Same(Vec::new()),
+                note: format!(
+                    "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate): every simulation rounded to it"
+                ),
+            };
+            let eff = Effect {
+                kind: p.kind.clone(),
+                gap_after: g,
+                shrink: 1.0 - g / gap_now,
+                params: p.params.clone(),
+                note: p.note.clone(),
+                families,
+                contribution: None,
+                step: None,
+                component,
+                replaces: None,
+            };
+            all.push(eff.clone());
+            match &best {
+                Some(b) if g >= b.0.gap_after => {
+                    if second.as_ref().is_none_or(|s| g < s.0.gap_after) {
+                        second = Some((eff, f));
+                    }
+                }
+                _ => {
+                    if let Some((be, _, _, bf)) = best.take() {
+                        second = Some((be, bf));
+                    }
+                    best = Some((eff, e, p, f));
+                }
+            }
+        }
         if first.is_none() {
             not_tried = skipped;
-            if let Some(q) = resolution {
-                not_tried.push(NotTried {
-                    kind: "output_resolution".into(),
-                    reason: format!(
-                        "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate): add an output_resolution component with quantum = {q:.6e} to the spec (the search does not add output-path components yet), else the distribution statistics keep this difference"
-                    ),
-                });
-            }
         }
         all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
@@ -460,7 +531,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                 if !removable(&slots, i) {
                     continue;
                 }
-                let f = feats_of(&st.target, Some((&slot_signal(&slots[i], &st.parts), -1.0)));
+                let f = feats_without(&st, &slots[i]);
                 let (g, e, _) = score(&f);
                 if best.as_ref().is_none_or(|b| g < b.1) {
                     best = Some((i, g, e));
@@ -502,7 +573,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     }
     // each kept effect's share of the final joint model, the ranking reported
     for i in 0..added.len() {
-        let f = feats_of(&st.target, Some((&slot_signal(&slots[i], &st.parts), -1.0)));
+        let f = feats_without(&st, &slots[i]);
         let (g, _, _) = score(&f);
         added[i].contribution = Some(1.0 - st.gap / g);
     }
@@ -555,6 +626,9 @@ struct Slot {
     comp: usize,
     /// For a replacement: the component it replaced and the change applied.
     replaced: Option<(Component, candidates::Delta)>,
+    /// For an output resolution: the rounding step before it (it changes no signal,
+    /// only the grid every simulation is rounded to).
+    rounding: Option<Option<f64>>,
 }
 
 /// Each replica's signal of slot `s`: its component's part, or the change a
@@ -576,6 +650,13 @@ fn removable(slots: &[Slot], i: usize) -> bool {
 /// Adds proposal `p` to the state: its signal onto every replica's sum, its component
 /// appended (or put in place of the one it replaces); returns where it sits.
 fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
+    let rounding = match &p.component {
+        Component::OutputResolution {
+            quantum,
+            on_angle: false,
+        } => Some(std::mem::replace(&mut st.round_step, Some(*quantum))),
+        _ => None,
+    };
     for (r, t) in st.target.iter_mut().enumerate() {
         for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
             *a += v;
@@ -592,6 +673,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
             Slot {
                 comp: k,
                 replaced: Some((old, p.delta)),
+                rounding,
             }
         }
         None => {
@@ -602,6 +684,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
             Slot {
                 comp: st.spec.channels[channel].components.len() - 1,
                 replaced: None,
+                rounding,
             }
         }
     }
@@ -611,6 +694,9 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
 /// component removed (or the replaced one restored).
 fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
     let s = slots.remove(i);
+    if let Some(prev) = s.rounding {
+        st.round_step = prev;
+    }
     for (r, t) in st.target.iter_mut().enumerate() {
         let sig: &[f64] = match &s.replaced {
             Some((_, d)) => d.get(r),
@@ -705,6 +791,7 @@ mod tests {
                 sd: vec![],
             },
             gap: 1.0,
+            round_step: None,
         }
     }
 
