@@ -332,3 +332,39 @@ fn state_dependent_dynamics_are_added_as_a_farma_effect_in_place_of_the_arma() {
         f[0]
     );
 }
+
+#[test]
+fn a_log_on_an_output_grid_gets_the_output_resolution_and_the_gap_closes() {
+    use farma::simulator::Component;
+    // the base spec's sensor writing its rate rounded to 0.025 u (about 0.8 of the
+    // white noise's per-sample sd at 10 Hz)
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0]
+        .components
+        .push(Component::OutputResolution {
+            quantum: 0.025,
+            on_angle: false,
+        });
+    let case = Case {
+        expect: "output_resolution".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 5, 12);
+    let added: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    assert_eq!(added.first(), Some(&"output_resolution"), "{added:?}");
+    let q = d.added[0].params["quantum"].as_f64().unwrap();
+    assert!((q - 0.025).abs() < 1e-9, "quantum {q}");
+    assert!(
+        d.explained,
+        "gap {} -> {} (threshold {})",
+        d.gap_before, d.gap_after, d.gap_threshold
+    );
+    assert!(
+        d.spec_after.channels[0]
+            .components
+            .iter()
+            .any(|c| matches!(c, Component::OutputResolution { .. }))
+    );
+}
