@@ -252,7 +252,7 @@ fn every_written_table_has_the_columns_docs_contracts_lists() {
                 "-o".into(),
                 s(&d("gap")),
                 "--replicas".into(),
-                "4".into(),
+                "5".into(),
             ],
             d("gap"),
         ),
