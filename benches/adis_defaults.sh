@@ -14,7 +14,7 @@ for r in 1 2 3 4; do
   for a in x y z; do
     log=$D/imudata-adis16405/adis_16405_imu$r.parquet
     def=$("$F" adev "$log" --channel gyro_${a}_dps --json 2>/tmp/adis_defaults.err.$$)
-    warn=$(grep -c 'warning' /tmp/adis_defaults.err.$$ || true)
+    warn=$(grep -c '^farma: warning' /tmp/adis_defaults.err.$$ || true)
     at=$("$F" adev "$log" --channel gyro_${a}_dps --json --fit-tau-min 0.08 2>/dev/null)
     A=$(echo $a | tr xyz XYZ)
     pub=""
