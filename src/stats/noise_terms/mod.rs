@@ -153,10 +153,11 @@ pub struct TauMinChoice {
     pub tau_s: f64,
     /// True when chosen from the data; false when given.
     pub automatic: bool,
-    /// The automatic choice's tries up to the one chosen, shortest first tau first:
-    /// each candidate first tau, the dispersion of the fit from there (None where no
-    /// subset fitted) and the local log-log slope of the Allan deviation from that tau
-    /// to the next octave. Empty when the tau was given.
+    /// The automatic choice's tries, shortest first tau first, up to the one chosen
+    /// (every one when none fits, `none_adequate`): each candidate first tau, the
+    /// dispersion of the fit from there (None where no subset fitted) and the local
+    /// log-log slope of the Allan deviation from that tau to the next octave. Empty
+    /// when the tau was given.
     pub tries: Vec<TauMinTry>,
     /// True when no candidate first tau gave a fit that is not poor (the automatic
     /// choice then takes the one of the smallest dispersion).
@@ -200,7 +201,7 @@ impl TauMinChoice {
         };
         if self.none_adequate {
             return format!(
-                "noise terms fitted from tau = {t} s, chosen automatically: no first tau among the shortest third of the octave taus gave a fit with dispersion <= {POOR_DISPERSION}, and the fit from {t} s has the smallest ({}); the curve has a feature the IEEE 952 terms do not model (see the dispersion warning)",
+                "noise terms fitted from tau = {t} s, chosen automatically: no first tau among the shortest third of the octave taus gave a fit with dispersion <= {POOR_DISPERSION}, and the fit from {t} s has the smallest (tries: {}); the curve has a feature the IEEE 952 terms do not model (see the dispersion warning)",
                 list(&self.tries)
             );
         }
@@ -431,7 +432,6 @@ pub fn identify_curve(
         .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
         .map_or(0, |(i, _)| i);
     let mut id = fits.swap_remove(best)?;
-    tries.truncate(best + 1);
     id.tau_min.tries = tries;
     id.tau_min.none_adequate = true;
     Ok(id)
