@@ -10,6 +10,7 @@
 //! ROOT/_files/task=<task name>/log_id=<log id>/<file>            (summary.txt, stores)
 //! ROOT/_manifest/<log id>.<task name>.parquet                    (the unit's row)
 //! ROOT/manifest.parquet                                          (all rows)
+//! ROOT/index.html                      (every unit, its status, report and verdict)
 //! ```
 //!
 //! `<table>` is the file stem a job writes (`coef`, `params`, `gcv`, `select`,
@@ -27,6 +28,7 @@
 //! reads is verified against its per-column checksums first ([`crate::store`]): a
 //! damaged ingested store fails its units, naming the column.
 
+pub mod index;
 pub mod jobfile;
 pub mod manifest;
 pub mod units;
@@ -127,6 +129,7 @@ impl BatchRun {
             })
             .collect();
         manifest::write_union(&self.root)?;
+        index::write(&self.root)?;
         let mut s = Summary {
             units: mine.len(),
             ..Summary::default()

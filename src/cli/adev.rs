@@ -75,8 +75,10 @@ pub struct AdevArgs {
     /// with the noise terms, the PSD; open it in a browser).
     #[arg(long, short, value_name = "OUT.parquet|OUTDIR")]
     pub output: Option<PathBuf>,
-    /// Fit the noise terms to taus >= this only (seconds; default: every octave tau).
-    /// Use it when the sensor's internal filtering bends the curve at the shortest taus.
+    /// Fit the noise terms to taus >= this only (seconds). Default: chosen from the
+    /// data, the first octave tau from which the fit is not poor (dispersion <= 3;
+    /// every tau when the whole curve fits), which leaves out a real sensor's short-tau
+    /// region (output filter, quantization); a note on stderr says which and why.
     #[arg(long, value_name = "SECONDS")]
     pub fit_tau_min: Option<f64>,
     /// Write the identified noise terms as a simulation spec (TOML, contracts.md section 2).
@@ -167,6 +169,7 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
             eprintln!("farma: warning: no noise terms: {e}");
         }
         if let Ok(id) = &r.terms {
+            eprintln!("farma: note: {}: {}", r.channel, id.tau_min.explain());
             for w in fit_warnings(id, a.fit_tau_min) {
                 eprintln!("farma: warning: {}: {w}", r.channel);
             }
@@ -363,7 +366,7 @@ fn terms_json(id: &Identification, unit: Option<RateUnit>) -> Value {
 fn fit_warnings(id: &Identification, fit_tau_min: Option<f64>) -> Vec<String> {
     let hint = match fit_tau_min {
         None => {
-            "the shortest taus of a real sensor are bent by its output filter and quantization: try --fit-tau-min at the tau where the curve's short-tau bend ends (e.g. 0.08 s on the ADIS16405)"
+            "the automatic tau range found no first tau from which the terms fit (see the note); try a larger --fit-tau-min, or look at the curve for a feature the IEEE 952 terms do not model (a sinusoid, a temperature effect)"
         }
         Some(_) => "try a larger --fit-tau-min, or a longer log for the long-tau terms",
     };
@@ -397,6 +400,10 @@ fn terms_fit_json(id: &Identification) -> Value {
         "dof": id.dof,
         "dispersion": id.dispersion,
         "penalty": id.penalty,
+        "tau_min_s": id.tau_min.tau_s,
+        "tau_min_automatic": id.tau_min.automatic,
+        "tau_min_tries": id.tau_min.tries,
+        "tau_min_note": id.tau_min.explain(),
         "tau_s": id.points.iter().map(|p| p.tau_s).collect::<Vec<f64>>(),
         "avar": id.points.iter().map(|p| p.avar).collect::<Vec<f64>>(),
         "avar_model": id.points.iter().map(|p| p.model).collect::<Vec<f64>>(),
@@ -465,6 +472,17 @@ fn print_terms(done: &[ChannelAdev]) -> Result<()> {
             id.points.len(),
             id.deviance,
             id.dispersion
+        );
+        outln!(
+            "{:<16} taus fitted: {} to {} s (first tau {})",
+            name,
+            crate::fmt::num(id.tau_min.tau_s),
+            crate::fmt::num(id.points.last().map_or(f64::NAN, |p| p.tau_s)),
+            if id.tau_min.automatic {
+                "chosen automatically, see the note on stderr"
+            } else {
+                "from --fit-tau-min"
+            }
         );
     }
     Ok(())

@@ -19,8 +19,8 @@ use crate::store::Store;
 
 /// A noise-term fit whose dispersion (the Pearson X^2 per degree of freedom) is above
 /// this is warned about (the command's stderr and its report): the selected terms miss
-/// the curve's shape somewhere.
-pub const POOR_DISPERSION: f64 = 3.0;
+/// the curve's shape somewhere. The automatic tau range uses the same bound.
+pub use crate::stats::noise_terms::POOR_DISPERSION;
 
 /// The files an Allan-deviation folder holds.
 pub const ADEV_OUTPUTS: &[&str] = &["allan.parquet", "noise_terms.parquet", "report.html"];
@@ -168,7 +168,8 @@ pub fn allan_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
 /// gauss_markov), coef (q, n, b, k, r, sigma), value, unc (one standard uncertainty),
 /// unit (u the channel's unit), corr_time_s and corr_time_s_unc (Gauss-Markov; NaN
 /// otherwise), and the fit's n_taus, deviance and dispersion, the taus it used
-/// (fit_tau_min_s, fit_tau_max_s); rate_unit (the channel's, null when unknown) and the
+/// (fit_tau_min_s, fit_tau_max_s) and whether the first was chosen from the data
+/// (fit_tau_min_automatic; false: `--fit-tau-min`); rate_unit (the channel's, null when unknown) and the
 /// term as a datasheet prints it (datasheet_name, datasheet_value, datasheet_unc,
 /// datasheet_unit) and as MATLAB's gyroparams names it (gyroparams_name,
 /// gyroparams_value, gyroparams_unc, gyroparams_unit, SI), null without a rate unit or
@@ -179,6 +180,7 @@ pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatc
     let (mut value, mut unc, mut ct, mut ct_unc) = (vec![], vec![], vec![], vec![]);
     let (mut n_taus, mut deviance, mut dispersion) = (vec![], vec![], vec![]);
     let (mut tau_lo, mut tau_hi, mut rate_unit) = (vec![], vec![], vec![]);
+    let mut tau_auto = vec![];
     let (mut ds_name, mut ds_value, mut ds_unc, mut ds_unit) = (vec![], vec![], vec![], vec![]);
     let (mut gp_name, mut gp_value, mut gp_unc, mut gp_unit) = (vec![], vec![], vec![], vec![]);
     for r in done {
@@ -190,6 +192,7 @@ pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatc
         for t in &id.terms {
             tau_lo.push(lo);
             tau_hi.push(hi);
+            tau_auto.push(id.tau_min.automatic);
             rate_unit.push(r.unit.map(RateUnit::name));
             let kind = t.term.kind_name();
             let ds = r
@@ -237,6 +240,10 @@ pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatc
         ("dispersion", f(dispersion)),
         ("fit_tau_min_s", f(tau_lo)),
         ("fit_tau_max_s", f(tau_hi)),
+        (
+            "fit_tau_min_automatic",
+            Arc::new(arrow_array::BooleanArray::from(tau_auto)) as ArrayRef,
+        ),
         ("rate_unit", os(rate_unit)),
         ("datasheet_name", os(ds_name)),
         ("datasheet_value", of(ds_value)),

@@ -349,6 +349,7 @@ pub fn adev_page(
                     id.points.len(),
                     fmt_sig(id.dispersion)
                 ));
+                lines.push(format!("{}: {}", r.channel, id.tau_min.explain()));
                 if id.get(Term::BiasInstability).is_none() {
                     lines.push(format!(
                         "!{}: no bias instability found; where the sensor's output filter bends the shortest taus, try --fit-tau-min",

@@ -49,21 +49,16 @@ pub(crate) fn svg(
     Ok(buf)
 }
 
-/// The rate unit of a channel read from its name: `_dps` deg/s, `_rps` or `_rads`
-/// rad/s, `_dph` deg/h, `_mps2` m/s^2; else `u` (the channel's unit).
+/// The unit of a channel read from its name, for axis titles: a rate unit as
+/// [`crate::stats::rate_unit::RateUnit::from_channel_name`] reads it (`_dps` deg/s,
+/// `_rps` rad/s, `_dph` deg/h, ...; the one list of suffixes), else `_mps2` m/s^2 (an
+/// accelerometer), else `u` (the channel's unit).
 pub fn unit_of(channel: &str) -> &'static str {
-    let c = channel.to_ascii_lowercase();
-    for (suffix, unit) in [
-        ("_dps", "deg/s"),
-        ("_degps", "deg/s"),
-        ("_rps", "rad/s"),
-        ("_rads", "rad/s"),
-        ("_dph", "deg/h"),
-        ("_mps2", "m/s^2"),
-    ] {
-        if c.ends_with(suffix) {
-            return unit;
-        }
+    if let Some(u) = crate::stats::rate_unit::RateUnit::from_channel_name(channel) {
+        return u.name();
+    }
+    if channel.to_ascii_lowercase().ends_with("_mps2") {
+        return "m/s^2";
     }
     "u"
 }
@@ -172,6 +167,9 @@ mod tests {
         assert_eq!(unit_of("gyro_x_dps"), "deg/s");
         assert_eq!(unit_of("GYRO_X_RPS"), "rad/s");
         assert_eq!(unit_of("gyro_x"), "u");
+        // the rate unit's own suffixes (one list), and an accelerometer's
+        assert_eq!(unit_of("gyro_x_deg_h"), "deg/h");
+        assert_eq!(unit_of("acc_x_mps2"), "m/s^2");
     }
 
     #[test]

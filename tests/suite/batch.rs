@@ -667,3 +667,49 @@ fn the_gap_task_diagnoses_the_specs_channels_with_the_temperature_role() {
     let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
     assert_eq!(json_of(&o)["done"].as_u64(), Some(1), "{}", stderr(&o));
 }
+
+/// The root's index.html: one row per unit, a relative link to each adev unit's
+/// report.html (a file that is there) with that report's verdict, and the failed
+/// unit's error; self-contained; a rerun writes the same bytes.
+#[test]
+fn the_root_index_links_every_report_with_its_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("out");
+    let good = fixture("multiaxis.csv");
+    let bad = fixture("bad/nan_time.csv");
+    let j = job(
+        dir.path(),
+        &format!(
+            "output = \"unused\"\n[[inputs]]\npaths = [{:?}, {:?}]\n[[tasks]]\nkind = \"adev\"\n",
+            good.to_str().unwrap(),
+            bad.to_str().unwrap()
+        ),
+    );
+    let (j, r) = (j.to_str().unwrap(), root.to_str().unwrap());
+    let o = farma(&["batch", j, "-o", r], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let index = std::fs::read_to_string(root.join("index.html")).unwrap();
+    assert!(
+        index.contains("2 units: 1 done, 1 failed, 0 skipped"),
+        "{index}"
+    );
+    let link = "_files/task=adev/log_id=multiaxis/report.html";
+    assert!(index.contains(&format!("<a href=\"{link}\">")), "{index}");
+    let report = std::fs::read_to_string(root.join(link)).unwrap();
+    // the report's verdict box, as it is in the report
+    let verdict = farma::batch::index::verdict_of(&report).unwrap();
+    assert!(verdict.contains("gyro_x"), "{verdict}");
+    assert!(index.contains(verdict));
+    // the failed unit, with its status and error
+    assert!(
+        index.contains(">nan_time</td>") && index.contains(">failed</span>"),
+        "{index}"
+    );
+    assert!(!index.contains("<script") && !index.contains("http"));
+    let o = farma(&["batch", j, "-o", r], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(
+        std::fs::read_to_string(root.join("index.html")).unwrap(),
+        index
+    );
+}

@@ -14,6 +14,7 @@ mod batch;
 mod csv_wide;
 mod deterministic_outputs;
 mod disk_full;
+mod doc_tables;
 mod estimator_multivariate;
 mod estimator_paths;
 mod estimator_recovery;

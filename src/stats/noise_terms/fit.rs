@@ -19,8 +19,9 @@
 //! non-negative fit.
 //!
 //! Term selection: a subset is admissible when every squared coefficient is at least
-//! [`super::MIN_Z`] = 2 standard uncertainties above zero (a term must earn its place);
-//! among those, the one with the smallest D + penalty * (number of parameters), the
+//! [`super::MIN_Z`] = 2 standard uncertainties above zero (a term must earn its place)
+//! and a Gauss-Markov hump shows as one in the model (`SubsetFit::hump_visible`: a
+//! hump the curve does not show is not read off it); among those, the one with the smallest D + penalty * (number of parameters), the
 //! Gauss-Markov hump counting two (sigma and T); the default penalty is ln(number of
 //! taus), the Bayesian information criterion (G. Schwarz, Ann. Statist. 6, 1978).
 //!
@@ -75,6 +76,30 @@ pub(crate) struct SubsetFit {
 impl SubsetFit {
     pub fn n_params(&self) -> usize {
         self.terms.len() + usize::from(self.terms.contains(&Term::GaussMarkov))
+    }
+
+    /// Whether a Gauss-Markov hump of the fit shows as one: the model's AVAR has a
+    /// local maximum inside the fitted taus (on a grid of 8 points per octave). A hump
+    /// that the sum of the terms does not show is not read off the curve: it only
+    /// bends the others, and takes the place of a bias instability (a flicker floor is
+    /// a sum of many such processes, Kasdin 1995) or a rate random walk there. True
+    /// for a fit without the hump.
+    pub fn hump_visible(&self, pr: &Problem) -> bool {
+        if !self.terms.contains(&Term::GaussMarkov) {
+            return true;
+        }
+        let (Some(first), Some(last)) = (pr.points.first(), pr.points.last()) else {
+            return false;
+        };
+        let step = std::f64::consts::LN_2 / 8.0;
+        let n = ((last.tau_s / first.tau_s).ln() / step).floor() as usize + 1;
+        let model: Vec<f64> = (0..n)
+            .map(|i| {
+                let tau = first.tau_s * (i as f64 * step).exp();
+                model_at(&self.terms, &self.coef_sq, self.corr_time_s, tau)
+            })
+            .collect();
+        model.windows(3).any(|w| w[1] > w[0] && w[1] > w[2])
     }
 }
 

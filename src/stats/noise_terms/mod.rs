@@ -39,6 +39,20 @@ use crate::stats::adev::{self, Kind};
 /// uncertainties above zero.
 pub const MIN_Z: f64 = 2.0;
 
+/// A fit whose dispersion (the Pearson X^2 per degree of freedom, [`Identification`])
+/// is above this is poor: the selected terms miss the curve's shape somewhere. The
+/// commands warn about it, and the automatic tau range ([`Options::tau_min_s`]) looks
+/// for the first octave tau from which the fit is not poor.
+pub const POOR_DISPERSION: f64 = 3.0;
+
+/// The automatic tau range cuts at most this fraction of the octave taus from the
+/// short end (a third: on 2^20 samples, 19 taus, the fit may start at m = 64 at most),
+/// and always leaves at least [`AUTO_MIN_TAUS`] taus to fit.
+pub const AUTO_MAX_CUT_FRACTION: f64 = 1.0 / 3.0;
+
+/// The automatic tau range leaves at least this many octave taus to the fit.
+pub const AUTO_MIN_TAUS: usize = 6;
+
 /// What to identify.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Options {
@@ -46,9 +60,11 @@ pub struct Options {
     pub candidates: Vec<Term>,
     /// Penalty per parameter on the deviance (default None: ln(number of taus), BIC).
     pub penalty: Option<f64>,
-    /// Fit only taus >= this \[s\] (default: all). Real sensors filter and decimate
-    /// internally, which bends the Allan curve at the first few taus; with their very
-    /// large EDF those points would otherwise dominate the fit.
+    /// Fit only taus >= this \[s\]. Real sensors filter and decimate internally, which
+    /// bends the Allan curve at the first few taus; with their very large EDF those
+    /// points would otherwise dominate the fit. None (the default): chosen from the
+    /// data, [`identify_curve`]'s automatic tau range (the first octave tau from which
+    /// the fit is not poor; every tau when the whole curve fits).
     pub tau_min_s: Option<f64>,
 }
 
@@ -125,6 +141,82 @@ pub struct Identification {
     /// Number of rate samples, sample rate \[Hz\].
     pub n_samples: usize,
     pub rate_hz: f64,
+    /// How the shortest fitted tau was chosen.
+    pub tau_min: TauMinChoice,
+}
+
+/// How the fit's shortest tau was chosen: given ([`Options::tau_min_s`]) or by the
+/// automatic tau range, with the fits it tried.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TauMinChoice {
+    /// The shortest tau fitted \[s\].
+    pub tau_s: f64,
+    /// True when chosen from the data; false when given.
+    pub automatic: bool,
+    /// The automatic choice's tries, shortest first tau first, up to the one chosen
+    /// (every one when none fits, `none_adequate`): each candidate first tau, the
+    /// dispersion of the fit from there (None where no subset fitted) and the local
+    /// log-log slope of the Allan deviation from that tau to the next octave. Empty
+    /// when the tau was given.
+    pub tries: Vec<TauMinTry>,
+    /// True when no candidate first tau gave a fit that is not poor (the automatic
+    /// choice then takes the one of the smallest dispersion).
+    pub none_adequate: bool,
+}
+
+/// One candidate first tau of the automatic tau range.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TauMinTry {
+    pub tau_s: f64,
+    pub dispersion: Option<f64>,
+    /// d ln ADEV / d ln tau between this octave tau and the next:
+    /// ln(AVAR_{i+1} / AVAR_i) / (2 ln 2); IEEE 952 reads the terms off it (-1
+    /// quantization, -1/2 white noise, 0 bias instability, +1/2 rate random walk,
+    /// +1 ramp).
+    pub adev_slope: f64,
+}
+
+impl TauMinChoice {
+    /// One sentence on the choice, for a note on stderr and in the report: the tau
+    /// chosen and why.
+    pub fn explain(&self) -> String {
+        let t = crate::fmt::num(self.tau_s);
+        if !self.automatic {
+            return format!("noise terms fitted from tau = {t} s (--fit-tau-min)");
+        }
+        let list = |tries: &[TauMinTry]| {
+            tries
+                .iter()
+                .map(|x| {
+                    format!(
+                        "{} s: {} (ADEV slope {:.2})",
+                        crate::fmt::num(x.tau_s),
+                        x.dispersion
+                            .map_or("no fit".to_string(), |d| format!("dispersion {d:.3}")),
+                        x.adev_slope
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        if self.none_adequate {
+            return format!(
+                "noise terms fitted from tau = {t} s, chosen automatically: no first tau among the shortest third of the octave taus gave a fit with dispersion <= {POOR_DISPERSION}, and the fit from {t} s has the smallest (tries: {}); the curve has a feature the IEEE 952 terms do not model (see the dispersion warning)",
+                list(&self.tries)
+            );
+        }
+        if self.tries.len() <= 1 {
+            return format!(
+                "noise terms fitted from tau = {t} s (every octave tau: the whole curve fits, dispersion <= {POOR_DISPERSION})"
+            );
+        }
+        let (cut, chosen) = self.tries.split_at(self.tries.len() - 1);
+        format!(
+            "noise terms fitted from tau = {t} s, chosen automatically: the fits from shorter taus were poor ({}; above {POOR_DISPERSION} the terms miss the curve's shape), from {t} s it fits ({}); the taus below are the sensor's short-tau region (output filter, quantization or decimation), left out; --fit-tau-min overrides",
+            list(cut),
+            list(chosen)
+        )
+    }
 }
 
 impl Identification {
@@ -260,6 +352,19 @@ pub fn identify_from(
 /// Identifies the noise terms from octave points of an overlapping AVAR curve of a
 /// series of `n_samples` rate samples (the points must be the octave factors
 /// m = 1, 2, 4, ..., for the EDF to hold; zero or non-finite values are dropped).
+///
+/// The tau range: from [`Options::tau_min_s`] when given; otherwise automatic. The
+/// fit is tried from the first octave tau, then from the second, and so on, and the
+/// first whose dispersion is at most [`POOR_DISPERSION`] is taken: a curve that the
+/// IEEE 952 terms describe everywhere (a simulation, a sensor without output filter)
+/// keeps every tau, while a real sensor's short-tau region (its output filter and
+/// decimation flatten the curve at the first taus, its quantization steepens it),
+/// where the points have EDFs of 10^5 and more and any model error dominates the
+/// fit, is left out. At most [`AUTO_MAX_CUT_FRACTION`] of the taus are cut, and
+/// [`AUTO_MIN_TAUS`] are always left; when no first tau in that range fits, the one
+/// whose fit has the smallest dispersion is taken (and the dispersion shows the
+/// misfit that remains). The choice and its tries are in
+/// [`Identification::tau_min`].
 pub fn identify_curve(
     what: &str,
     points: &[AvarPoint],
@@ -290,10 +395,60 @@ pub fn identify_curve(
             have: n_samples as u64,
         });
     }
+    if opts.tau_min_s.is_some() {
+        let mut id = fit_range(what, &pts, n_samples, rate_hz, opts)?;
+        id.tau_min.automatic = false;
+        return Ok(id);
+    }
+    let max_cut = ((pts.len() as f64 * AUTO_MAX_CUT_FRACTION).floor() as usize)
+        .min(pts.len().saturating_sub(AUTO_MIN_TAUS));
+    let slope = |i: usize| match pts.get(i + 1) {
+        Some(q) => (q.avar / pts[i].avar).ln() / (2.0 * (q.tau_s / pts[i].tau_s).ln()),
+        None => f64::NAN,
+    };
+    let mut tries = Vec::new();
+    let mut fits = Vec::new();
+    for cut in 0..=max_cut {
+        let fit = fit_range(what, &pts[cut..], n_samples, rate_hz, opts);
+        let dispersion = fit.as_ref().ok().map(|id| id.dispersion);
+        tries.push(TauMinTry {
+            tau_s: pts[cut].tau_s,
+            dispersion,
+            adev_slope: slope(cut),
+        });
+        if dispersion.is_some_and(|d| d <= POOR_DISPERSION) {
+            let mut id = fit?;
+            id.tau_min.tries = tries;
+            return Ok(id);
+        }
+        fits.push(fit);
+    }
+    // None fits: the first tau whose fit has the smallest dispersion (the short-tau
+    // region left out as far as that helps; the misfit that remains is elsewhere).
+    let best = tries
+        .iter()
+        .enumerate()
+        .filter_map(|(i, t)| t.dispersion.map(|d| (i, d)))
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+        .map_or(0, |(i, _)| i);
+    let mut id = fits.swap_remove(best)?;
+    id.tau_min.tries = tries;
+    id.tau_min.none_adequate = true;
+    Ok(id)
+}
+
+/// The fit and term selection on the points `pts` (every one of them).
+fn fit_range(
+    what: &str,
+    pts: &[AvarPoint],
+    n_samples: usize,
+    rate_hz: f64,
+    opts: &Options,
+) -> Result<Identification> {
     let mut cands = opts.candidates.clone();
     cands.sort();
     cands.dedup();
-    let problem = fit::Problem::new(&pts, n_samples);
+    let problem = fit::Problem::new(pts, n_samples);
     let penalty = opts.penalty.unwrap_or((pts.len() as f64).ln());
     let fits = fit::all_subsets(&problem, &cands);
     // Each fit's covariance allowing for correlated taus; a subset is kept only when
@@ -308,7 +463,8 @@ pub fn identify_curve(
             let k = f.cov.len().isqrt();
             let significant =
                 (0..f.terms.len()).all(|j| f.coef_sq[j] >= MIN_Z * f.cov[j * k + j].sqrt());
-            significant.then(|| (f.deviance + penalty * f.n_params() as f64, f))
+            let visible = f.hump_visible(&problem);
+            (significant && visible).then(|| (f.deviance + penalty * f.n_params() as f64, f))
         })
         .collect();
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -381,5 +537,11 @@ pub fn identify_curve(
         candidates,
         n_samples,
         rate_hz,
+        tau_min: TauMinChoice {
+            tau_s: pts[0].tau_s,
+            automatic: true,
+            tries: Vec::new(),
+            none_adequate: false,
+        },
     })
 }
