@@ -654,7 +654,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
         Component::OutputResolution {
             quantum,
             on_angle: false,
-        } => Some(std::mem::replace(&mut st.round_step, Some(*quantum))),
+        } => Some(st.round_step.replace(*quantum)),
         _ => None,
     };
     for (r, t) in st.target.iter_mut().enumerate() {

@@ -73,7 +73,7 @@ pub(super) fn temperature_bias(
 /// degenerate (see [`temperature_bias`]).
 fn with_reference(c0: f64, b1: f64, b2: f64) -> Option<(Vec<f64>, f64)> {
     let disc = b1 * b1 - 4.0 * b2 * c0;
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return None;
     }
     let den = b1 + b1.signum() * disc.sqrt();
