@@ -111,7 +111,7 @@ pub fn run(a: AnalyzeArgs, progress: &Progress) -> Result<()> {
         )
     };
     eprintln!(
-        "farma: {} channel(s) analysed in {:.2} s{kept}; tables and summary.txt in {}",
+        "farma: {} channel(s) analysed in {:.2} s{kept}; tables, summary.txt and report.html in {}",
         done.channels.len(),
         done.secs,
         a.output.display()
