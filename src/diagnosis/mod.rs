@@ -369,49 +369,23 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         };
         // each candidate is scored as it is estimated; only the best (with its
         // signal) and the runner-up's features are kept
-        let mut all: Vec<Effect> = Vec::new();
-        let mut best: Option<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)> = None;
-        let mut second: Option<(Effect, Vec<Vec<f64>>)> = None;
+        let mut round = Round::default();
         let gap_now = st.gap;
         let skipped = candidates::propose(&cx, &mut |p: Proposal| {
             let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
             let f = feats_of(&st.target, Some((&d, 1.0)), st.round_step);
-            let (g, e, families) = score(&f);
-            let eff = Effect {
-                kind: p.kind.clone(),
-                gap_after: g,
-                shrink: 1.0 - g / gap_now,
-                params: p.params.clone(),
-                note: p.note.clone(),
-                families,
-                contribution: None,
-                step: None,
-                component: p.component.clone(),
-                replaces: p.replaces,
-            };
-            all.push(eff.clone());
-            match &best {
-                Some(b) if g >= b.0.gap_after => {
-                    if second.as_ref().is_none_or(|s| g < s.0.gap_after) {
-                        second = Some((eff, f));
-                    }
-                }
-                _ => {
-                    if let Some((be, _, _, bf)) = best.take() {
-                        second = Some((be, bf));
-                    }
-                    best = Some((eff, e, p, f));
-                }
-            }
+            let scored = score(&f);
+            round.offer(p, f, scored, gap_now);
         })?;
-        // output resolution: the simulations rounded to the real log's value grid
+        // output resolution: no signal of its own, the simulations rounded to the real
+        // log's value grid
         let has_quantum = st.spec.channels[channel]
             .components
             .iter()
             .any(|c| matches!(c, Component::OutputResolution { .. }));
         if let (Some(q), false) = (resolution, has_quantum) {
             let f = feats_of(&st.target, None, Some(q));
-            let (g, e, families) = score(&f);
+            let scored = score(&f);
             let component = Component::OutputResolution {
                 quantum: q,
                 on_angle: false,
@@ -419,43 +393,23 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             let p = Proposal {
                 kind: "output_resolution".into(),
                 params: candidates::params_json(&component),
-                component: component.clone(),
+                component,
                 replaces: None,
                 delta: candidates::Delta::Same(Vec::new()),
                 note: format!(
                     "the real values sit on a grid of {q:.6e} u (the sensor's output resolution, an LSB in the rate): every simulation rounded to it"
                 ),
             };
-            let eff = Effect {
-                kind: p.kind.clone(),
-                gap_after: g,
-                shrink: 1.0 - g / gap_now,
-                params: p.params.clone(),
-                note: p.note.clone(),
-                families,
-                contribution: None,
-                step: None,
-                component,
-                replaces: None,
-            };
-            all.push(eff.clone());
-            match &best {
-                Some(b) if g >= b.0.gap_after => {
-                    if second.as_ref().is_none_or(|s| g < s.0.gap_after) {
-                        second = Some((eff, f));
-                    }
-                }
-                _ => {
-                    if let Some((be, _, _, bf)) = best.take() {
-                        second = Some((be, bf));
-                    }
-                    best = Some((eff, e, p, f));
-                }
-            }
+            round.offer(p, f, scored, gap_now);
         }
         if first.is_none() {
             not_tried = skipped;
         }
+        let Round {
+            mut all,
+            best,
+            second,
+        } = round;
         all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
             first = Some(all);
@@ -618,6 +572,55 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         seed,
         notes,
     })
+}
+
+/// One round's candidates as they are scored: every effect (for the report), the best
+/// with its proposal and features, and the runner-up's features (for the tie test).
+/// At equal gaps the earlier candidate ranks first, as a stable sort would put it.
+#[derive(Default)]
+struct Round {
+    all: Vec<Effect>,
+    best: Option<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)>,
+    second: Option<(Effect, Vec<Vec<f64>>)>,
+}
+
+impl Round {
+    /// Takes candidate `p`, its replicas' features `f` and their score (gap, ensemble
+    /// statistics, family gaps), the gap before it being `gap_now`.
+    fn offer(
+        &mut self,
+        p: Proposal,
+        f: Vec<Vec<f64>>,
+        (g, e, families): (f64, EnsembleStats, Vec<(Statistic, f64)>),
+        gap_now: f64,
+    ) {
+        let eff = Effect {
+            kind: p.kind.clone(),
+            gap_after: g,
+            shrink: 1.0 - g / gap_now,
+            params: p.params.clone(),
+            note: p.note.clone(),
+            families,
+            contribution: None,
+            step: None,
+            component: p.component.clone(),
+            replaces: p.replaces,
+        };
+        self.all.push(eff.clone());
+        match &self.best {
+            Some(b) if g >= b.0.gap_after => {
+                if self.second.as_ref().is_none_or(|s| g < s.0.gap_after) {
+                    self.second = Some((eff, f));
+                }
+            }
+            _ => {
+                if let Some((be, _, _, bf)) = self.best.take() {
+                    self.second = Some((be, bf));
+                }
+                self.best = Some((eff, e, p, f));
+            }
+        }
+    }
 }
 
 /// Where an added effect sits in the spec, so that the search can take it back.
@@ -883,6 +886,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_round_keeps_the_best_and_the_runner_up_and_ties_go_to_the_earlier() {
+        let stats = || EnsembleStats {
+            mean: vec![],
+            sd: vec![],
+        };
+        let mut round = Round::default();
+        for (k, g) in [(0.1, 3.0), (0.2, 2.0), (0.3, 2.5), (0.4, 2.0), (0.5, 1.0)] {
+            let p = proposal(
+                Component::RateRamp { r: k },
+                None,
+                candidates::Delta::Same(vec![]),
+            );
+            round.offer(p, vec![vec![g]], (g, stats(), vec![]), 4.0);
+        }
+        assert_eq!(round.all.len(), 5);
+        let (b, _, p, f) = round.best.unwrap();
+        assert_eq!((b.gap_after, f[0][0]), (1.0, 1.0));
+        assert_eq!(p.component, Component::RateRamp { r: 0.5 });
+        assert!((b.shrink - 0.75).abs() < 1e-15);
+        // the runner-up: the first of the two at 2.0
+        let (s, _) = round.second.unwrap();
+        assert_eq!(s.component, Component::RateRamp { r: 0.2 });
     }
 
     #[test]
