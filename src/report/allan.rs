@@ -4,7 +4,7 @@
 
 use plotters::prelude::*;
 
-use super::{Drawn, color, legend_line, log_range, svg, thin, tick};
+use super::{Drawn, color, draw_legend, draw_mesh, legend_line, log_range, svg, thin, tick};
 use crate::error::Result;
 use crate::stats::adev::{Curve, Kind};
 use crate::stats::noise_terms::{Identification, Term};
@@ -83,16 +83,11 @@ fn draw_allan(
         .x_label_area_size(48)
         .y_label_area_size(80)
         .build_cartesian_2d(xr.clone().log_scale(), yr.clone().log_scale())?;
-    chart
-        .configure_mesh()
-        .axis_desc_style(("sans-serif", 15))
-        .label_style(("sans-serif", 12))
-        .x_desc("averaging time tau [s]")
-        .y_desc(format!("deviation [{unit}]"))
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()?;
+    draw_mesh(
+        &mut chart,
+        "averaging time tau [s]",
+        format!("deviation [{unit}]"),
+    )?;
     // the tau range the noise terms were fitted to
     if let Some(id) = id
         && let (Some(a), Some(b)) = (id.points.first(), id.points.last())
@@ -185,13 +180,7 @@ fn draw_allan(
                 .legend(legend_line(BLACK, 1));
         }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(RGBColor(180, 180, 180))
-        .label_font(("sans-serif", 12))
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     Ok(())
 }
 
@@ -261,16 +250,11 @@ pub fn psd_svg(
             .x_label_area_size(48)
             .y_label_area_size(80)
             .build_cartesian_2d(xr.clone().log_scale(), yr.clone().log_scale())?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc("frequency f [Hz]")
-            .y_desc(format!("PSD [({unit})^2/Hz]"))
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(
+            &mut chart,
+            "frequency f [Hz]",
+            format!("PSD [({unit})^2/Hz]"),
+        )?;
         chart
             .draw_series(LineSeries::new(pts, color(0).stroke_width(1)))?
             .label("PSD of the log")
@@ -293,13 +277,7 @@ pub fn psd_svg(
                     .legend(legend_line(col, 2));
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }

@@ -6,7 +6,7 @@
 use plotters::prelude::*;
 
 use super::html::Page;
-use super::{color, legend_line, lin_range, log_range, svg, thin, tick};
+use super::{color, draw_legend, draw_mesh, legend_line, lin_range, log_range, svg, thin, tick};
 use crate::error::Result;
 use crate::model::Farma;
 use crate::workflow::analyze::ChannelAnalysis;
@@ -107,16 +107,11 @@ fn coef_svg(
             .x_label_area_size(44)
             .y_label_area_size(64)
             .build_cartesian_2d(xr.clone(), yr)?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc(format!("index x(t-{}) [{unit}]", model.d()))
-            .y_desc(format!("f_{m} [-]"))
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(
+            &mut chart,
+            format!("index x(t-{}) [{unit}]", model.d()),
+            format!("f_{m} [-]"),
+        )?;
         let band: Vec<(f64, f64)> = pts
             .iter()
             .filter(|t| t.2.is_finite())
@@ -157,13 +152,7 @@ fn coef_svg(
                 .label(format!("ARMA a_{m} = {}", tick(&am)))
                 .legend(legend_line(color(1), 2));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }
@@ -248,13 +237,7 @@ fn order_svg(a: &ChannelAnalysis, aicc: bool, unit: &str) -> Result<String> {
                 BLACK.stroke_width(2),
             )))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }
@@ -305,16 +288,7 @@ fn prediction_svg(
             .x_label_area_size(44)
             .y_label_area_size(78)
             .build_cartesian_2d(xr, yr)?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc("time t [s]")
-            .y_desc(format!("{} [{unit}]", a.name))
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(&mut chart, "time t [s]", format!("{} [{unit}]", a.name))?;
         for (k, (pts, name, w)) in [
             (&data, "data (not fitted)", 1u32),
             (&arma, "linear ARMA", 1),
@@ -329,13 +303,7 @@ fn prediction_svg(
                 .label(name)
                 .legend(legend_line(col, 2));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }
@@ -364,16 +332,7 @@ fn horizon_svg(a: &ChannelAnalysis, unit: &str) -> Result<String> {
             .x_label_area_size(44)
             .y_label_area_size(78)
             .build_cartesian_2d(xr.clone().log_scale(), yr.log_scale())?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc("horizon k [samples]")
-            .y_desc(format!("RMSE [{unit}]"))
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(&mut chart, "horizon k [samples]", format!("RMSE [{unit}]"))?;
         for (k, name) in ["FARMA", "linear ARMA"].into_iter().enumerate() {
             let pts: Vec<(f64, f64)> = h
                 .iter()
@@ -398,13 +357,7 @@ fn horizon_svg(a: &ChannelAnalysis, unit: &str) -> Result<String> {
                 .label("std of the hold-out")
                 .legend(legend_line(BLACK, 1));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
         Ok(())
     })
 }
@@ -430,16 +383,7 @@ fn acf_svg(a: &ChannelAnalysis) -> Result<String> {
             .x_label_area_size(44)
             .y_label_area_size(64)
             .build_cartesian_2d(0f64..n as f64 + 1.0, yr)?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc("lag [samples]")
-            .y_desc("autocorrelation [-]")
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(&mut chart, "lag [samples]", "autocorrelation [-]")?;
         for (k, v) in w.acf.iter().enumerate() {
             if v.is_finite() {
                 let lag = k as f64 + 1.0;
@@ -461,13 +405,7 @@ fn acf_svg(a: &ChannelAnalysis) -> Result<String> {
                 r.label("white-noise band").legend(legend_line(BLACK, 1));
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }
@@ -509,16 +447,11 @@ pub fn histogram_svg(channel: &str, residuals: &[f64], unit: &str) -> Result<Str
             .x_label_area_size(44)
             .y_label_area_size(70)
             .build_cartesian_2d(lo..hi, 0.0..top)?;
-        chart
-            .configure_mesh()
-            .axis_desc_style(("sans-serif", 15))
-            .label_style(("sans-serif", 12))
-            .x_desc(format!("residual [{unit}]"))
-            .y_desc(format!("density [1/({unit})]"))
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
+        draw_mesh(
+            &mut chart,
+            format!("residual [{unit}]"),
+            format!("density [1/({unit})]"),
+        )?;
         chart
             .draw_series(dens.iter().enumerate().map(|(k, d)| {
                 let a = lo + k as f64 * wbin;
@@ -536,13 +469,7 @@ pub fn histogram_svg(channel: &str, residuals: &[f64], unit: &str) -> Result<Str
             .draw_series(LineSeries::new(thin(&curve, 201), color(1).stroke_width(2)))?
             .label("normal density (same mean and sd)")
             .legend(legend_line(color(1), 2));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }

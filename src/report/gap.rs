@@ -7,7 +7,9 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::html::Page;
-use super::{Drawn, color, legend_line, lin_range, log_range, svg, tick, unit_of};
+use super::{
+    Drawn, color, draw_legend, draw_mesh, legend_line, lin_range, log_range, svg, tick, unit_of,
+};
 use crate::diagnosis::{Diagnosis, EnsembleStats, Region, Statistic};
 use crate::error::Result;
 
@@ -122,16 +124,7 @@ fn panel(
         .x_label_area_size(44)
         .y_label_area_size(78)
         .build_cartesian_2d(xr.clone().log_scale(), yr.clone().log_scale())?;
-    chart
-        .configure_mesh()
-        .axis_desc_style(("sans-serif", 15))
-        .label_style(("sans-serif", 12))
-        .x_desc(xdesc)
-        .y_desc(ydesc)
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()?;
+    draw_mesh(&mut chart, xdesc, ydesc)?;
     let shaded: Vec<&Region> = regions.iter().filter(|r| r.statistic == stat).collect();
     for (k, r) in shaded.iter().enumerate() {
         let (a, b) = (r.lo.max(xr.start) / 1.08, r.hi.min(xr.end) * 1.08);
@@ -176,13 +169,7 @@ fn panel(
         .label("real log")
         .legend(legend_line(color(1), 2));
     chart.draw_series(real.iter().map(|&p| Circle::new(p, 2, color(1).filled())))?;
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(RGBColor(180, 180, 180))
-        .label_font(("sans-serif", 12))
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     Ok(())
 }
 

@@ -17,6 +17,7 @@ pub mod gap;
 pub mod html;
 
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::{Ranged, ValueFormatter};
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
@@ -148,6 +149,45 @@ pub(crate) fn thin<T: Copy>(v: &[T], max: usize) -> Vec<T> {
         out.push(*last);
     }
     out
+}
+
+/// The house style of a chart's mesh: axis titles `x_desc` and `y_desc`, both axes'
+/// tick labels by [`tick`], a light grid.
+pub(crate) fn draw_mesh<X, Y>(
+    chart: &mut ChartContext<'_, SVGBackend<'_>, Cartesian2d<X, Y>>,
+    x_desc: impl Into<String>,
+    y_desc: impl Into<String>,
+) -> Drawn
+where
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .axis_desc_style(("sans-serif", 15))
+        .label_style(("sans-serif", 12))
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()?;
+    Ok(())
+}
+
+/// The house style of a chart's legend, at `position`.
+pub(crate) fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'b>, CT>,
+    position: SeriesLabelPosition,
+) -> Drawn {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(180, 180, 180))
+        .label_font(("sans-serif", 12))
+        .draw()?;
+    Ok(())
 }
 
 /// A legend entry's sample: a short line of `c`.
