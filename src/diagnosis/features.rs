@@ -658,7 +658,16 @@ pub fn printed_step(x: &[f64]) -> Option<f64> {
 
 /// `x` rounded to the grid of `step` (round half away from zero, as printing does).
 pub fn round_to(x: &[f64], step: f64) -> Vec<f64> {
-    x.iter().map(|v| (v / step).round() * step).collect()
+    let mut y = x.to_vec();
+    round_in_place(&mut y, step);
+    y
+}
+
+/// [`round_to`] in place.
+pub fn round_in_place(x: &mut [f64], step: f64) {
+    for v in x {
+        *v = (*v / step).round() * step;
+    }
 }
 
 #[cfg(test)]

@@ -287,8 +287,12 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                     let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
                     let y: Option<Vec<f64>> = delta
                         .map(|(d, sign)| x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect());
+                    // one copy at most: the sum, rounded in place
                     let y = match (step, y) {
-                        (Some(step), Some(y)) => Some(features::round_to(&y, step)),
+                        (Some(step), Some(mut y)) => {
+                            features::round_in_place(&mut y, step);
+                            Some(y)
+                        }
                         (Some(step), None) => Some(features::round_to(x, step)),
                         (None, y) => y,
                     };
