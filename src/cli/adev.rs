@@ -12,7 +12,7 @@ use crate::jobs::adev::{AdevJob, ChannelAdev, allan_table, noise_terms_table};
 use crate::log::Progress;
 use crate::output::{write_parquet, write_text};
 use crate::stats::adev::{CiOptions, Curve, Kind, ONE_SIGMA, TauGrid};
-use crate::stats::noise_terms::{Identification, to_spec};
+use crate::stats::noise_terms::{Identification, MinimumReading, to_spec};
 use crate::stats::rate_unit::{RateUnit, datasheet, gyroparams};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -265,6 +265,10 @@ pub fn run(a: AdevArgs, progress: &Progress) -> Result<()> {
                 Some(Ok(id)) => {
                     o.insert("terms".into(), terms_json(id, unit));
                     o.insert("terms_fit".into(), terms_fit_json(id));
+                    o.insert(
+                        "bias_instability_reading".into(),
+                        reading_json(id.minimum.as_ref(), unit),
+                    );
                 }
                 Some(Err(e)) => {
                     o.insert("terms".into(), Value::Null);
@@ -359,6 +363,39 @@ fn terms_json(id: &Identification, unit: Option<RateUnit>) -> Value {
         o.insert(kind.into(), Value::Object(e));
     }
     Value::Object(o)
+}
+
+/// `bias_instability_reading`: the curve's minimum / 0.664 as a datasheet reads it
+/// ([`crate::stats::noise_terms::reading`]); null when the curve has no minimum.
+fn reading_json(r: Option<&MinimumReading>, unit: Option<RateUnit>) -> Value {
+    let Some(r) = r else { return Value::Null };
+    let mut e = Map::new();
+    e.insert("b".into(), json!(r.b));
+    e.insert("b_unc".into(), json!(r.b_unc));
+    e.insert("unit".into(), json!("u"));
+    e.insert("tau_s".into(), json!(r.tau_s));
+    e.insert("m".into(), json!(r.m));
+    e.insert("adev".into(), json!(r.adev));
+    e.insert("edf".into(), json!(r.edf));
+    e.insert("at_last_tau".into(), json!(r.at_last_tau));
+    if let Some(u) = unit {
+        let conv = |c: Option<crate::stats::rate_unit::Converted>| {
+            c.map_or(
+                Value::Null,
+                |c| json!({"name": c.name, "value": c.value, "unc": c.unc, "unit": c.unit}),
+            )
+        };
+        e.insert("rate_unit".into(), json!(u.name()));
+        e.insert(
+            "datasheet".into(),
+            conv(datasheet("bias_instability", r.b, r.b_unc, u)),
+        );
+        e.insert(
+            "gyroparams".into(),
+            conv(gyroparams("bias_instability", r.b, r.b_unc, u)),
+        );
+    }
+    Value::Object(e)
 }
 
 /// Warnings on a poor noise-term fit, each with what to try: a dispersion above
@@ -473,6 +510,27 @@ fn print_terms(done: &[ChannelAdev]) -> Result<()> {
             id.deviance,
             id.dispersion
         );
+        if let Some(m) = &id.minimum {
+            let sheet = r
+                .unit
+                .and_then(|u| datasheet("bias_instability", m.b, m.b_unc, u))
+                .map(|c| format!(" = {:.4e} +- {:.2e} {}", c.value, c.unc, c.unit))
+                .unwrap_or_default();
+            outln!(
+                "{:<16} bias instability read off the curve's minimum (as datasheets and MATLAB's allanvar example read it): adev {:.6e} at tau = {} s / 0.664 = {:.6e} +- {:.3e} u{}{}",
+                name,
+                m.adev,
+                crate::fmt::num(m.tau_s),
+                m.b,
+                m.b_unc,
+                sheet,
+                if m.at_last_tau {
+                    " (the curve still falls at its last tau: an upper bound)"
+                } else {
+                    ""
+                }
+            );
+        }
         outln!(
             "{:<16} taus fitted: {} to {} s (first tau {})",
             name,

@@ -53,7 +53,13 @@ pub struct ChannelAdev {
     pub unit: Option<RateUnit>,
     /// Welch's PSD of the segment (for the report), None where it cannot be had.
     pub psd: Option<crate::stats::psd::Psd>,
+    /// The segment's autocorrelation to [`REPORT_ACF_LAGS`] lags (for the report), None
+    /// where it cannot be had (a constant channel).
+    pub acf: Option<crate::stats::acf::Acf>,
 }
+
+/// Lags of the autocorrelation in adev's report (fewer on a shorter segment).
+pub const REPORT_ACF_LAGS: usize = 500;
 
 impl AdevJob {
     /// The curves and terms of every channel, in parallel, on the rows `(start, len)`
@@ -93,6 +99,12 @@ impl AdevJob {
                         crate::stats::psd::Detrend::Constant,
                     )
                     .ok();
+                    let acf = crate::stats::acf::acf(
+                        &what,
+                        y,
+                        REPORT_ACF_LAGS.min(crate::stats::acf::default_max_lag(y.len())),
+                    )
+                    .ok();
                     Ok(ChannelAdev {
                         channel: name.clone(),
                         curves: c,
@@ -100,6 +112,7 @@ impl AdevJob {
                         mean: phase::mean(y),
                         unit: self.unit.or_else(|| RateUnit::from_channel_name(name)),
                         psd,
+                        acf,
                     })
                 })
                 .collect(),
@@ -125,6 +138,12 @@ impl AdevJob {
         super::commit_outputs(set, ADEV_OUTPUTS)
     }
 }
+
+/// `term` of the row of `noise_terms.parquet` that holds the bias instability read off
+/// the curve's minimum ([`crate::stats::noise_terms::reading`]): its `fit_tau_min_s`
+/// and `fit_tau_max_s` are the tau of the minimum, `n_taus` 1, `deviance` and
+/// `dispersion` NaN.
+pub const READING_TERM: &str = "bias_instability_reading";
 
 /// The curves: channel, kind, tau_s, m, dev, dev_lo, dev_hi, edf, n_terms (one row per
 /// channel, kind and tau).
@@ -176,52 +195,111 @@ pub fn allan_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
 /// a gyroparams property ([`crate::stats::rate_unit`]). A channel whose terms could not
 /// be fitted has no row.
 pub fn noise_terms_table(done: &[ChannelAdev]) -> Result<arrow_array::RecordBatch> {
-    let (mut channel, mut term, mut coef, mut unit) = (vec![], vec![], vec![], vec![]);
-    let (mut value, mut unc, mut ct, mut ct_unc) = (vec![], vec![], vec![], vec![]);
-    let (mut n_taus, mut deviance, mut dispersion) = (vec![], vec![], vec![]);
-    let (mut tau_lo, mut tau_hi, mut rate_unit) = (vec![], vec![], vec![]);
-    let mut tau_auto = vec![];
-    let (mut ds_name, mut ds_value, mut ds_unc, mut ds_unit) = (vec![], vec![], vec![], vec![]);
-    let (mut gp_name, mut gp_value, mut gp_unc, mut gp_unit) = (vec![], vec![], vec![], vec![]);
+    /// One row: a fitted term, or the curve-minimum reading.
+    struct Row<'a> {
+        channel: &'a str,
+        term: &'static str,
+        coef: &'static str,
+        unit: &'static str,
+        value: f64,
+        unc: f64,
+        corr_time_s: Option<crate::stats::noise_terms::Estimate>,
+        n_taus: i64,
+        deviance: f64,
+        dispersion: f64,
+        tau_range_s: (f64, f64),
+        tau_auto: bool,
+        rate_unit: Option<RateUnit>,
+        /// The kind the datasheet and gyroparams forms are those of.
+        as_kind: &'static str,
+    }
+    let mut rows = Vec::new();
     for r in done {
         let Ok(id) = &r.terms else { continue };
         let taus = id.points.iter().map(|p| p.tau_s);
-        let (lo, hi) = taus.fold((f64::INFINITY, f64::NEG_INFINITY), |a, t| {
+        let range = taus.fold((f64::INFINITY, f64::NEG_INFINITY), |a, t| {
             (a.0.min(t), a.1.max(t))
         });
         for t in &id.terms {
-            tau_lo.push(lo);
-            tau_hi.push(hi);
-            tau_auto.push(id.tau_min.automatic);
-            rate_unit.push(r.unit.map(RateUnit::name));
-            let kind = t.term.kind_name();
-            let ds = r
-                .unit
-                .and_then(|u| datasheet(kind, t.coef.value, t.coef.unc, u));
-            ds_name.push(ds.as_ref().map(|c| c.name));
-            ds_value.push(ds.as_ref().map(|c| c.value));
-            ds_unc.push(ds.as_ref().map(|c| c.unc));
-            ds_unit.push(ds.as_ref().map(|c| c.unit));
-            let gp = r
-                .unit
-                .and_then(|u| gyroparams(kind, t.coef.value, t.coef.unc, u));
-            gp_name.push(gp.as_ref().map(|c| c.name));
-            gp_value.push(gp.as_ref().map(|c| c.value));
-            gp_unc.push(gp.as_ref().map(|c| c.unc));
-            gp_unit.push(gp.as_ref().map(|c| c.unit));
-            channel.push(r.channel.clone());
-            term.push(t.term.kind_name());
-            coef.push(t.term.coef_name());
-            unit.push(t.term.coef_unit());
-            value.push(t.coef.value);
-            unc.push(t.coef.unc);
-            ct.push(t.corr_time_s.map_or(f64::NAN, |c| c.value));
-            ct_unc.push(t.corr_time_s.map_or(f64::NAN, |c| c.unc));
-            n_taus.push(id.points.len() as i64);
-            deviance.push(id.deviance);
-            dispersion.push(id.dispersion);
+            rows.push(Row {
+                channel: &r.channel,
+                term: t.term.kind_name(),
+                coef: t.term.coef_name(),
+                unit: t.term.coef_unit(),
+                value: t.coef.value,
+                unc: t.coef.unc,
+                corr_time_s: t.corr_time_s,
+                n_taus: id.points.len() as i64,
+                deviance: id.deviance,
+                dispersion: id.dispersion,
+                tau_range_s: range,
+                tau_auto: id.tau_min.automatic,
+                rate_unit: r.unit,
+                as_kind: t.term.kind_name(),
+            });
+        }
+        // the datasheet reading: one tau, no fit
+        if let Some(m) = &id.minimum {
+            rows.push(Row {
+                channel: &r.channel,
+                term: READING_TERM,
+                coef: "b",
+                unit: "u",
+                value: m.b,
+                unc: m.b_unc,
+                corr_time_s: None,
+                n_taus: 1,
+                deviance: f64::NAN,
+                dispersion: f64::NAN,
+                tau_range_s: (m.tau_s, m.tau_s),
+                tau_auto: false,
+                rate_unit: r.unit,
+                as_kind: "bias_instability",
+            });
         }
     }
+    let ds: Vec<_> = rows
+        .iter()
+        .map(|w| {
+            w.rate_unit
+                .and_then(|u| datasheet(w.as_kind, w.value, w.unc, u))
+        })
+        .collect();
+    let gp: Vec<_> = rows
+        .iter()
+        .map(|w| {
+            w.rate_unit
+                .and_then(|u| gyroparams(w.as_kind, w.value, w.unc, u))
+        })
+        .collect();
+    let col_f = |g: &dyn Fn(&Row) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
+    let col_s = |g: &dyn Fn(&Row) -> &'static str| rows.iter().map(g).collect::<Vec<&str>>();
+    let channel: Vec<&str> = rows.iter().map(|w| w.channel).collect();
+    let term = col_s(&|w| w.term);
+    let coef = col_s(&|w| w.coef);
+    let unit = col_s(&|w| w.unit);
+    let value = col_f(&|w| w.value);
+    let unc = col_f(&|w| w.unc);
+    let ct = col_f(&|w| w.corr_time_s.map_or(f64::NAN, |c| c.value));
+    let ct_unc = col_f(&|w| w.corr_time_s.map_or(f64::NAN, |c| c.unc));
+    let n_taus: Vec<i64> = rows.iter().map(|w| w.n_taus).collect();
+    let deviance = col_f(&|w| w.deviance);
+    let dispersion = col_f(&|w| w.dispersion);
+    let tau_lo = col_f(&|w| w.tau_range_s.0);
+    let tau_hi = col_f(&|w| w.tau_range_s.1);
+    let tau_auto: Vec<bool> = rows.iter().map(|w| w.tau_auto).collect();
+    let rate_unit: Vec<Option<&str>> = rows
+        .iter()
+        .map(|w| w.rate_unit.map(RateUnit::name))
+        .collect();
+    let ds_name: Vec<_> = ds.iter().map(|c| c.as_ref().map(|c| c.name)).collect();
+    let ds_value: Vec<_> = ds.iter().map(|c| c.as_ref().map(|c| c.value)).collect();
+    let ds_unc: Vec<_> = ds.iter().map(|c| c.as_ref().map(|c| c.unc)).collect();
+    let ds_unit: Vec<_> = ds.iter().map(|c| c.as_ref().map(|c| c.unit)).collect();
+    let gp_name: Vec<_> = gp.iter().map(|c| c.as_ref().map(|c| c.name)).collect();
+    let gp_value: Vec<_> = gp.iter().map(|c| c.as_ref().map(|c| c.value)).collect();
+    let gp_unc: Vec<_> = gp.iter().map(|c| c.as_ref().map(|c| c.unc)).collect();
+    let gp_unit: Vec<_> = gp.iter().map(|c| c.as_ref().map(|c| c.unit)).collect();
     let s = |v: Vec<&str>| Arc::new(StringArray::from(v)) as ArrayRef;
     let f = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
     let os = |v: Vec<Option<&str>>| Arc::new(StringArray::from(v)) as ArrayRef;

@@ -284,7 +284,8 @@ pub fn psd_svg(
 
 /// `report.html` of an adev run: per channel the verdict on its noise terms (each
 /// term found, warnings where the fit is poor or a term's uncertainty exceeds its
-/// value) first, then the Allan plot, the PSD and the table of the terms.
+/// value) first, then the Allan plot, the PSD, the autocorrelation with its band and
+/// the table of the terms.
 pub fn adev_page(
     log: &str,
     rate_hz: f64,
@@ -327,6 +328,21 @@ pub fn adev_page(
                     id.points.len(),
                     fmt_sig(id.dispersion)
                 ));
+                if let Some(m) = &id.minimum {
+                    lines.push(format!(
+                        "{}: bias instability read off the curve's minimum as a datasheet does (adev {} {unit} at tau = {} s, / 0.664): {} +- {} {unit}{}",
+                        r.channel,
+                        fmt_sig(m.adev),
+                        fmt_sig(m.tau_s),
+                        fmt_sig(m.b),
+                        fmt_sig(m.b_unc),
+                        if m.at_last_tau {
+                            " (the curve still falls at its last tau: an upper bound)"
+                        } else {
+                            ""
+                        }
+                    ));
+                }
                 lines.push(format!("{}: {}", r.channel, id.tau_min.explain()));
                 if id.get(Term::BiasInstability).is_none() {
                     lines.push(format!(
@@ -367,6 +383,23 @@ pub fn adev_page(
         if let Some(psd) = &r.psd {
             p.plot(&psd_svg(&r.channel, unit, psd, id)?);
         }
+        if let Some(a) = &r.acf {
+            let lags = &a.acf[1..];
+            let outside = lags.iter().filter(|v| v.abs() > a.band).count();
+            let title = format!(
+                "{}: autocorrelation ({} of {} lags outside +-{})",
+                r.channel,
+                outside,
+                lags.len(),
+                tick(&a.band)
+            );
+            p.plot(&super::analysis::acf_bars_svg(
+                &title,
+                lags,
+                a.band,
+                Some(rate_hz),
+            )?);
+        }
         if let Some(id) = id {
             let rows: Vec<Vec<String>> = id
                 .terms
@@ -383,6 +416,19 @@ pub fn adev_page(
                         }),
                     ]
                 })
+                .chain(id.minimum.iter().map(|m| {
+                    vec![
+                        format!(
+                            "{} (curve minimum / 0.664)",
+                            crate::jobs::adev::READING_TERM
+                        ),
+                        "b".to_string(),
+                        fmt_sig(m.b),
+                        fmt_sig(m.b_unc),
+                        unit.to_string(),
+                        String::new(),
+                    ]
+                }))
                 .collect();
             p.table(
                 &[

@@ -372,37 +372,52 @@ fn acf_svg(a: &ChannelAnalysis) -> Result<String> {
         w.acf.len(),
         tick(&w.band)
     );
-    svg(560, 360, &title, |root| {
-        let n = w.acf.len();
-        let Some(yr) = lin_range(w.acf.iter().copied().chain([w.band, -w.band]), 0.1) else {
+    acf_bars_svg(&title, &w.acf, w.band, None)
+}
+
+/// An autocorrelation as bars at lags 1, 2, ... (`acf[k]` at lag k + 1; bars outside
+/// +-`band` in the second colour) with the dashed white-noise band; the lag axis in
+/// seconds when `rate_hz` is given, in samples otherwise.
+pub fn acf_bars_svg(title: &str, acf: &[f64], band: f64, rate_hz: Option<f64>) -> Result<String> {
+    svg(560, 360, title, |root| {
+        let dt = rate_hz.map_or(1.0, |r| 1.0 / r);
+        let n = acf.len();
+        let Some(yr) = lin_range(acf.iter().copied().chain([band, -band]), 0.1) else {
             return Ok(());
         };
+        let x_end = (n as f64 + 1.0) * dt;
         let mut chart = ChartBuilder::on(root)
-            .caption(&title, ("sans-serif", 16))
+            .caption(title, ("sans-serif", 16))
             .margin(10)
             .x_label_area_size(44)
             .y_label_area_size(64)
-            .build_cartesian_2d(0f64..n as f64 + 1.0, yr)?;
-        draw_mesh(&mut chart, "lag [samples]", "autocorrelation [-]")?;
-        for (k, v) in w.acf.iter().enumerate() {
+            .build_cartesian_2d(0f64..x_end, yr)?;
+        let x_label = if rate_hz.is_some() {
+            "lag [s]"
+        } else {
+            "lag [samples]"
+        };
+        draw_mesh(&mut chart, x_label, "autocorrelation [-]")?;
+        for (k, v) in acf.iter().enumerate() {
             if v.is_finite() {
-                let lag = k as f64 + 1.0;
-                let col = if v.abs() > w.band { color(1) } else { color(0) };
+                let lag = (k as f64 + 1.0) * dt;
+                let col = if v.abs() > band { color(1) } else { color(0) };
                 chart.draw_series(LineSeries::new(
                     [(lag, 0.0), (lag, *v)],
-                    col.stroke_width(2),
+                    col.stroke_width(if n > 200 { 1 } else { 2 }),
                 ))?;
             }
         }
         for s in [1.0, -1.0] {
             let r = chart.draw_series(DashedLineSeries::new(
-                [(0.0, s * w.band), (n as f64 + 1.0, s * w.band)],
+                [(0.0, s * band), (x_end, s * band)],
                 6,
                 4,
                 BLACK.stroke_width(1),
             ))?;
             if s > 0.0 {
-                r.label("white-noise band").legend(legend_line(BLACK, 1));
+                r.label("white-noise band +-1.96/sqrt(N)")
+                    .legend(legend_line(BLACK, 1));
             }
         }
         draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;

@@ -468,7 +468,17 @@ fn terms_out_holds_datasheet_units_from_the_name_or_the_flag() {
         col_f("fit_tau_max_s"),
     );
     let mut seen_wn = false;
+    let mut readings = 0;
     for r in 0..b.num_rows() {
+        if term.value(r) == "bias_instability_reading" {
+            // one tau, the curve's minimum
+            readings += 1;
+            assert!(lo.value(r) > 0.0 && hi.value(r) == lo.value(r));
+            if !unit.is_null(r) {
+                assert!((ds.value(r) - 3600.0 * value.value(r)).abs() <= 1e-12 * ds.value(r));
+            }
+            continue;
+        }
         assert!(lo.value(r) > 0.0 && hi.value(r) > lo.value(r));
         if ch.value(r) == "gyro_y" {
             // no unit in its name and no --unit: no datasheet figures
@@ -487,6 +497,7 @@ fn terms_out_holds_datasheet_units_from_the_name_or_the_flag() {
         }
     }
     assert!(seen_wn);
+    assert_eq!(readings, 2, "one reading per channel");
     // --unit overrides the name for every channel
     let b = run(&["--unit", "rad/s"], "flag.parquet");
     let unit = b
@@ -602,5 +613,48 @@ fn automatic_tau_range_leaves_out_a_filtered_short_tau_region() {
             (b / b_late - 1.0).abs() < 0.2,
             "{what}: b = {b}, from 1.28 s {b_late}"
         );
+    }
+}
+
+/// The bias instability read off the curve as a datasheet does: `--json`'s
+/// `bias_instability_reading` is the smallest octave Allan deviation of the curve
+/// printed beside it over sqrt(2 ln 2 / pi), at that tau, whatever `--fit-tau-min`.
+#[test]
+fn the_datasheet_reading_is_the_curves_minimum_over_0_664() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = crate::common::fixture("multiaxis.csv");
+    for extra in [vec![], vec!["--fit-tau-min", "0.5"]] {
+        let mut args = vec![
+            "adev",
+            log.to_str().unwrap(),
+            "--channel",
+            "gyro_z",
+            "--json",
+        ];
+        args.extend(extra.iter().copied());
+        let o = crate::common::farma(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", crate::common::stderr(&o));
+        let v: serde_json::Value =
+            serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().next().unwrap())
+                .unwrap();
+        let adev: Vec<f64> = serde_json::from_value(v["adev"].clone()).unwrap();
+        let tau: Vec<f64> = serde_json::from_value(v["adev_tau_s"].clone()).unwrap();
+        let (i, min) = adev
+            .iter()
+            .copied()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        let r = &v["bias_instability_reading"];
+        let factor = (2.0 * std::f64::consts::LN_2 / std::f64::consts::PI).sqrt();
+        let b = r["b"].as_f64().unwrap();
+        assert!(
+            (b - min / factor).abs() <= 1e-12 * b,
+            "{b} vs {}",
+            min / factor
+        );
+        assert_eq!(r["tau_s"].as_f64().unwrap(), tau[i]);
+        assert_eq!(r["at_last_tau"].as_bool().unwrap(), i + 1 == adev.len());
+        assert!(r["b_unc"].as_f64().unwrap() > 0.0);
     }
 }

@@ -7,6 +7,8 @@
 //!   2008), the Gauss-Markov formula included;
 //! - [`fit`]: the Gamma maximum-likelihood fit over octave taus, every subset of the
 //!   terms, selection by a penalised deviance (BIC by default), the uncertainties;
+//! - [`reading`]: the bias instability as a datasheet reads it (the curve's minimum /
+//!   0.664), beside the fitted one;
 //! - [`wls`]: the small weighted least-squares solver under it.
 //!
 //! Units: u is the rate unit of the log (deg/s, deg/h, rad/s ...), tau in seconds; the
@@ -26,10 +28,12 @@
 
 pub mod fit;
 pub mod model;
+pub mod reading;
 pub mod wls;
 
 pub use fit::AvarPoint;
 pub use model::{BIAS_FLOOR, Term, gauss_markov_g};
+pub use reading::{MinimumReading, minimum_reading};
 
 use crate::error::{Error, Result};
 use crate::simulator::{ChannelSpec, Component, Spec};
@@ -143,6 +147,9 @@ pub struct Identification {
     pub rate_hz: f64,
     /// How the shortest fitted tau was chosen.
     pub tau_min: TauMinChoice,
+    /// The bias instability read off the whole curve's minimum (every octave tau, the
+    /// fitted range or not): [`reading`].
+    pub minimum: Option<MinimumReading>,
 }
 
 /// How the fit's shortest tau was chosen: given ([`Options::tau_min_s`]) or by the
@@ -395,9 +402,11 @@ pub fn identify_curve(
             have: n_samples as u64,
         });
     }
+    let minimum = minimum_reading(points, n_samples);
     if opts.tau_min_s.is_some() {
         let mut id = fit_range(what, &pts, n_samples, rate_hz, opts)?;
         id.tau_min.automatic = false;
+        id.minimum = minimum;
         return Ok(id);
     }
     let max_cut = ((pts.len() as f64 * AUTO_MAX_CUT_FRACTION).floor() as usize)
@@ -419,6 +428,7 @@ pub fn identify_curve(
         if dispersion.is_some_and(|d| d <= POOR_DISPERSION) {
             let mut id = fit?;
             id.tau_min.tries = tries;
+            id.minimum = minimum;
             return Ok(id);
         }
         fits.push(fit);
@@ -434,6 +444,7 @@ pub fn identify_curve(
     let mut id = fits.swap_remove(best)?;
     id.tau_min.tries = tries;
     id.tau_min.none_adequate = true;
+    id.minimum = minimum;
     Ok(id)
 }
 
@@ -543,5 +554,6 @@ fn fit_range(
             tries: Vec::new(),
             none_adequate: false,
         },
+        minimum: None,
     })
 }
