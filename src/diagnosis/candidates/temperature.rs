@@ -262,7 +262,7 @@ mod tests {
                     }
                 })
                 .collect();
-            let ranges = [1..n];
+            let ranges = vec![std::ops::Range { start: 1, end: n }];
             let got = heteroskedastic_slope(&d2, &dt, phi, &ranges).unwrap();
             assert!((got - k).abs() < 0.02 * k, "phi {phi}: {got} vs {k}");
             // the first-order form: intercept = mean d^2 - c1 mean dT
