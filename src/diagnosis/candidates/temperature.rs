@@ -222,6 +222,9 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
 #[cfg(test)]
 mod tests {
     use super::{heteroskedastic_slope, with_reference};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
 
     /// White noise scaled by 1 + k (T - Tm) under a sinusoidal temperature of +-10 degC
     /// (the modulated component alone, phi = 1, and beside an unmodulated noise of the
@@ -231,19 +234,8 @@ mod tests {
     fn the_heteroskedastic_slope_is_recovered_in_the_simulators_form() {
         let n = 400_000;
         let k = 0.06;
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut normal = move || {
-            // Box-Muller on a xorshift64* stream
-            let mut u = || {
-                state ^= state >> 12;
-                state ^= state << 25;
-                state ^= state >> 27;
-                ((state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 + 0.5)
-                    / (1u64 << 53) as f64
-            };
-            let (u1, u2) = (u(), u());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut normal = move || -> f64 { rng.sample(StandardNormal) };
         let dt: Vec<f64> = (0..n)
             .map(|t| 10.0 * (std::f64::consts::TAU * t as f64 / 50_000.0).sin())
             .collect();
