@@ -5,18 +5,10 @@
 use std::path::Path;
 
 use arrow_array::{Array, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
 use crate::common::{farma, fixture, stderr, stdout};
 
-/// One Parquet file as one batch.
-fn table(path: &Path) -> RecordBatch {
-    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap();
-    let schema = b.schema().clone();
-    let batches: Vec<RecordBatch> = b.build().unwrap().map(|r| r.unwrap()).collect();
-    arrow_select::concat::concat_batches(&schema, &batches).unwrap()
-}
+use crate::common::parquet_table as table;
 
 fn strings(b: &RecordBatch, name: &str) -> Vec<String> {
     let c = b.column_by_name(name).unwrap();

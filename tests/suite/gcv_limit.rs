@@ -36,15 +36,7 @@ fn write_series(path: &Path, n: usize, f1: impl Fn(f64) -> f64) {
 }
 
 fn table(path: &Path) -> arrow_array::RecordBatch {
-    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-    let file = std::fs::File::open(path).unwrap();
-    let batches: Vec<_> = ParquetRecordBatchReaderBuilder::try_new(file)
-        .unwrap()
-        .build()
-        .unwrap()
-        .map(|b| b.unwrap())
-        .collect();
-    arrow_select::concat::concat_batches(&batches[0].schema(), &batches).unwrap()
+    crate::common::parquet_table(path)
 }
 
 fn col<'a, T: 'static>(b: &'a arrow_array::RecordBatch, name: &str) -> &'a T {

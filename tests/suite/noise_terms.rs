@@ -411,19 +411,11 @@ fn adev_cli_terms_text_and_spec_out() {
 #[test]
 fn terms_out_holds_datasheet_units_from_the_name_or_the_flag() {
     use arrow_array::{Array, Float64Array, StringArray};
-    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(crate::common::fixture("multiaxis.csv")).unwrap();
     let log = dir.path().join("named.csv");
     std::fs::write(&log, text.replace("gyro_z,", "gyro_z_dps,")).unwrap();
-    let read = |path: &std::path::Path| {
-        let f = std::fs::File::open(path).unwrap();
-        let mut r = ParquetRecordBatchReaderBuilder::try_new(f)
-            .unwrap()
-            .build()
-            .unwrap();
-        r.next().unwrap().unwrap()
-    };
+    let read = crate::common::parquet_table;
     let run = |extra: &[&str], out: &str| {
         let out = dir.path().join(out);
         let mut args = vec![

@@ -69,6 +69,16 @@ pub fn reference_parse_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     (names, cols)
 }
 
+/// A whole Parquet file as one record batch (every batch the reader gives, concatenated).
+pub fn parquet_table(path: &Path) -> arrow_array::RecordBatch {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap();
+    let schema = b.schema().clone();
+    let batches: Vec<arrow_array::RecordBatch> = b.build().unwrap().map(|r| r.unwrap()).collect();
+    arrow_select::concat::concat_batches(&schema, &batches).unwrap()
+}
+
 /// The string column `col` of a Parquet file, every row.
 pub fn parquet_strings(path: &Path, col: &str) -> Vec<String> {
     use arrow_array::{Array, StringArray};
