@@ -435,7 +435,7 @@ pub fn diagnose_with_progress(
         let mut round = Round::default();
         let gap_now = st.gap;
         let skipped = candidates::propose(&cx, &mut |p: Proposal| {
-            pb.set_message(format!("round {round_no}: {}", p.kind));
+            pb.set_message(p.kind.clone());
             let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
             let f = feats_of(&st.target, Some((&d, 1.0)), st.round_step);
             let scored = score(&f);
