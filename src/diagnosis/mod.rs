@@ -757,7 +757,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
         Some(k) => {
             let old = std::mem::replace(&mut st.spec.channels[channel].components[k], p.component);
             // a part held by replica 0 only, changed differently in each replica: each
-            // gets its own copy first (replica 0 last, before it changes)
+            // gets its own copy first, before any replica changes
             if let candidates::Delta::Each(_) = p.delta {
                 let (first, rest) = st.parts.split_at_mut(1);
                 for parts in rest.iter_mut().filter(|q| q[k].is_empty()) {
