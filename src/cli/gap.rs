@@ -7,7 +7,7 @@ use std::time::Instant;
 use clap::Args;
 
 use super::LogArgs;
-use crate::diagnosis::{GapParams, diagnose, report};
+use crate::diagnosis::{GapParams, diagnose_with_progress, report};
 use crate::error::Result;
 use crate::jobs::gap::GapJob;
 use crate::log::Progress;
@@ -73,7 +73,11 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
         },
     };
     let real = job.real_log(&store, &a.channel)?;
-    let d = diagnose(&real, &job.spec, &job.params)?;
+    // a bar on a terminal (stderr, not with --quiet): the search's round, the candidate
+    let pb = progress.count_bar("gap", 1);
+    let d = diagnose_with_progress(&real, &job.spec, &job.params, &pb);
+    pb.finish_and_clear();
+    let d = d?;
     let mut json = report::to_json(&d);
     if let Some(dir) = &a.output {
         let files = job.write(dir, std::slice::from_ref(&d))?;

@@ -83,6 +83,35 @@ impl<'a> SimBase<'a> {
             .collect())
     }
 
+    /// `f` of the signal of `extra`, appended as a new component of channel `channel` of
+    /// `spec`, in every replica (once when the component is deterministic): the same
+    /// signals as [`SimBase::extra_signal`], each dropped once `f` has read it, so that
+    /// no more than a few are held at once.
+    pub fn extra_map<T: Send>(
+        &self,
+        spec: &Spec,
+        channel: usize,
+        extra: &Component,
+        f: impl Fn(&[f64]) -> T + Sync,
+    ) -> Result<Vec<T>> {
+        let mut s2 = spec.clone();
+        s2.channels[channel].components.push(extra.clone());
+        let k = s2.channels[channel].components.len() - 1;
+        let reps = if is_deterministic(extra) {
+            1
+        } else {
+            self.replicas
+        };
+        (0..reps)
+            .into_par_iter()
+            .map(|r| {
+                let mut s = Simulator::new(&s2, self.request())?;
+                s.set_replica(r as u64);
+                Ok(f(&s.component_signal(channel, k)?))
+            })
+            .collect()
+    }
+
     /// The whole simulated channels `names` of `spec` in every replica.
     pub fn channels(&self, spec: &Spec, names: &[String]) -> Result<Vec<Vec<Vec<f64>>>> {
         if names.is_empty() {

@@ -495,24 +495,25 @@ impl Layout {
         for e in d.iter_mut() {
             *e = e.abs();
         }
-        d.sort_by(f64::total_cmp);
-        let q = |p: f64| d[((p * (d.len() - 1) as f64).round() as usize).min(d.len() - 1)];
-        let med = q(0.5).max(f64::MIN_POSITIVE * 1e10);
-        let ratio = |p: f64| (q(p) / med).max(f64::MIN_POSITIVE).ln();
-        let mut vals: Vec<f64> = self
-            .ranges
-            .iter()
-            .flat_map(|r| x[r.clone()].iter().copied())
-            .collect();
-        vals.sort_by(f64::total_cmp);
-        vals.dedup();
+        // the order statistics of |d| at the ranks of p = 0.5, 0.999, 0.9999
+        let len = d.len();
+        let rank = |p: f64| ((p * (len - 1) as f64).round() as usize).min(len - 1);
+        let q = order_statistics(&mut d, &[rank(0.5), rank(0.999), rank(0.9999)]);
+        let med = q[0].max(f64::MIN_POSITIVE * 1e10);
+        let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         vec![
             v.max(f64::MIN_POSITIVE).sqrt().ln(),
             kurt.max(f64::MIN_POSITIVE).ln(),
-            ratio(0.999),
-            ratio(0.9999),
-            (vals.len() as f64 / n_part as f64).ln(),
+            ratio(q[1]),
+            ratio(q[2]),
+            (distinct_count(
+                self.ranges
+                    .iter()
+                    .flat_map(|r| x[r.clone()].iter().copied()),
+            ) as f64
+                / n_part as f64)
+                .ln(),
         ]
     }
 
@@ -569,12 +570,8 @@ impl Layout {
             .iter()
             .flat_map(|r| x[r.start..r.end - 1].iter().copied())
             .collect();
-        let edges = {
-            u.sort_by(f64::total_cmp);
-            (1..N_BINS)
-                .map(|k| u[(k * (u.len() - 1)) / N_BINS])
-                .collect::<Vec<f64>>()
-        };
+        let ranks: Vec<usize> = (1..N_BINS).map(|k| (k * (u.len() - 1)) / N_BINS).collect();
+        let edges = order_statistics(&mut u, &ranks);
         // per bin: sums for the slope of x_t on x_{t-1}
         let mut s = [[0.0f64; 5]; N_BINS]; // n, su, sy, suu, suy
         for r in &self.ranges {
@@ -597,6 +594,90 @@ impl Layout {
                 if suu > 0.0 { suy / suu } else { 0.0 }
             })
             .collect()
+    }
+}
+
+/// The values at ranks `ranks` (ascending, 0-based) of `v` in the order of
+/// [`f64::total_cmp`]: what `v` sorted would hold there, found by successive selection
+/// (Hoare's quickselect, expected O(n) each, instead of an O(n log n) sort); `v` is
+/// left partitioned. [`order_statistics_by_sort`] is its slow twin.
+pub fn order_statistics(v: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+    debug_assert!(ranks.windows(2).all(|w| w[0] <= w[1]));
+    let mut out = Vec::with_capacity(ranks.len());
+    // everything before `lo` is at most the last value selected
+    let mut lo = 0;
+    for &k in ranks {
+        if k < lo {
+            out.push(v[k]);
+            continue;
+        }
+        let (_, at, _) = v[lo..].select_nth_unstable_by(k - lo, f64::total_cmp);
+        out.push(*at);
+        lo = k + 1;
+    }
+    out
+}
+
+/// The values at ranks `ranks` of `v` sorted by [`f64::total_cmp`] (the slow twin of
+/// [`order_statistics`]).
+pub fn order_statistics_by_sort(v: &[f64], ranks: &[usize]) -> Vec<f64> {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    ranks.iter().map(|&k| s[k]).collect()
+}
+
+/// How many distinct values `x` holds, as a sort by [`f64::total_cmp`] followed by
+/// `dedup` counts them (values equal under `==` counted once, so -0 and +0 are one
+/// value, and every NaN its own): the bit patterns, -0 read as +0, in a hash set, plus
+/// the NaNs. [`distinct_count_by_sort`] is its slow twin.
+pub fn distinct_count(x: impl Iterator<Item = f64>) -> usize {
+    let mut seen: std::collections::HashSet<u64, BitsHash> = Default::default();
+    let mut nans = 0;
+    for v in x {
+        if v.is_nan() {
+            nans += 1;
+        } else {
+            seen.insert(if v == 0.0 { 0 } else { v.to_bits() });
+        }
+    }
+    seen.len() + nans
+}
+
+/// The count of [`distinct_count`] by sorting and `dedup` (its slow twin).
+pub fn distinct_count_by_sort(x: impl Iterator<Item = f64>) -> usize {
+    let mut vals: Vec<f64> = x.collect();
+    vals.sort_by(f64::total_cmp);
+    vals.dedup();
+    vals.len()
+}
+
+/// A hasher for the bit patterns of doubles: one multiply and a fold of the high half
+/// (Fibonacci hashing, Knuth TAOCP vol. 3, 6.4), far cheaper than the default SipHash
+/// and enough for keys that are not chosen by an adversary.
+#[derive(Clone, Copy, Default)]
+struct BitsHash;
+
+impl std::hash::BuildHasher for BitsHash {
+    type Hasher = BitsHasher;
+    fn build_hasher(&self) -> BitsHasher {
+        BitsHasher(0)
+    }
+}
+
+struct BitsHasher(u64);
+
+impl std::hash::Hasher for BitsHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+    fn write_u64(&mut self, i: u64) {
+        let h = (self.0 ^ i).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = h ^ (h >> 32);
     }
 }
 
@@ -700,5 +781,65 @@ mod printed_tests {
             .map(|v| format!("{:.2}", (v / 0.05).round() * 0.05).parse().unwrap())
             .collect();
         assert!((printed_step(&lsb).unwrap() - 0.01).abs() < 1e-15);
+    }
+}
+
+#[cfg(test)]
+mod selection_tests {
+    use super::{
+        distinct_count, distinct_count_by_sort, order_statistics, order_statistics_by_sort,
+    };
+
+    /// A reproducible series with ties, signed zeros, a grid and wide tails.
+    fn series(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
+            .map(|i| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let u = (s >> 11) as f64 / (1u64 << 53) as f64;
+                match i % 7 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    2 => (u * 20.0).round() * 0.01,
+                    _ => (u - 0.5) * 10f64.powf(6.0 * u - 3.0),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn selection_gives_the_sorted_values_bit_for_bit() {
+        for (n, seed) in [(1usize, 1u64), (2, 2), (17, 3), (1000, 4), (100_003, 5)] {
+            let x = series(n, seed);
+            let ranks: Vec<usize> = [0.0, 0.2, 0.2, 0.5, 0.999, 0.9999, 1.0]
+                .iter()
+                .map(|p| ((p * (n - 1) as f64).round() as usize).min(n - 1))
+                .collect();
+            let want = order_statistics_by_sort(&x, &ranks);
+            let mut y = x.clone();
+            let got = order_statistics(&mut y, &ranks);
+            let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "n {n}");
+        }
+    }
+
+    #[test]
+    fn the_distinct_count_is_the_stable_sort_and_dedup_count() {
+        for (n, seed) in [(1usize, 1u64), (50, 2), (10_000, 3)] {
+            let mut x = series(n, seed);
+            x.push(f64::NAN);
+            x.push(f64::NAN);
+            let want = distinct_count_by_sort(x.iter().copied());
+            assert_eq!(distinct_count(x.iter().copied()), want, "n {n}");
+            // on a grid, as a printed log's values are
+            let grid: Vec<f64> = x.iter().map(|v| (v * 100.0).round() / 100.0).collect();
+            assert_eq!(
+                distinct_count(grid.iter().copied()),
+                distinct_count_by_sort(grid.iter().copied()),
+                "n {n}"
+            );
+        }
     }
 }

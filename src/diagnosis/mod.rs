@@ -26,6 +26,10 @@ pub mod ensemble;
 pub mod features;
 pub mod report;
 
+use std::cell::Cell;
+use std::time::Instant;
+
+use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde_json::Value;
 
@@ -168,7 +172,12 @@ pub struct Diagnosis {
 
 struct State {
     spec: Spec,
+    /// Per replica, the target channel: the sum of its components' signals.
     target: Vec<Vec<f64>>,
+    /// Per replica, per component of the target channel, its signal; a signal that is
+    /// the same in every replica (a deterministic component, an added `Delta::Same`)
+    /// is held by replica 0 only, the others holding an empty vector ([`part`] reads
+    /// either).
     parts: Vec<Vec<Vec<f64>>>,
     ens: EnsembleStats,
     gap: f64,
@@ -181,6 +190,19 @@ struct State {
 /// Finds where `spec` differs from the real log, which effects explain it, and how far
 /// the gap shrinks on the withheld part.
 pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosis> {
+    diagnose_with_progress(real, spec, prm, &ProgressBar::hidden())
+}
+
+/// [`diagnose`], showing on `pb` which step of the search runs: its length is set to
+/// the most rounds the search may take (plus the ensemble and the final scoring), its
+/// position to the round, its message to the candidate being scored. With
+/// `FARMA_GAP_TIMING` set, the seconds each stage took are printed on stderr.
+pub fn diagnose_with_progress(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+) -> Result<Diagnosis> {
     if prm.replicas < 5 {
         return Err(Error::Usage(format!(
             "--replicas must be at least 5 (got {}): the ensemble's spread needs them",
@@ -215,6 +237,24 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         8.0 * n as f64 * prm.replicas as f64 * (n_comp + real.others.len() + 1) as f64,
     )?;
     let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
+    let max_rounds = 2 * prm.max_added + 2;
+    pb.set_length(max_rounds as u64 + 2);
+    pb.set_message("ensemble");
+    let timing = std::env::var_os("FARMA_GAP_TIMING").is_some();
+    let clock = Cell::new(Instant::now());
+    // seconds since the last lap, printed with `what` when timing
+    let lap = |what: &str| {
+        if timing {
+            let now = Instant::now();
+            eprintln!(
+                "gap timing: {what}: {:.3} s",
+                (now - clock.get()).as_secs_f64()
+            );
+            clock.set(now);
+        }
+    };
+    // seconds spent computing features since the last lap
+    let feature_s = Cell::new(0.0f64);
     let rate_hz = real.rate_hz;
     let mut notes = Vec::new();
     if (spec.sample_rate_hz - rate_hz).abs() > 1e-9 * rate_hz {
@@ -256,6 +296,15 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             s
         })
         .collect();
+    let mut parts = parts;
+    // a deterministic component's signal is the same in every replica: held once
+    for (k, c) in spec.channels[channel].components.iter().enumerate() {
+        if ensemble::is_deterministic(c) {
+            for p in parts.iter_mut().skip(1) {
+                p[k] = Vec::new();
+            }
+        }
+    }
     // a log written as text with k decimals: the simulations are printed alike
     let printed = features::printed_step(real.x);
     if let Some(step) = printed {
@@ -281,7 +330,9 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     // rounded to `step`
     let feats_of =
         |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>, step: Option<f64>| -> Vec<Vec<f64>> {
-            xs.par_iter()
+            let t0 = Instant::now();
+            let f = xs
+                .par_iter()
                 .enumerate()
                 .map(|(r, x)| {
                     let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
@@ -298,8 +349,11 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
                     };
                     test.compute(y.as_deref().unwrap_or(x), temperature.as_ref(), &o)
                 })
-                .collect()
+                .collect();
+            feature_s.set(feature_s.get() + t0.elapsed().as_secs_f64());
+            f
         };
+    lap("ensemble simulated");
     let feats = feats_of(&target, None, base_step);
     let cal = Calibration::new(&feats, &defs);
     let ens = EnsembleStats::new(&feats, &defs, None);
@@ -323,6 +377,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         gap: gap_before,
         round_step: base_step,
     };
+    lap("ensemble's features and calibration");
     let mut first: Option<Vec<Effect>> = None;
     let mut added: Vec<Effect> = Vec::new();
     let mut slots: Vec<Slot> = Vec::new();
@@ -351,7 +406,10 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     };
     // forward steps add the best candidate; after each, backward steps take back an
     // earlier effect whose share in the joint model fell below min_shrink
-    for _ in 0..(2 * prm.max_added + 2) {
+    for round_no in 1..=max_rounds {
+        pb.set_position(round_no as u64);
+        pb.set_message(format!("round {round_no}"));
+        feature_s.set(0.0);
         let stop_floor = st.gap <= cal.gap_threshold;
         if stop_floor && first.is_some() {
             notes.push(format!(
@@ -368,6 +426,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             real: real.x,
             temperature: temperature.as_ref(),
             others: &real.others,
+            sim_others: &sim_others,
             target: &st.target,
             parts: &st.parts,
         };
@@ -376,6 +435,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         let mut round = Round::default();
         let gap_now = st.gap;
         let skipped = candidates::propose(&cx, &mut |p: Proposal| {
+            pb.set_message(p.kind.clone());
             let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
             let f = feats_of(&st.target, Some((&d, 1.0)), st.round_step);
             let scored = score(&f);
@@ -406,6 +466,15 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             };
             round.offer(p, f, scored, gap_now);
         }
+        if timing {
+            eprintln!(
+                "gap timing: round {round_no}: candidates' features {:.3} s",
+                feature_s.get()
+            );
+        }
+        lap(&format!(
+            "round {round_no}: candidates estimated and scored"
+        ));
         if first.is_none() {
             not_tried = skipped;
         }
@@ -521,6 +590,7 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
             st.ens = e;
             st.gap = g;
         }
+        lap(&format!("round {round_no}: backward steps"));
         if added.len() >= prm.max_added {
             notes.push(format!(
                 "stopped after {} effects (--max-effects)",
@@ -530,6 +600,8 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
         }
     }
     // each kept effect's share of the final joint model, the ranking reported
+    pb.set_position(max_rounds as u64 + 1);
+    pb.set_message("contributions");
     for i in 0..added.len() {
         let f = feats_without(&st, &slots[i]);
         let (g, _, _) = score(&f);
@@ -551,6 +623,8 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     let where_after = distance::regions(&z1, &real_feats, &st.ens, &defs, &cal);
     let pen1 = st.ens.spread_penalty(&ens_before);
     let family_after = distance::family_gaps(&z1, Some(&pen1), &defs);
+    lap("contributions and regions");
+    pb.set_position(max_rounds as u64 + 2);
     Ok(Diagnosis {
         channel: real.channel.clone(),
         gap_before,
@@ -638,13 +712,23 @@ struct Slot {
     rounding: Option<Option<f64>>,
 }
 
+/// Replica r's signal of component k in `parts` ([`State::parts`]): its own, or
+/// replica 0's where it holds none of its own (a signal the same in every replica).
+fn part(parts: &[Vec<Vec<f64>>], r: usize, k: usize) -> &[f64] {
+    if r > 0 && parts[r][k].is_empty() {
+        &parts[0][k]
+    } else {
+        &parts[r][k]
+    }
+}
+
 /// Each replica's signal of slot `s`: its component's part, or the change a
 /// replacement made.
 fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
     (0..parts.len())
         .map(|r| match &s.replaced {
             Some((_, d)) => d.get(r),
-            None => parts[r][s.comp].as_slice(),
+            None => part(parts, r, s.comp),
         })
         .collect()
 }
@@ -672,7 +756,18 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
     match p.replaces {
         Some(k) => {
             let old = std::mem::replace(&mut st.spec.channels[channel].components[k], p.component);
+            // a part held by replica 0 only, changed differently in each replica: each
+            // gets its own copy first, before any replica changes
+            if let candidates::Delta::Each(_) = p.delta {
+                let (first, rest) = st.parts.split_at_mut(1);
+                for parts in rest.iter_mut().filter(|q| q[k].is_empty()) {
+                    parts[k] = first[0][k].clone();
+                }
+            }
             for (r, parts) in st.parts.iter_mut().enumerate() {
+                if r > 0 && parts[k].is_empty() {
+                    continue;
+                }
                 for (a, v) in parts[k].iter_mut().zip(p.delta.get(r)) {
                     *a += v;
                 }
@@ -685,8 +780,13 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
         }
         None => {
             st.spec.channels[channel].components.push(p.component);
+            let same = matches!(p.delta, candidates::Delta::Same(_));
             for (r, parts) in st.parts.iter_mut().enumerate() {
-                parts.push(p.delta.get(r).to_vec());
+                parts.push(if same && r > 0 {
+                    Vec::new()
+                } else {
+                    p.delta.get(r).to_vec()
+                });
             }
             Slot {
                 comp: st.spec.channels[channel].components.len() - 1,
@@ -707,7 +807,7 @@ fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
     for (r, t) in st.target.iter_mut().enumerate() {
         let sig: &[f64] = match &s.replaced {
             Some((_, d)) => d.get(r),
-            None => &st.parts[r][s.comp],
+            None => part(&st.parts, r, s.comp),
         };
         for (a, v) in t.iter_mut().zip(sig) {
             *a -= v;
@@ -717,6 +817,9 @@ fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
         Some((old, d)) => {
             st.spec.channels[channel].components[s.comp] = old;
             for (r, parts) in st.parts.iter_mut().enumerate() {
+                if r > 0 && parts[s.comp].is_empty() {
+                    continue;
+                }
                 for (a, v) in parts[s.comp].iter_mut().zip(d.get(r)) {
                     *a -= v;
                 }
@@ -855,6 +958,10 @@ mod tests {
                 ),
             ];
             assert_eq!(st.spec.channels[0].components.len(), 4);
+            // the ramp, the same in both replicas, is held once; the random walk twice
+            assert!(st.parts[1][2].is_empty() && st.parts[0][2].len() == 3);
+            assert_eq!(part(&st.parts, 1, 2), &[0.0, 1e-4, 2e-4]);
+            assert_eq!(part(&st.parts, 1, 3), &[0.0, -0.02, -0.01]);
             assert_eq!(
                 st.spec.channels[0].components[1],
                 Component::ConstantBias { value: 0.75 }
@@ -869,7 +976,9 @@ mod tests {
                 // what is left sums to the target, replica by replica
                 for r in 0..2 {
                     for t in 0..3 {
-                        let sum: f64 = st.parts[r].iter().map(|p| p[t]).sum();
+                        let sum: f64 = (0..st.parts[r].len())
+                            .map(|k| part(&st.parts, r, k)[t])
+                            .sum();
                         assert!((sum - st.target[r][t]).abs() < 1e-15);
                     }
                 }
@@ -885,7 +994,9 @@ mod tests {
                         "{order:?}"
                     );
                     for c in 0..2 {
-                        assert!((st.parts[r][c][t] - st0.parts[r][c][t]).abs() < 1e-15);
+                        assert!(
+                            (part(&st.parts, r, c)[t] - part(&st0.parts, r, c)[t]).abs() < 1e-15
+                        );
                     }
                 }
             }
@@ -915,6 +1026,34 @@ mod tests {
         // the runner-up: the first of the two at 2.0
         let (s, _) = round.second.unwrap();
         assert_eq!(s.component, Component::RateRamp { r: 0.2 });
+    }
+
+    #[test]
+    fn a_part_held_once_gets_a_copy_per_replica_when_changed_differently_in_each() {
+        let mut st = state();
+        // the constant bias, the same in both replicas, held once
+        st.parts[1][1] = Vec::new();
+        let each = vec![vec![0.1, 0.2, 0.3], vec![-0.1, -0.2, -0.3]];
+        let mut slots = vec![apply(
+            &mut st,
+            0,
+            proposal(
+                Component::ConstantBias { value: 0.6 },
+                Some(1),
+                candidates::Delta::Each(each.clone()),
+            ),
+        )];
+        for (r, d) in each.iter().enumerate() {
+            let want: Vec<f64> = d.iter().map(|v| 0.5 + v).collect();
+            assert_eq!(part(&st.parts, r, 1), want.as_slice());
+        }
+        take_back(&mut st, 0, &mut slots, 0);
+        for r in 0..2 {
+            for t in 0..3 {
+                assert!((part(&st.parts, r, 1)[t] - 0.5).abs() < 1e-15);
+                assert!((st.target[r][t] - state().target[r][t]).abs() < 1e-15);
+            }
+        }
     }
 
     #[test]

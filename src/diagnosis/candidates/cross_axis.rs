@@ -15,7 +15,7 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
     if cx.others.is_empty() {
         out.skip("cross_axis", "no other channel of the spec in the log");
     }
-    for (name, o) in cx.others {
+    for (j, (name, o)) in cx.others.iter().enumerate() {
         let dx: Vec<f64> = diff(res);
         let dob: Vec<f64> = diff(o);
         if let Some((b, _)) = ls(&dx, &[&dob], true, &shrink_ranges(ranges)) {
@@ -23,7 +23,10 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
                 from: name.clone(),
                 gain: b[0],
             };
-            let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
+            let u = match cached_signal(cx, j, name, b[0]) {
+                Some(u) => u,
+                None => cx.sim.extra_signal(cx.spec, cx.channel, &comp)?,
+            };
             out.push(Proposal {
                 kind: "cross_axis".into(),
                 params: params_json(&comp),
@@ -35,4 +38,131 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
         }
     }
     Ok(())
+}
+
+/// The signal of a cross_axis component of gain `gain` from other channel `j` (named
+/// `name`) in every replica, from the ensemble's simulations of that channel: gain
+/// times the source's own signal, as the simulator adds it to a zero buffer
+/// (0 + gain v), when the simulated channel is that own signal (it has no cross-axis
+/// coupling and no output-path stage of its own); None otherwise, and the component
+/// is simulated. [`super::super::ensemble::SimBase::extra_signal`] is its slow twin.
+pub(super) fn cached_signal(
+    cx: &Context,
+    j: usize,
+    name: &str,
+    gain: f64,
+) -> Option<Vec<Vec<f64>>> {
+    let src = cx.spec.channels.iter().find(|c| c.name == name)?;
+    let plain = src
+        .components
+        .iter()
+        .all(|c| !matches!(c, Component::CrossAxis { .. }) && !c.kind().is_output_path());
+    if !plain || cx.sim_others.len() != cx.sim.replicas {
+        return None;
+    }
+    cx.sim_others
+        .iter()
+        .map(|chs| {
+            let v = chs.get(j)?;
+            (v.len() == cx.sim.n_samples).then(|| v.iter().map(|v| 0.0 + gain * v).collect())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnosis::blocks::Blocks;
+    use crate::diagnosis::ensemble::SimBase;
+    use crate::diagnosis::features::Layout;
+    use crate::simulator::{ChannelSpec, Spec};
+
+    fn spec(extra_on_y: Option<Component>) -> Spec {
+        let noise = vec![
+            Component::WhiteNoise { n: 0.03 },
+            Component::BiasInstability {
+                b: 0.007,
+                tau_min_s: None,
+                tau_max_s: None,
+            },
+            Component::GaussMarkov {
+                sigma: 0.1,
+                tau_s: 0.5,
+            },
+        ];
+        let mut y = noise.clone();
+        y.extend(extra_on_y);
+        Spec {
+            sample_rate_hz: 100.0,
+            temperature_channel: None,
+            seed: Some(5),
+            channels: vec![
+                ChannelSpec {
+                    name: "x".into(),
+                    components: noise,
+                },
+                ChannelSpec {
+                    name: "y".into(),
+                    components: y,
+                },
+            ],
+        }
+    }
+
+    #[test]
+    fn the_cached_cross_axis_signal_is_the_simulated_one_bit_for_bit() {
+        let n = 50_000;
+        let sim = SimBase {
+            n_samples: n,
+            rate_hz: 100.0,
+            temperature_c: None,
+            seed: 5,
+            replicas: 3,
+            base_dir: None,
+        };
+        let names = vec!["y".to_string()];
+        let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
+        let train = Layout::new(&blocks, true, 100.0, None, &names);
+        let real = vec![0.0; n];
+        for (extra, cached) in [
+            (None, true),
+            (
+                Some(Component::CrossAxis {
+                    from: "x".into(),
+                    gain: 0.1,
+                }),
+                false,
+            ),
+        ] {
+            let sp = spec(extra);
+            let sim_others = sim.channels(&sp, &names).unwrap();
+            let others = vec![("y".to_string(), real.as_slice())];
+            let cx = Context {
+                spec: &sp,
+                channel: 0,
+                sim: &sim,
+                train: &train,
+                real: &real,
+                temperature: None,
+                others: &others,
+                sim_others: &sim_others,
+                target: &[],
+                parts: &[],
+            };
+            let gain = -0.0371;
+            let got = cached_signal(&cx, 0, "y", gain);
+            assert_eq!(got.is_some(), cached);
+            if let Some(got) = got {
+                let comp = Component::CrossAxis {
+                    from: "y".into(),
+                    gain,
+                };
+                let want = sim.extra_signal(&sp, 0, &comp).unwrap();
+                assert_eq!(got.len(), want.len());
+                for (g, w) in got.iter().zip(&want) {
+                    assert!(g.iter().zip(w).all(|(a, b)| a.to_bits() == b.to_bits()));
+                }
+            }
+        }
+    }
 }

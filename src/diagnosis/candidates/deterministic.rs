@@ -4,6 +4,8 @@
 
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use super::lsq::{golden_min, log_grid, ls};
 use super::params::flag_edge;
 use super::{Context, Found, Training};
@@ -56,9 +58,14 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
         Ok(ls(res, &[&u], true, ranges).map(|(b, rss)| (b[0], rss, u)))
     };
     let grid = log_grid(5.0 / fs.min(1.0), duration_s / 2.0, 24);
+    // the grid's fits in parallel (each keeps only its RSS), the best chosen in order
+    let rss: Vec<Option<f64>> = grid
+        .par_iter()
+        .map(|&tau| Ok(rss_at(tau)?.map(|(_, rss, _)| rss)))
+        .collect::<Result<_>>()?;
     let mut best: Option<(usize, f64)> = None;
-    for (i, &tau) in grid.iter().enumerate() {
-        if let Some((_, rss, _)) = rss_at(tau)?
+    for (i, rss) in rss.into_iter().enumerate() {
+        if let Some(rss) = rss
             && best.is_none_or(|x| rss < x.1)
         {
             best = Some((i, rss));
@@ -185,7 +192,8 @@ fn find_sinusoid(res: &[f64], ranges: &[Range<usize>], fs: f64) -> Option<(f64, 
     for _ in 0..40 {
         let a = hi - g * (hi - lo);
         let b = lo + g * (hi - lo);
-        if power(a).0 > power(b).0 {
+        let (pa, pb) = rayon::join(|| power(a), || power(b));
+        if pa.0 > pb.0 {
             hi = b;
         } else {
             lo = a;

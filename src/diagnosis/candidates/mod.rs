@@ -64,6 +64,7 @@ mod temperature;
 
 use std::ops::Range;
 
+use rayon::prelude::*;
 use serde_json::Value;
 
 use super::ensemble::SimBase;
@@ -123,6 +124,8 @@ pub struct Context<'a> {
     pub temperature: Option<&'a Temperature>,
     /// Other spec channels present in the real log: (name, real values).
     pub others: &'a [(String, &'a [f64])],
+    /// Per replica, the simulated channels of `others` (same order).
+    pub sim_others: &'a [Vec<Vec<f64>>],
     /// Per replica, the target channel's simulation.
     pub target: &'a [Vec<f64>],
     /// Per replica, per spec component of the target channel, its signal.
@@ -142,21 +145,11 @@ impl Context<'_> {
     fn avar(&self, x: &[f64]) -> Vec<f64> {
         self.train.ln_avar(x).into_iter().map(f64::exp).collect()
     }
+    /// The mean over the series `xs` of their training AVAR (each series' AVAR computed
+    /// in parallel, the mean summed in the series' order).
     fn mean_avar<'b>(&self, xs: impl Iterator<Item = &'b [f64]>) -> Vec<f64> {
-        let mut acc: Vec<f64> = Vec::new();
-        let mut n = 0.0f64;
-        for x in xs {
-            let a = self.avar(x);
-            if acc.is_empty() {
-                acc = a;
-            } else {
-                for (s, v) in acc.iter_mut().zip(a) {
-                    *s += v;
-                }
-            }
-            n += 1.0;
-        }
-        acc.iter().map(|s| s / n.max(1.0)).collect()
+        let xs: Vec<&[f64]> = xs.collect();
+        mean_in_order(xs.par_iter().map(|x| self.avar(x)).collect())
     }
     /// The signal of `c` added to the target channel, simulated once (deterministic
     /// effects: the same in every replica).
@@ -167,6 +160,24 @@ impl Context<'_> {
             .pop()
             .unwrap_or_default())
     }
+}
+
+/// The element-wise mean of the vectors `vs`, summed in their order (the first one,
+/// then each next added), divided by their count.
+fn mean_in_order(vs: Vec<Vec<f64>>) -> Vec<f64> {
+    let mut acc: Vec<f64> = Vec::new();
+    let mut n = 0.0f64;
+    for a in vs {
+        if acc.is_empty() {
+            acc = a;
+        } else {
+            for (s, v) in acc.iter_mut().zip(a) {
+                *s += v;
+            }
+        }
+        n += 1.0;
+    }
+    acc.iter().map(|s| s / n.max(1.0)).collect()
 }
 
 /// What every estimate reads from the training part, computed once per [`propose`].

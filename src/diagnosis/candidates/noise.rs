@@ -8,7 +8,7 @@
 
 use super::lsq::{fit_nonneg, log_grid};
 use super::params::{flag_edge, params_json, scaled};
-use super::{Context, Delta, Found, Proposal, Training};
+use super::{Context, Delta, Found, Proposal, Training, mean_in_order};
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
 
@@ -30,13 +30,29 @@ pub(super) fn unit_components() -> [(Kind, Component); 4] {
     ]
 }
 
-/// The fit of a unit component to the excess training Allan variance: (coefficient c,
-/// weighted RSS of the fit, the unit signal of every replica).
-fn allan_fit(cx: &Context, tr: &Training, unit_c: Component) -> Result<(f64, f64, Vec<Vec<f64>>)> {
-    let u = cx.sim.extra_signal(cx.spec, cx.channel, &unit_c)?;
-    let g = cx.mean_avar(u.iter().map(|v| v.as_slice()));
-    let (c2, wrss) = fit_nonneg(&tr.excess, &g, &tr.a_real, &tr.ms);
-    Ok((c2.sqrt(), wrss, u))
+/// The fit of a unit component to the excess training Allan variance, given G(m), the
+/// unit component's mean training AVAR: (coefficient c, weighted RSS of the fit).
+fn allan_fit(tr: &Training, g: &[f64]) -> (f64, f64) {
+    let (c2, wrss) = fit_nonneg(&tr.excess, g, &tr.a_real, &tr.ms);
+    (c2.sqrt(), wrss)
+}
+
+/// The mean training AVAR of `unit_c` over the replicas, its signals simulated and
+/// dropped one by one (none is kept).
+fn unit_mean_avar(cx: &Context, unit_c: &Component) -> Result<Vec<f64>> {
+    let avars = cx
+        .sim
+        .extra_map(cx.spec, cx.channel, unit_c, |u| cx.avar(u))?;
+    Ok(mean_in_order(avars))
+}
+
+/// The signal of `unit_c` in every replica, times `c` (in place).
+fn scaled_signals(cx: &Context, unit_c: &Component, c: f64) -> Result<Vec<Vec<f64>>> {
+    let mut u = cx.sim.extra_signal(cx.spec, cx.channel, unit_c)?;
+    for e in u.iter_mut().flatten() {
+        *e *= c;
+    }
+    Ok(u)
 }
 
 /// One power-law noise kind of [`unit_components`]: its coefficient from the excess
@@ -48,7 +64,8 @@ pub(super) fn power_law(
     unit_c: Component,
     out: &mut Found,
 ) -> Result<()> {
-    let (c, _, u) = allan_fit(cx, tr, unit_c.clone())?;
+    let mut u = cx.sim.extra_signal(cx.spec, cx.channel, &unit_c)?;
+    let (c, _) = allan_fit(tr, &cx.mean_avar(u.iter().map(|v| v.as_slice())));
     if c <= 0.0 {
         out.skip(
             kind.as_str(),
@@ -62,11 +79,12 @@ pub(super) fn power_law(
         params: params_json(&comp),
         component: comp,
         replaces: None,
-        delta: Delta::Each(
-            u.into_iter()
-                .map(|v| v.iter().map(|e| e * c).collect())
-                .collect(),
-        ),
+        delta: Delta::Each({
+            for e in u.iter_mut().flatten() {
+                *e *= c;
+            }
+            u
+        }),
         note: "weighted least squares on the excess training Allan variance".into(),
     });
     Ok(())
@@ -77,20 +95,26 @@ pub(super) fn power_law(
 pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let fs = tr.fs;
     let max_tau = cx.train.adev_factors().last().copied().unwrap_or(1) as f64 / fs;
-    let mut best: Option<(f64, f64, f64, Vec<Vec<f64>>)> = None;
+    let mut best: Option<(f64, f64, f64)> = None;
     let grid = log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8);
     for &tau in &grid {
         let unit_c = Component::GaussMarkov {
             sigma: 1.0,
             tau_s: tau,
         };
-        let (c, wrss, u) = allan_fit(cx, tr, unit_c)?;
+        let (c, wrss) = allan_fit(tr, &unit_mean_avar(cx, &unit_c)?);
         if c > 0.0 && best.as_ref().is_none_or(|b| wrss < b.2) {
-            best = Some((c, tau, wrss, u));
+            best = Some((c, tau, wrss));
         }
     }
     match best {
-        Some((c, tau, _, u)) => {
+        Some((c, tau, _)) => {
+            // the best tau's unit signals again (the same streams), scaled
+            let unit_c = Component::GaussMarkov {
+                sigma: 1.0,
+                tau_s: tau,
+            };
+            let u = scaled_signals(cx, &unit_c, c)?;
             let comp = Component::GaussMarkov {
                 sigma: c,
                 tau_s: tau,
@@ -110,11 +134,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                 params,
                 component: comp,
                 replaces: None,
-                delta: Delta::Each(
-                    u.into_iter()
-                        .map(|v| v.iter().map(|e| e * c).collect())
-                        .collect(),
-                ),
+                delta: Delta::Each(u),
                 note,
             });
         }
