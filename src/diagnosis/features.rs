@@ -14,7 +14,8 @@
 //! - `distribution`: of the first differences d_t = x_t - x_{t-1} (which remove the
 //!   slow drift): ln standard deviation, ln kurtosis, ln of the 0.999 and 0.9999
 //!   quantiles of |d| over its median (tails: outliers), and ln of the share of
-//!   distinct values of x (discreteness: quantization);
+//!   distinct values of x, values within 1e-9 of the largest magnitude counted once
+//!   (discreteness: quantization);
 //! - `temperature` (with a temperature channel): least-squares coefficients of x on
 //!   (1, T - Tm, (T - Tm)^2, dT/dt), the mean of x in five temperature bins and in five
 //!   dT/dt bins (bin edges: quintiles of the real temperature over the part, the same
@@ -505,7 +506,14 @@ impl Layout {
             .flat_map(|r| x[r.clone()].iter().copied())
             .collect();
         vals.sort_by(f64::total_cmp);
-        vals.dedup();
+        // values closer than 1e-9 of the largest magnitude are one value: a rate
+        // computed as a difference of rounded angles carries float noise in its last
+        // digits (0.22904528993991607 and 0.2290452899399163), not more levels
+        let scale = vals
+            .first()
+            .map_or(0.0, |a| a.abs())
+            .max(vals.last().map_or(0.0, |a| a.abs()));
+        vals.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * scale);
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         vec![
             v.max(f64::MIN_POSITIVE).sqrt().ln(),
