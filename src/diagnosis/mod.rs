@@ -554,6 +554,9 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     })
 }
 
+/// Per replica, per component of the target channel, its signal.
+type PartSignals = Vec<Vec<Vec<f64>>>;
+
 /// Each replica's component signals of the target channel (an empty signal for an
 /// output-path component, which changes the path, not the sum) and their sum: the
 /// pre-path sum that [`PathStage`] turns into the replica's output.
@@ -561,7 +564,7 @@ fn pre_path_parts(
     sim: &ensemble::SimBase,
     spec: &Spec,
     channel: usize,
-) -> Result<(Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>)> {
+) -> Result<(PartSignals, Vec<Vec<f64>>)> {
     let comps = &spec.channels[channel].components;
     let summed: Vec<usize> = (0..comps.len())
         .filter(|&k| !comps[k].kind().is_output_path())

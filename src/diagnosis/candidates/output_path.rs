@@ -731,16 +731,16 @@ pub fn proposals(
             });
         }
     }
-    if !has(Kind::Saturation) {
-        if let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present() {
-            offer(
-                Component::Saturation { limit: c.limit },
-                format!(
-                    "the training values pile at the extreme(s) {}: clipped there",
-                    crate::fmt::num(c.limit)
-                ),
-            );
-        }
+    if !has(Kind::Saturation)
+        && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
+    {
+        offer(
+            Component::Saturation { limit: c.limit },
+            format!(
+                "the training values pile at the extreme(s) {}: clipped there",
+                crate::fmt::num(c.limit)
+            ),
+        );
     }
     Ok(skipped)
 }
