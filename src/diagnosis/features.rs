@@ -14,7 +14,8 @@
 //! - `distribution`: of the first differences d_t = x_t - x_{t-1} (which remove the
 //!   slow drift): ln standard deviation, ln kurtosis, ln of the 0.999 and 0.9999
 //!   quantiles of |d| over its median (tails: outliers), and ln of the share of
-//!   distinct values of x (discreteness: quantization);
+//!   distinct values of x, the values in one cell of a grid of 1e-9 of the largest
+//!   magnitude counted once (discreteness: quantization);
 //! - `temperature` (with a temperature channel): least-squares coefficients of x on
 //!   (1, T - Tm, (T - Tm)^2, dT/dt), the mean of x in five temperature bins and in five
 //!   dT/dt bins (bin edges: quintiles of the real temperature over the part, the same
@@ -501,17 +502,26 @@ impl Layout {
         let q = order_statistics(&mut d, &[rank(0.5), rank(0.999), rank(0.9999)]);
         let med = q[0].max(f64::MIN_POSITIVE * 1e10);
         let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
+        // values in one cell of a grid of 1e-9 of the largest magnitude are one value:
+        // a rate computed as a difference of rounded angles carries float noise in its
+        // last digits (0.22904528993991607 and 0.2290452899399163), not more levels
+        let values = || {
+            self.ranges
+                .iter()
+                .flat_map(|r| x[r.clone()].iter().copied())
+        };
+        let cell = 1e-9
+            * values()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |m, v| m.max(v.abs()));
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         vec![
             v.max(f64::MIN_POSITIVE).sqrt().ln(),
             kurt.max(f64::MIN_POSITIVE).ln(),
             ratio(q[1]),
             ratio(q[2]),
-            (distinct_count(
-                self.ranges
-                    .iter()
-                    .flat_map(|r| x[r.clone()].iter().copied()),
-            ) as f64
+            (distinct_count(values().map(|v| if cell > 0.0 { (v / cell).round() } else { v }))
+                as f64
                 / n_part as f64)
                 .ln(),
         ]

@@ -368,3 +368,53 @@ fn a_log_on_an_output_grid_gets_the_output_resolution_and_the_gap_closes() {
             .any(|c| matches!(c, Component::OutputResolution { .. }))
     );
 }
+
+#[test]
+fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
+    use farma::simulator::Component;
+    // the base spec's sensor writing its rate through a first-order low-pass at 1 Hz
+    // (a fifth of the Nyquist frequency at 10 Hz), and one of second order at 2 Hz
+    for (order, bandwidth_hz, damping) in [(1, 1.0, None), (2, 2.0, Some(0.7))] {
+        let spec = bank::base_spec(10.0, false);
+        let mut truth = spec.clone();
+        truth.channels[0].components.push(Component::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+        });
+        let case = Case {
+            expect: "output_filter".into(),
+            spec,
+            truth,
+        };
+        let d = run(&case, 36_000, 7, 12);
+        let first = d
+            .steps
+            .first()
+            .map(|s| s.kind.as_str())
+            .unwrap_or("nothing");
+        assert_eq!(first, "output_filter", "{:?}", d.steps);
+        let f = d
+            .added
+            .iter()
+            .find(|e| e.kind == "output_filter")
+            .expect("the filter kept");
+        assert_eq!(
+            f.params["order"].as_u64(),
+            Some(order as u64),
+            "{}",
+            f.params
+        );
+        let bw = f.params["bandwidth_hz"].as_f64().unwrap();
+        // within 10 % of the truth, from the training half's PSD
+        assert!(
+            (bw / bandwidth_hz - 1.0).abs() < 0.1,
+            "order {order}: bandwidth {bw} Hz for {bandwidth_hz}"
+        );
+        assert!(
+            d.explained,
+            "gap {} -> {} (threshold {})",
+            d.gap_before, d.gap_after, d.gap_threshold
+        );
+    }
+}

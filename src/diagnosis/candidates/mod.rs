@@ -48,7 +48,10 @@
 //! (temperature_bias, thermal_rate, heteroskedastic), `noise.rs` (the power-law terms
 //! and gauss_markov), `outliers.rs`, `cross_axis.rs`, then `recalibrate.rs`; `lsq.rs`
 //! holds the least squares and searches they share, `params.rs` a component's size and
-//! JSON parameters, `resolution.rs` the output resolution of a log.
+//! JSON parameters, `resolution.rs` the output resolution of a log. The output path's
+//! candidates (`output_path.rs`: output_filter, saturation, output_resolution) change
+//! the path every replica's sum goes through, not the sum; the diagnosis asks for
+//! them after [`propose`].
 
 mod cross_axis;
 mod deterministic;

@@ -45,9 +45,21 @@
 //!   least twice as many as the next level (continuous values never repeat: any pile
 //!   of 5 equal values at the extreme is a clip). The limit is the largest magnitude
 //!   of a clipped extreme; both sides are reported.
+//! - [`proposals`]: the three as candidates of the diagnosis, read off the training
+//!   blocks (joined end to end): `output_resolution` at the grid's quantum, on the
+//!   rate and on the angle (two candidates: the scoring tells them apart), when the
+//!   withheld statistics show a value grid the simulations lack and the grid is no
+//!   printed precision; `output_filter`: the best fit of each order on each of two
+//!   [`Band`]s (every bin; the bins up to 0.6 of the Nyquist frequency weighted by
+//!   1 / f), each that is present and not at the edge of its search range, up to four
+//!   candidates (a filter of another form than the simulator's is approximated
+//!   differently by each; the withheld scoring chooses); `saturation` at the
+//!   clipped limit, only when the log piles at an extreme.
 
+use super::{Context, Delta, NotTried, Proposal, params_json};
 use crate::error::Result;
 use crate::simulator::generate::output::LowPass;
+use crate::simulator::{Component, Kind};
 use crate::stats::psd::{Detrend, welch};
 
 /// The most values [`value_grid`] reads (a stride over longer logs).
@@ -188,21 +200,68 @@ struct Spectrum {
     f_hz: Vec<f64>,
     ln_p: Vec<f64>,
     rate_hz: f64,
+    /// Each bin's weight in the cost (mean 1).
+    wt: Vec<f64>,
+}
+
+/// Which PSD bins a filter fit reads and how it weighs them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Band {
+    /// The highest frequency read, as a share of the Nyquist frequency.
+    pub top_share: f64,
+    /// Each bin weighted by 1 / f (every decade counts alike, as in the diagnosis's
+    /// PSD bands) instead of equally (every bin counts alike).
+    pub log_weight: bool,
+}
+
+impl Band {
+    /// Every bin up to the Nyquist frequency, weighted equally ([`output_filter`]).
+    pub const ALL: Band = Band {
+        top_share: 1.0,
+        log_weight: false,
+    };
+    /// The bins up to 0.6 of the Nyquist frequency, weighted by 1 / f: a filter of
+    /// another discretization (the bilinear transform puts a zero at the Nyquist
+    /// frequency) differs from the simulator's most near the Nyquist frequency, where
+    /// equally weighted bins are densest.
+    pub const LOW: Band = Band {
+        top_share: 0.6,
+        log_weight: true,
+    };
 }
 
 /// The cost of shape `g` (|H|^2 per bin) plus rounding noise `sq` (u^2/Hz per bin):
-/// sum (ln P - ln S)^2 with S = (W + R / f^2) g + sq, and W. W >= 0 and R >= 0 (the red
-/// part: drift below the roll-off, itself filtered) are the least squares of the
-/// relative residual (P - S) / P (the first-order expansion of ln P - ln S), a 2x2
-/// system, R dropped when it comes out negative.
+/// sum (ln P - ln S)^2 with S = (W + R / f^2) g + sq, minimized over W > 0 and R >= 0
+/// (the red part: drift below the roll-off, itself filtered), and W. Two starts: the
+/// least squares of the relative residual (P - S) / P (the first-order expansion of
+/// ln P - ln S, a 2x2 system, R dropped when it comes out negative) and the median of
+/// (P - sq) / g with R = 0; the better one is then refined by Gauss-Newton steps on
+/// the log residual (Jacobian d ln S / dW = g / S, d ln S / dR = g / (f^2 S)), each
+/// step halved until the cost falls (R held at 0 when the step would make it
+/// negative). The expansion alone is weighted by 1 / P, so a few bins of a roll-off
+/// deeper than the shape can follow (a filter with a zero at the Nyquist frequency)
+/// would decide W; the log cost weighs every bin alike.
 fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
-    // columns a = g / P, b = g / (f^2 P), target y = (P - sq) / P
+    let cost = |w: f64, r: f64| -> f64 {
+        sp.ln_p
+            .iter()
+            .zip(g)
+            .zip(sq)
+            .zip(&sp.f_hz)
+            .zip(&sp.wt)
+            .map(|((((lp, gi), s), f), k)| {
+                let d = lp - ((w + r / (f * f)) * gi + s).max(1e-300).ln();
+                k * d * d
+            })
+            .sum()
+    };
+    // start 1: columns a = g / P, b = g / (f^2 P), target y = (P - sq) / P
     let (mut aa, mut ab, mut bb, mut ay, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for (((lp, gi), s), f) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz) {
+    for ((((lp, gi), s), f), k) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt) {
         let p = lp.exp();
-        let a = gi / p;
-        let b = gi / (f * f * p);
-        let y = (p - s) / p;
+        let a = k.sqrt() * gi / p;
+        let b = k.sqrt() * gi / (f * f * p);
+        let y = k.sqrt() * (p - s) / p;
         aa += a * a;
         ab += a * b;
         bb += b * b;
@@ -221,18 +280,69 @@ fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
     if w.is_nan() || w <= 0.0 {
         w = 1e-300;
     }
-    let cost = sp
+    let mut c = cost(w, r);
+    // start 2: the median level
+    let mut ratios: Vec<f64> = sp
         .ln_p
         .iter()
         .zip(g)
         .zip(sq)
-        .zip(&sp.f_hz)
-        .map(|(((lp, gi), s), f)| {
-            let d = lp - ((w + r / (f * f)) * gi + s).max(1e-300).ln();
-            d * d
-        })
-        .sum();
-    (cost, w)
+        .filter(|(_, gi)| **gi > 0.0)
+        .map(|((lp, gi), s)| (lp.exp() - s) / gi)
+        .filter(|v| *v > 0.0 && v.is_finite())
+        .collect();
+    if !ratios.is_empty() {
+        ratios.sort_by(f64::total_cmp);
+        let w2 = ratios[ratios.len() / 2];
+        let c2 = cost(w2, 0.0);
+        if c2 < c {
+            (w, r, c) = (w2, 0.0, c2);
+        }
+    }
+    // Gauss-Newton on the log residual
+    for _ in 0..20 {
+        let (mut jaa, mut jab, mut jbb, mut jae, mut jbe) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for ((((lp, gi), s), f), k) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt) {
+            let sm = ((w + r / (f * f)) * gi + s).max(1e-300);
+            let e = k.sqrt() * (lp - sm.ln());
+            let a = k.sqrt() * gi / sm;
+            let b = k.sqrt() * gi / (f * f * sm);
+            jaa += a * a;
+            jab += a * b;
+            jbb += b * b;
+            jae += a * e;
+            jbe += b * e;
+        }
+        let det = jaa * jbb - jab * jab;
+        let (mut dw, mut dr) = if det > 1e-12 * jaa * jbb {
+            ((jae * jbb - jbe * jab) / det, (jaa * jbe - jab * jae) / det)
+        } else {
+            (jae / jaa, 0.0)
+        };
+        if r + dr < 0.0 {
+            (dw, dr) = (jae / jaa, -r);
+        }
+        if !(dw.is_finite() && dr.is_finite()) {
+            break;
+        }
+        let mut step = 1.0;
+        let mut improved = false;
+        for _ in 0..30 {
+            let w1 = (w + step * dw).max(w * 1e-3);
+            let r1 = (r + step * dr).max(0.0);
+            let c1 = cost(w1, r1);
+            if c1 < c {
+                improved = c - c1 > 1e-12 * c;
+                (w, r, c) = (w1, r1, c1);
+                break;
+            }
+            step *= 0.5;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (c, w)
 }
 
 /// Golden-section minimum of `f` on \[lo, hi\]: (argmin, min).
@@ -271,9 +381,30 @@ fn shape(sp: &Spectrum, order: usize, bandwidth_hz: f64, damping: Option<f64>) -
 /// The low-pass output filter of `x` sampled at `rate_hz` (module doc); `grid`: the
 /// log's value grid, whose rounding noise is part of the model.
 pub fn output_filter(x: &[f64], rate_hz: f64, grid: Option<&Grid>) -> Result<Finding<FilterFit>> {
+    Ok(match filter_fits(x, rate_hz, grid, Band::ALL)? {
+        Ok(f) => f.chosen,
+        Err(why) => Finding::Absent(why),
+    })
+}
+
+/// The filter fits of one [`Band`]: the order chosen (as [`output_filter`] reports
+/// it) and the best fit of each order, each present only when it passes the tests of
+/// presence on its own.
+pub struct FilterFits {
+    pub chosen: Finding<FilterFit>,
+    pub by_order: Vec<FilterFit>,
+}
+
+/// [`output_filter`]'s fit on the bins of `band`; Err: why no fit could be made.
+pub fn filter_fits(
+    x: &[f64],
+    rate_hz: f64,
+    grid: Option<&Grid>,
+    band: Band,
+) -> Result<std::result::Result<FilterFits, String>> {
     let l = 1024usize.min(crate::stats::psd::default_segment_len(x.len()));
     if x.len() < 4 * 256 || l < 256 {
-        return Ok(Finding::Absent(format!(
+        return Ok(Err(format!(
             "{} samples: too few for a PSD with 256-sample segments",
             x.len()
         )));
@@ -282,20 +413,28 @@ pub fn output_filter(x: &[f64], rate_hz: f64, grid: Option<&Grid>) -> Result<Fin
     let nyq = rate_hz / 2.0;
     let (mut f_hz, mut ln_p) = (Vec::new(), Vec::new());
     for (f, p) in psd.freq_hz.iter().zip(&psd.psd) {
-        if *f >= 0.01 * nyq && *p > 0.0 {
+        if *f >= 0.01 * nyq && *f <= band.top_share * nyq && *p > 0.0 {
             f_hz.push(*f);
             ln_p.push(p.ln());
         }
     }
     if f_hz.len() < 20 {
-        return Ok(Finding::Absent(
+        return Ok(Err(
             "the PSD has too few positive bins above 1 % of the Nyquist frequency".into(),
         ));
     }
+    let wt: Vec<f64> = if band.log_weight {
+        let inv: Vec<f64> = f_hz.iter().map(|f| 1.0 / f).collect();
+        let mean = inv.iter().sum::<f64>() / inv.len() as f64;
+        inv.iter().map(|v| v / mean).collect()
+    } else {
+        vec![1.0; f_hz.len()]
+    };
     let sp = Spectrum {
         f_hz,
         ln_p,
         rate_hz,
+        wt,
     };
     let nb = sp.f_hz.len();
     // rounding noise of the grid, on the rate and on the angle
@@ -395,32 +534,44 @@ pub fn output_filter(x: &[f64], rate_hz: f64, grid: Option<&Grid>) -> Result<Fin
     let var = b2.cost.min(b1.cost) / (nb as f64 - 3.0);
     let var = var.max(1e-12);
     let (best, order) = if b1.cost - b2.cost > ORDER2_MIN_DEVIANCE * var {
-        (b2, 2)
+        (&b2, 2)
     } else {
-        (b1, 1)
+        (&b1, 1)
     };
-    let deviance = (c_flat - best.cost) / var;
-    let h = LowPass::new(order, best.bw, best.z, rate_hz);
-    let at_nyquist = h.power_response(nyq, rate_hz);
-    if deviance < FILTER_MIN_DEVIANCE || at_nyquist > 0.9 || best.bw >= hi * 0.999 {
-        return Ok(Finding::Absent(format!(
-            "the PSD's high-frequency part is flat: the best filter ({} order, {} Hz) lowers the cost by {} residual variances (needs {}) and keeps {} of the power at the Nyquist frequency",
-            if order == 1 { "first" } else { "second" },
-            crate::fmt::num(best.bw),
-            crate::fmt::num(deviance),
-            crate::fmt::num(FILTER_MIN_DEVIANCE),
-            crate::fmt::num(at_nyquist)
-        )));
-    }
-    Ok(Finding::Present(FilterFit {
-        order,
-        bandwidth_hz: best.bw,
-        damping: best.z,
-        white_psd: best.w,
-        at_edge: best.edge,
-        deviance,
-        on_angle,
-    }))
+    // a fit of `order` as a filter, if it passes the tests of presence
+    let as_fit = |b: &Best, order: usize| -> std::result::Result<FilterFit, String> {
+        let deviance = (c_flat - b.cost) / var;
+        let h = LowPass::new(order, b.bw, b.z, rate_hz);
+        let at_nyquist = h.power_response(nyq, rate_hz);
+        if deviance < FILTER_MIN_DEVIANCE || at_nyquist > 0.9 || b.bw >= hi * 0.999 {
+            return Err(format!(
+                "the PSD's high-frequency part is flat: the best filter ({} order, {} Hz) lowers the cost by {} residual variances (needs {}) and keeps {} of the power at the Nyquist frequency",
+                if order == 1 { "first" } else { "second" },
+                crate::fmt::num(b.bw),
+                crate::fmt::num(deviance),
+                crate::fmt::num(FILTER_MIN_DEVIANCE),
+                crate::fmt::num(at_nyquist)
+            ));
+        }
+        Ok(FilterFit {
+            order,
+            bandwidth_hz: b.bw,
+            damping: b.z,
+            white_psd: b.w,
+            at_edge: b.edge,
+            deviance,
+            on_angle,
+        })
+    };
+    let chosen = match as_fit(best, order) {
+        Ok(f) => Finding::Present(f),
+        Err(why) => Finding::Absent(why),
+    };
+    let by_order = [(&b1, 1), (&b2, 2)]
+        .into_iter()
+        .filter_map(|(b, o)| as_fit(b, o).ok())
+        .collect();
+    Ok(Ok(FilterFits { chosen, by_order }))
 }
 
 /// Saturation found in a log.
@@ -487,6 +638,111 @@ pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
         n_high,
         n_low,
     })
+}
+
+/// The output-path candidates for the state `cx` (module doc), each handed to `sink`
+/// with an empty delta (an output-path component changes the path, not the sum);
+/// `grid_seen`: the withheld statistics show a value grid the simulations lack.
+/// Returns the candidates found but not proposed, and why.
+pub fn proposals(
+    cx: &Context,
+    grid_seen: bool,
+    sink: &mut dyn FnMut(Proposal),
+) -> Result<Vec<NotTried>> {
+    let comps = &cx.spec.channels[cx.channel].components;
+    let has = |k: Kind| comps.iter().any(|c| c.kind() == k);
+    let mut skipped = Vec::new();
+    let x: Vec<f64> = cx
+        .ranges()
+        .iter()
+        .flat_map(|r| cx.real[r.clone()].iter().copied())
+        .collect();
+    let fs = cx.rate_hz();
+    let grid = value_grid(&x).present();
+    let lsb = grid
+        .as_ref()
+        .filter(|g| !g.decimal && g.levels as f64 <= 0.01 * x.len() as f64);
+    let mut offer = |c: Component, note: String| {
+        sink(Proposal {
+            kind: c.kind().as_str().into(),
+            params: params_json(&c),
+            component: c,
+            replaces: None,
+            delta: Delta::Same(Vec::new()),
+            note,
+        })
+    };
+    if let (Some(g), true, false) = (lsb, grid_seen, has(Kind::OutputResolution)) {
+        for on_angle in [false, true] {
+            offer(
+                Component::OutputResolution {
+                    quantum: g.quantum,
+                    on_angle,
+                },
+                format!(
+                    "the training values sit on a grid of {:.6e} u ({} levels): every simulation's {} rounded to it",
+                    g.quantum,
+                    g.levels,
+                    if on_angle { "integrated angle" } else { "rate" }
+                ),
+            );
+        }
+    }
+    if !has(Kind::OutputFilter) {
+        let mut at_edge = None;
+        let mut found = 0;
+        for band in [Band::ALL, Band::LOW] {
+            let Ok(fits) = filter_fits(&x, fs, grid.as_ref(), band)? else {
+                continue;
+            };
+            for f in fits.by_order {
+                if f.at_edge {
+                    at_edge.get_or_insert(f.bandwidth_hz);
+                    continue;
+                }
+                found += 1;
+                offer(
+                    Component::OutputFilter {
+                        order: f.order,
+                        bandwidth_hz: f.bandwidth_hz,
+                        damping: f.damping,
+                    },
+                    format!(
+                        "order {} fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{} (the cost falls by {} residual variances against no filter)",
+                        f.order,
+                        (100.0 * band.top_share).round(),
+                        if band.log_weight {
+                            ", bins weighted by 1 / f"
+                        } else {
+                            ""
+                        },
+                        crate::fmt::num(f.deviance)
+                    ),
+                );
+            }
+        }
+        if let (0, Some(bw)) = (found, at_edge) {
+            skipped.push(NotTried {
+                kind: "output_filter".into(),
+                reason: format!(
+                    "the PSD's roll-off fits a filter whose bandwidth ({} Hz) or damping stopped at the end of its search range: not an estimate",
+                    crate::fmt::num(bw)
+                ),
+            });
+        }
+    }
+    if !has(Kind::Saturation)
+        && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
+    {
+        offer(
+            Component::Saturation { limit: c.limit },
+            format!(
+                "the training values pile at the extreme(s) {}: clipped there",
+                crate::fmt::num(c.limit)
+            ),
+        );
+    }
+    Ok(skipped)
 }
 
 #[cfg(test)]
