@@ -32,7 +32,9 @@
 //! the noise floor (their mean) and the significance threshold (their largest value,
 //! times 1.1).
 //!
-//! A region is a run of neighbouring features of one family and one name whose |z|
+//! A region is a run of neighbouring features of one family and one name, in
+//! increasing order of `lo` (the features of the two folds follow each other: the
+//! first of fold 2 starts a new run), whose |z|
 //! exceeds the family's threshold max(4, 1.25 max |z| seen over the leave-one-out
 //! simulations in that family): a spec that matches the log shows none.
 
@@ -251,6 +253,7 @@ pub fn regions(
         while e + 1 < z.len()
             && defs[e + 1].statistic == defs[k].statistic
             && defs[e + 1].name == defs[k].name
+            && defs[e + 1].lo.partial_cmp(&defs[e].lo) != Some(std::cmp::Ordering::Less)
             && z[e + 1].abs() > thr
             && z[e + 1].signum() == sign
         {
