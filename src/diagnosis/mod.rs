@@ -322,6 +322,13 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
     };
     let feats = feats_of([&target, &target], [None, None], base_step);
     let cal = Calibration::new(&feats, &defs);
+    if prm.replicas < 19 {
+        notes.push(format!(
+            "with {m} replicas the significance threshold holds the false-alarm rate of a right spec to about 1/(M + 1) = {:.0} % at most, not 5 %: use --replicas 19 or more for a 5 % level",
+            100.0 / (prm.replicas as f64 + 1.0),
+            m = prm.replicas
+        ));
+    }
     let ens = EnsembleStats::new(&feats, &defs, None);
     let z0 = ens.z(&real_feats);
     let gap_before = distance::gap(&z0, None, &defs);
