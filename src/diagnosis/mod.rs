@@ -45,11 +45,12 @@ pub use features::{FeatureDef, Layout, Statistic, Temperature};
 /// Settings of a diagnosis.
 #[derive(Clone, Debug)]
 pub struct GapParams {
-    /// Share of the blocks used for estimation (the rest is withheld for scoring).
+    /// Share of the blocks fold 1 uses for estimation (the rest is withheld for
+    /// scoring); fold 2 swaps the roles.
     pub train_fraction: f64,
     /// Simulations in the ensemble (M).
     pub replicas: usize,
-    /// Time blocks the log is cut into.
+    /// Main time blocks the log is cut into (block 0 is further cut into pieces).
     pub n_blocks: usize,
     /// Seed of the ensemble (default: the spec's, else 1).
     pub seed: Option<u64>,
