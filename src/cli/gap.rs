@@ -24,13 +24,15 @@ pub struct GapArgs {
     /// The channel to diagnose (a channel of the spec and of the log).
     #[arg(long)]
     pub channel: String,
-    /// Share of the time blocks used to estimate effects; the rest is withheld for scoring.
+    /// Share of the time blocks fold 1 uses to estimate effects, the rest withheld for
+    /// scoring; fold 2 swaps the roles, so every block is scored once.
     #[arg(long, default_value_t = 0.5, value_name = "F")]
     pub train_fraction: f64,
     /// Simulations of the spec in the ensemble.
     #[arg(long, default_value_t = 20, value_name = "M")]
     pub replicas: usize,
-    /// Interleaved time blocks the log is cut into.
+    /// Interleaved time blocks the log is cut into (block 0 further cut into up to five
+    /// alternating pieces).
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub blocks: usize,
     /// Seed of the ensemble (default: the spec's seed, else 1).

@@ -60,10 +60,8 @@ pub fn temperature_profile(n: usize, rate_hz: f64) -> Vec<f64> {
 
 /// Every case for a log of `duration_s`. Each hidden effect is sized to matter in an
 /// hour of data (its gap several times the noise floor), not to sit at the edge of
-/// detection. The warm-up's time constant is a sixth of the log (600 s in an hour): a
-/// warm-up over before the first withheld block begins cannot be seen on withheld data
-/// at all (block 0, an eighth of the log, is always training), so a fixed 600 s would
-/// test nothing on longer logs.
+/// detection. The warm-up's time constant is a sixth of the log (600 s in an hour);
+/// warm-ups shorter than block 0 are tested in the suite (`tests/suite/gap.rs`).
 pub fn cases(rate_hz: f64, duration_s: f64) -> Vec<Case> {
     let mut out = Vec::new();
     let mut add = |expect: &str,

@@ -1,25 +1,44 @@
-//! The training and withheld parts of a log: interleaved time blocks.
+//! The training and withheld parts of a log: interleaved time blocks, scored in two
+//! folds with swapped roles so that every sample of the log is withheld once.
 //!
-//! The log's N samples are cut into `n_blocks` contiguous blocks of (nearly) equal
-//! length. Block i goes to the training part when floor((i+1) f + c) > floor(i f + c)
-//! for the training fraction f and c = 1 - f/2, so the two parts alternate as evenly as f allows and
-//! block 0 (the start of the log, where a warm-up is strongest) is training. Effects
-//! localised in time and every temperature condition of a long run thus appear in both
-//! parts (contracts.md section 3), while each block stays long enough for the Allan
-//! deviation at long averaging times. Statistics never cross a block boundary.
+//! The log's N samples are cut into `n_blocks` contiguous main blocks of (nearly) equal
+//! length L = N / n_blocks. Main block i goes to the training part of fold 1 when
+//! floor((i+1) f + c) > floor(i f + c) for the training fraction f and c = 1 - f/2, so
+//! the two parts alternate as evenly as f allows and block 0 is training in fold 1.
+//! Fold 2 swaps the roles (its training share is 1 - f): every block is withheld in
+//! exactly one fold, and the withheld score of a diagnosis combines both folds, each
+//! scored with the parameters estimated on its own training part (cross-fitting), so
+//! no part of the log goes unscored and no sample is scored by an estimate that saw it.
+//!
+//! The start of a log is where a warm-up lives, often shorter than L (a 120 s warm-up
+//! in a 900 s block). Block 0 is therefore cut into up to [`MAX_START_HALVINGS`] + 1
+//! pieces by halving from the end, [0, L/2^k), [L/2^k, L/2^(k-1)), ..., [L/2, L),
+//! k the most halvings that keep the first piece at least [`MIN_PIECE`] samples, and
+//! the pieces alternate between the parts (the last piece keeps block 0's role), so
+//! that both folds train on, and withhold, a share of the first minutes. The main blocks
+//! stay long for the Allan deviation at long averaging times, which is pooled over the
+//! blocks long enough for each averaging factor (contracts.md section 3). Statistics
+//! never cross a block boundary.
 
 use std::ops::Range;
 
 use crate::error::{Error, Result};
+
+/// Most halvings of block 0 (it is cut into at most this many + 1 pieces).
+pub const MAX_START_HALVINGS: usize = 4;
+
+/// Fewest samples in a piece of block 0 (four time windows of 64 samples).
+pub const MIN_PIECE: usize = 256;
 
 /// The block layout of a log.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Blocks {
     /// Samples in the log.
     pub n: usize,
-    /// The blocks, in time order, covering 0..n.
+    /// The blocks, in time order, covering 0..n: the pieces of block 0, then main
+    /// blocks 1.. n_blocks - 1.
     pub ranges: Vec<Range<usize>>,
-    /// Whether each block is in the training part.
+    /// Whether each block is in the training part of fold 1.
     pub train: Vec<bool>,
 }
 
@@ -45,25 +64,43 @@ impl Blocks {
                 have: n as u64,
             });
         }
-        let ranges: Vec<Range<usize>> = (0..n_blocks)
-            .map(|i| (i * n / n_blocks)..((i + 1) * n / n_blocks))
-            .collect();
         let f = train_fraction;
-        let train: Vec<bool> = (0..n_blocks)
+        let main_train: Vec<bool> = (0..n_blocks)
             .map(|i| {
                 let c = 1.0 - 0.5 * f;
                 ((i + 1) as f64 * f + c).floor() > (i as f64 * f + c).floor()
             })
             .collect();
-        if train.iter().all(|t| *t) || !train.iter().any(|t| *t) {
+        if main_train.iter().all(|t| *t) || !main_train.iter().any(|t| *t) {
             return Err(Error::Usage(format!(
                 "--train-fraction {f} with {n_blocks} blocks leaves one part empty"
             )));
         }
+        // block 0 cut into pieces by halving from its end, alternating roles
+        let l0 = n / n_blocks;
+        let mut k = 0;
+        while k < MAX_START_HALVINGS && (l0 >> (k + 1)) >= MIN_PIECE {
+            k += 1;
+        }
+        let mut ranges = Vec::with_capacity(n_blocks + k);
+        let mut train = Vec::with_capacity(n_blocks + k);
+        let mut start = 0;
+        for j in (0..=k).rev() {
+            let end = if j == 0 { l0 } else { l0 >> j };
+            ranges.push(start..end);
+            // the last piece (j = 0) keeps block 0's role, the others alternate
+            train.push(main_train[0] == (j % 2 == 0));
+            start = end;
+        }
+        for (i, t) in main_train.iter().enumerate().skip(1) {
+            ranges.push((i * n / n_blocks)..((i + 1) * n / n_blocks));
+            train.push(*t);
+        }
         Ok(Blocks { n, ranges, train })
     }
 
-    /// The blocks of the training part (`true`) or of the withheld part (`false`).
+    /// The blocks of the training part (`true`) or of the withheld part (`false`) of
+    /// fold 1; fold 2's training part is fold 1's withheld part and the reverse.
     pub fn part(&self, training: bool) -> Vec<Range<usize>> {
         self.ranges
             .iter()
@@ -76,6 +113,11 @@ impl Blocks {
     /// Length of the shortest block.
     pub fn min_len(&self) -> usize {
         self.ranges.iter().map(|r| r.len()).min().unwrap_or(0)
+    }
+
+    /// Length of the longest block.
+    pub fn max_len(&self) -> usize {
+        self.ranges.iter().map(|r| r.len()).max().unwrap_or(0)
     }
 }
 
@@ -101,12 +143,66 @@ mod tests {
     fn fraction_sets_the_share() {
         for (k, f) in [(10, 0.7), (10, 0.3), (20, 0.25), (9, 0.5)] {
             let b = Blocks::interleaved(100_000, k, f).unwrap();
-            let n_train = b.train.iter().filter(|t| **t).count();
+            // the main blocks 1..k keep the share; block 0's pieces split it
+            let n_pieces = b.ranges.len() - (k - 1);
+            let n_train = b.train[n_pieces..].iter().filter(|t| **t).count()
+                + usize::from(*b.train.get(n_pieces - 1).unwrap());
             assert!(
                 (n_train as f64 - f * k as f64).abs() <= 1.0,
                 "{k} {f} {n_train}"
             );
-            assert!(b.train[0]);
+            let train_samples: usize = b.part(true).iter().map(|r| r.len()).sum();
+            assert!(
+                (train_samples as f64 / 1e5 - f).abs() <= 1.5 / k as f64,
+                "{k} {f} {train_samples}"
+            );
+        }
+    }
+
+    #[test]
+    fn block_0_is_cut_into_alternating_pieces_that_both_folds_train_on() {
+        // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s = 9000 samples, halved 4 times
+        let b = Blocks::interleaved(72_000, 8, 0.5).unwrap();
+        let ends: Vec<usize> = b.ranges.iter().take(5).map(|r| r.end).collect();
+        assert_eq!(ends, vec![562, 1125, 2250, 4500, 9000]);
+        assert_eq!(b.ranges[5], 9000..18_000);
+        assert_eq!(b.train[..7], [true, false, true, false, true, false, true]);
+        // the first 2 minutes (1200 samples) are in both parts
+        for training in [true, false] {
+            let early: usize = b
+                .part(training)
+                .iter()
+                .map(|r| r.end.min(1200).saturating_sub(r.start))
+                .sum();
+            assert!(early >= 500, "{training} {early}");
+        }
+        // a short log: no piece below MIN_PIECE samples
+        let b = Blocks::interleaved(12_000, 8, 0.5).unwrap();
+        assert_eq!(b.ranges[0], 0..375);
+        assert_eq!(b.ranges[1], 375..750);
+        assert_eq!(b.ranges[2], 750..1500);
+        assert_eq!(b.train[..4], [true, false, true, false]);
+        assert!(b.min_len() >= MIN_PIECE);
+    }
+
+    #[test]
+    fn the_two_folds_withhold_every_sample_exactly_once() {
+        for (n, k, f) in [(72_000, 8, 0.5), (12_345, 5, 0.3), (1_000_000, 8, 0.7)] {
+            let b = Blocks::interleaved(n, k, f).unwrap();
+            // fold 1 withholds part(false), fold 2 part(true)
+            let mut seen = vec![0u8; n];
+            for training in [false, true] {
+                for r in b.part(training) {
+                    for s in &mut seen[r] {
+                        *s += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&c| c == 1), "{n} {k} {f}");
+            for w in b.ranges.windows(2) {
+                assert_eq!(w[0].end, w[1].start);
+            }
+            assert!(b.max_len() >= n / k && b.min_len() >= MIN_PIECE.min(n / k));
         }
     }
 

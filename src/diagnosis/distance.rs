@@ -30,9 +30,18 @@
 //! the spec itself, scored against the ensemble of the others (leave one out, spread
 //! term against the whole ensemble), has a gap near 1: those M leave-one-out gaps give
 //! the noise floor (their mean) and the significance threshold (their largest value,
-//! times 1.1).
+//! times 1.1). The threshold is a test level: when the spec is right, the real log is
+//! one more draw exchangeable with the M simulations, and its gap against the M (no
+//! spread term) is no larger in distribution than a simulation's against the M - 1
+//! others (spread term charged), so it exceeds the largest of the M leave-one-out
+//! gaps with probability at most about 1/(M + 1) (the rank of one of M + 1
+//! exchangeable values; 4.8 % at M = 20), and 1.1 times that with less. The gap before
+//! involves no estimation, so the training part does not enter this level; the
+//! false-alarm rate measured over seeds is in BENCHMARKS.md (`gap_false_alarm.sh`).
 //!
-//! A region is a run of neighbouring features of one family and one name whose |z|
+//! A region is a run of neighbouring features of one family and one name, in
+//! increasing order of `lo` (the features of the two folds follow each other: the
+//! first of fold 2 starts a new run), whose |z|
 //! exceeds the family's threshold max(4, 1.25 max |z| seen over the leave-one-out
 //! simulations in that family): a spec that matches the log shows none.
 
@@ -251,6 +260,7 @@ pub fn regions(
         while e + 1 < z.len()
             && defs[e + 1].statistic == defs[k].statistic
             && defs[e + 1].name == defs[k].name
+            && defs[e + 1].lo.partial_cmp(&defs[e].lo) != Some(std::cmp::Ordering::Less)
             && z[e + 1].abs() > thr
             && z[e + 1].signum() == sign
         {

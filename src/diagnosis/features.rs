@@ -4,10 +4,12 @@
 //! Every feature is computed inside blocks (never across a block boundary) and belongs
 //! to one statistic family of contracts.md section 3:
 //! - `adev`: ln of the overlapping Allan variance at octave averaging factors
-//!   m = 1, 2, 4, ... up to a quarter of the shortest block, pooled over the blocks as
-//!   sum_b (N_b - 2m + 1) AVAR_b(m) / sum_b (N_b - 2m + 1) (each AVAR_b from
-//!   [`crate::stats::adev::deviations`], SP 1065 eq. (10));
-//! - `psd`: ln of the mean Welch PSD (Hann window, 50 % overlap, one-sided, u^2/Hz;
+//!   m = 1, 2, 4, ... up to a quarter of the longest block, pooled over the blocks at
+//!   least 4m long as sum_b (N_b - 2m + 1) AVAR_b(m) / sum_b (N_b - 2m + 1) (each
+//!   AVAR_b from [`crate::stats::adev::deviations`], SP 1065 eq. (10)): the short
+//!   pieces at the start of a log count at short averaging times only;
+//! - `psd`: ln of the mean Welch PSD over the segments that fit in a block (segments of
+//!   up to an eighth of the longest block; Hann window, 50 % overlap, one-sided, u^2/Hz;
 //!   P. D. Welch, IEEE Trans. Audio Electroacoust. 15 (1967) 70-73) in log-spaced bands,
 //!   five per decade, from the lowest resolved frequency to Nyquist;
 //! - `time`: mean and ln variance in windows of a quarter block, in time order;
@@ -160,13 +162,13 @@ impl Layout {
         others: &[String],
     ) -> Layout {
         let ranges = blocks.part(training);
-        let min_len = ranges.iter().map(|r| r.len()).min().unwrap_or(0);
+        let max_len = ranges.iter().map(|r| r.len()).max().unwrap_or(0);
         let mut defs = Vec::new();
         let dt = 1.0 / rate_hz;
 
         let mut ms = Vec::new();
         let mut m = 1;
-        while 4 * m <= min_len {
+        while 4 * m <= max_len {
             ms.push(m);
             m *= 2;
         }
@@ -183,7 +185,7 @@ impl Layout {
         }
 
         let mut seg_len = 64;
-        while seg_len * 2 * 4 <= min_len {
+        while seg_len * 2 * 4 <= max_len {
             seg_len *= 2;
         }
         let df = rate_hz / seg_len as f64;
@@ -426,7 +428,9 @@ impl Layout {
         let mut den = vec![0.0; self.ms.len()];
         for r in &self.ranges {
             let y = &x[r.clone()];
-            let devs = adev::deviations(y, adev::Kind::Adev, &self.ms);
+            // the factors this block is long enough for (4m <= N_b)
+            let n_ms = self.ms.iter().take_while(|&&m| 4 * m <= y.len()).count();
+            let devs = adev::deviations(y, adev::Kind::Adev, &self.ms[..n_ms]);
             for (i, (&m, d)) in self.ms.iter().zip(devs).enumerate() {
                 let terms = (y.len() + 1 - 2 * m) as f64;
                 num[i] += terms * d * d;
@@ -601,7 +605,9 @@ impl Layout {
                 let n = b[0].max(1.0);
                 let suu = b[3] - b[1] * b[1] / n;
                 let suy = b[4] - b[1] * b[2] / n;
-                if suu > 0.0 { suy / suu } else { 0.0 }
+                // a bin whose lagged values have no spread (one level of a discrete
+                // series: suu is then rounding residue of b[3]) has no slope
+                if suu > 1e-9 * b[3] { suy / suu } else { 0.0 }
             })
             .collect()
     }

@@ -3,7 +3,8 @@
 //! added, judged on withheld data (contracts.md section 3).
 //!
 //! The steps, one file each:
-//! - [`blocks`]: the log cut into interleaved training and withheld time blocks;
+//! - [`blocks`]: the log cut into interleaved training and withheld time blocks, in two
+//!   folds with swapped roles so that every sample is withheld once;
 //! - [`features`]: the statistics that localise a difference (Allan variance per tau,
 //!   PSD per band, windows over time, the marginal distribution, dependence on
 //!   temperature and dT/dt, state-dependent dynamics, cross-axis coupling);
@@ -15,7 +16,12 @@
 //!   charge for widening the band), the noise
 //!   floor and significance from leave-one-out simulations, the regions out of band;
 //! - [`candidates`]: each candidate effect's parameters, estimated on the training part;
-//! - this file: scoring on the withheld part and the search ([`diagnose`]): forward
+//! - this file: scoring on the withheld part and the search ([`diagnose`]). Each fold
+//!   keeps its own spec and ensemble: a candidate is estimated on each fold's training
+//!   part and scored, with that fold's estimate, on its withheld part; the features of
+//!   the two withheld parts together (every sample of the log) are the withheld score
+//!   (cross-fitting). The effects reported and the spec after carry fold 1's
+//!   estimates, the note fold 2's. Forward
 //!   steps add the best candidate, backward steps take back an earlier effect whose
 //!   share in the joint model fell below `min_shrink`, near-ties are reported as ties;
 //! - [`report`]: Parquet tables and the SVG report.
@@ -47,11 +53,12 @@ pub use path::PathStage;
 /// Settings of a diagnosis.
 #[derive(Clone, Debug)]
 pub struct GapParams {
-    /// Share of the blocks used for estimation (the rest is withheld for scoring).
+    /// Share of the blocks fold 1 uses for estimation (the rest is withheld for
+    /// scoring); fold 2 swaps the roles.
     pub train_fraction: f64,
     /// Simulations in the ensemble (M).
     pub replicas: usize,
-    /// Time blocks the log is cut into.
+    /// Main time blocks the log is cut into (block 0 is further cut into pieces).
     pub n_blocks: usize,
     /// Seed of the ensemble (default: the spec's, else 1).
     pub seed: Option<u64>,
@@ -174,6 +181,8 @@ pub struct Diagnosis {
     pub notes: Vec<String>,
 }
 
+/// One fold's state of the search: its spec (the effects added with that fold's
+/// estimates) and the ensemble simulated from it.
 struct State {
     spec: Spec,
     /// Per replica, the pre-path sum of the target channel's components.
@@ -183,8 +192,6 @@ struct State {
     /// is held by replica 0 only, the others holding an empty vector ([`part`] reads
     /// either); an output-path component's is empty in every replica.
     parts: Vec<Vec<Vec<f64>>>,
-    ens: EnsembleStats,
-    gap: f64,
     /// The output path every replica's sum goes through: the spec's output-path
     /// components (in it or added).
     path: PathStage,
@@ -235,9 +242,9 @@ pub fn diagnose_with_progress(
         &format!(
             "the ensemble of {} replicas x {} signals x {n} samples",
             prm.replicas,
-            n_comp + real.others.len() + 1
+            2 * (n_comp + 1) + real.others.len()
         ),
-        8.0 * n as f64 * prm.replicas as f64 * (n_comp + real.others.len() + 1) as f64,
+        8.0 * n as f64 * prm.replicas as f64 * (2 * (n_comp + 1) + real.others.len()) as f64,
     )?;
     let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
     let max_rounds = 2 * prm.max_added + 2;
@@ -279,11 +286,16 @@ pub fn diagnose_with_progress(
         base_dir: real.spec_dir.clone(),
     };
     let other_names: Vec<String> = real.others.iter().map(|(s, _)| s.clone()).collect();
-    let test = Layout::new(&blocks, false, rate_hz, temperature.as_ref(), &other_names);
-    let train = Layout::new(&blocks, true, rate_hz, temperature.as_ref(), &other_names);
-    let defs = test.defs.clone();
+    // the withheld part of fold 1 (blocks.part(false)) and of fold 2 (part(true)); each
+    // fold trains on the other's withheld part
+    let withheld =
+        [false, true].map(|t| Layout::new(&blocks, t, rate_hz, temperature.as_ref(), &other_names));
+    let defs: Vec<FeatureDef> = withheld.iter().flat_map(|l| l.defs.clone()).collect();
     let real_others: Vec<&[f64]> = real.others.iter().map(|(_, v)| *v).collect();
-    let real_feats = test.compute(real.x, temperature.as_ref(), &real_others);
+    let real_feats: Vec<f64> = withheld
+        .iter()
+        .flat_map(|l| l.compute(real.x, temperature.as_ref(), &real_others))
+        .collect();
 
     let sim_others = sim.channels(spec, &other_names)?;
     let (mut parts, target) = pre_path_parts(&sim, spec, channel)?;
@@ -306,37 +318,55 @@ pub fn diagnose_with_progress(
     // the output path the spec has: every candidate's sum goes through it too (a
     // continuous change added to rounded simulations would leave the grid)
     let path0 = PathStage::of(&spec.channels[channel].components, rate_hz);
-    // the features of each replica's sum xs[r], plus sign * delta[r] when given,
-    // passed through `path`, then rounded to the printed precision
+    // the features of each replica: for fold f, its withheld features of the fold's
+    // series xs[f][r], plus sign * delta[f][r] when given, passed through the fold's
+    // path, then rounded to the printed precision
+    type Deltas<'d> = Option<(&'d [&'d [f64]], f64)>;
     let feats_of =
-        |xs: &[Vec<f64>], delta: Option<(&[&[f64]], f64)>, path: &PathStage| -> Vec<Vec<f64>> {
+        |xs: [&[Vec<f64>]; 2], delta: [Deltas; 2], path: [&PathStage; 2]| -> Vec<Vec<f64>> {
             let t0 = Instant::now();
-            let f = xs
-                .par_iter()
-                .enumerate()
-                .map(|(r, x)| {
+            let out: Vec<Vec<f64>> = (0..prm.replicas)
+                .into_par_iter()
+                .map(|r| {
                     let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
-                    let mut y: Option<Vec<f64>> = delta
-                        .map(|(d, sign)| x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect());
-                    // one copy at most: the sum, through the path and rounded in place
-                    if y.is_none() && (printed.is_some() || !path.is_empty()) {
-                        y = Some(x.clone());
-                    }
-                    if let Some(y) = y.as_mut() {
-                        path.apply(y);
-                        if let Some(step) = printed {
-                            features::round_in_place(y, step);
+                    let mut out = Vec::with_capacity(defs.len());
+                    for fold in 0..2 {
+                        let x = &xs[fold][r];
+                        let mut y: Option<Vec<f64>> = delta[fold].map(|(d, sign)| {
+                            x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect()
+                        });
+                        // one copy at most: the sum, through the path and rounded in place
+                        if y.is_none() && (printed.is_some() || !path[fold].is_empty()) {
+                            y = Some(x.clone());
                         }
+                        if let Some(y) = y.as_mut() {
+                            path[fold].apply(y);
+                            if let Some(step) = printed {
+                                features::round_in_place(y, step);
+                            }
+                        }
+                        out.extend(withheld[fold].compute(
+                            y.as_deref().unwrap_or(x),
+                            temperature.as_ref(),
+                            &o,
+                        ));
                     }
-                    test.compute(y.as_deref().unwrap_or(x), temperature.as_ref(), &o)
+                    out
                 })
                 .collect();
             feature_s.set(feature_s.get() + t0.elapsed().as_secs_f64());
-            f
+            out
         };
     lap("ensemble simulated");
-    let feats = feats_of(&target, None, &path0);
+    let feats = feats_of([&target, &target], [None, None], [&path0, &path0]);
     let cal = Calibration::new(&feats, &defs);
+    if prm.replicas < 19 {
+        notes.push(format!(
+            "with {m} replicas the significance threshold holds the false-alarm rate of a right spec to about 1/(M + 1) = {:.0} % at most, not 5 %: use --replicas 19 or more for a 5 % level",
+            100.0 / (prm.replicas as f64 + 1.0),
+            m = prm.replicas
+        ));
+    }
     let ens = EnsembleStats::new(&feats, &defs, None);
     let z0 = ens.z(&real_feats);
     let gap_before = distance::gap(&z0, None, &defs);
@@ -349,18 +379,27 @@ pub fn diagnose_with_progress(
         .iter()
         .any(|r| r.feature == "ln_distinct_share" && r.ratio_or_delta < 1.0);
 
-    let mut st = State {
-        spec: spec.clone(),
-        target,
-        parts,
-        ens,
-        gap: gap_before,
-        path: path0,
-    };
+    // the two folds start from the same spec and ensemble
+    let mut sts = [
+        State {
+            spec: spec.clone(),
+            target: target.clone(),
+            parts: parts.clone(),
+            path: path0.clone(),
+        },
+        State {
+            spec: spec.clone(),
+            target,
+            parts,
+            path: path0,
+        },
+    ];
+    let mut ens_now = ens;
+    let mut gap_now = gap_before;
     lap("ensemble's features and calibration");
     let mut first: Option<Vec<Effect>> = None;
     let mut added: Vec<Effect> = Vec::new();
-    let mut slots: Vec<Slot> = Vec::new();
+    let mut slots: Vec<[Slot; 2]> = Vec::new();
     let mut steps: Vec<Step> = Vec::new();
     let mut not_tried = Vec::new();
     let score = |f: &[Vec<f64>]| -> (f64, EnsembleStats, Vec<(Statistic, f64)>) {
@@ -373,22 +412,30 @@ pub fn diagnose_with_progress(
             distance::family_gaps(&z, Some(&pen), &defs),
         )
     };
-    // each replica's features without the effect of slot `s`
-    let feats_without = |st: &State, s: &Slot| -> Vec<Vec<f64>> {
-        if s.path {
-            let mut comps = st.spec.channels[channel].components.clone();
-            match &s.replaced {
-                Some((old, _)) => comps[s.comp] = old.clone(),
-                None => {
-                    comps.remove(s.comp);
+    // each replica's features without the effect of slot `s` (one per fold)
+    let feats_without = |sts: &[State; 2], s: &[Slot; 2]| -> Vec<Vec<f64>> {
+        let xs = [&sts[0].target[..], &sts[1].target[..]];
+        if s[0].path {
+            let paths = [0, 1].map(|f| {
+                let mut comps = sts[f].spec.channels[channel].components.clone();
+                match &s[f].replaced {
+                    Some((old, _)) => comps[s[f].comp] = old.clone(),
+                    None => {
+                        comps.remove(s[f].comp);
+                    }
                 }
-            }
-            feats_of(&st.target, None, &PathStage::of(&comps, rate_hz))
+                PathStage::of(&comps, rate_hz)
+            });
+            feats_of(xs, [None, None], [&paths[0], &paths[1]])
         } else {
+            let d = [
+                slot_signal(&s[0], &sts[0].parts),
+                slot_signal(&s[1], &sts[1].parts),
+            ];
             feats_of(
-                &st.target,
-                Some((&slot_signal(s, &st.parts), -1.0)),
-                &st.path,
+                xs,
+                [Some((&d[0], -1.0)), Some((&d[1], -1.0))],
+                [&sts[0].path, &sts[1].path],
             )
         }
     };
@@ -398,47 +445,89 @@ pub fn diagnose_with_progress(
         pb.set_position(round_no as u64);
         pb.set_message(format!("round {round_no}"));
         feature_s.set(0.0);
-        let stop_floor = st.gap <= cal.gap_threshold;
+        let stop_floor = gap_now <= cal.gap_threshold;
         if stop_floor && first.is_some() {
             notes.push(format!(
                 "the gap {:.3} is within the spread of the spec's own simulations (threshold {:.3}): nothing more to add",
-                st.gap, cal.gap_threshold
+                gap_now, cal.gap_threshold
             ));
             break;
         }
-        let cx = candidates::Context {
-            spec: &st.spec,
+        // fold f trains on the other fold's withheld part
+        let cx = |f: usize| candidates::Context {
+            spec: &sts[f].spec,
             channel,
             sim: &sim,
-            train: &train,
+            train: &withheld[1 - f],
             real: real.x,
             temperature: temperature.as_ref(),
             others: &real.others,
             sim_others: &sim_others,
-            target: &st.target,
-            parts: &st.parts,
+            target: &sts[f].target,
+            parts: &sts[f].parts,
         };
-        // each candidate is scored as it is estimated; only the best (with its
-        // signal) and the runner-up's features are kept
+        // fold 2's estimates are held until fold 1's of the same kind arrive; each pair
+        // is scored as it is complete, and only the best (with its signals) and the
+        // runner-up's features are kept
+        let mut held: Vec<Proposal> = Vec::new();
+        let mut skipped = candidates::propose(&cx(1), &mut |p: Proposal| held.push(p))?;
+        skipped.extend(candidates::output_path::proposals(
+            &cx(1),
+            grid_seen,
+            &mut |p: Proposal| held.push(p),
+        )?);
         let mut round = Round::default();
-        let gap_now = st.gap;
-        // an output-path candidate changes the path every sum goes through; any other
-        // adds its signal to the sums
-        let mut sink = |p: Proposal| {
+        let mut unpaired: Vec<String> = Vec::new();
+        // fold 1's estimate meets fold 2's of the same kind and form; an output-path
+        // candidate changes the path every sum goes through, any other adds its signal
+        // to the sums
+        let mut pair = |p: Proposal| {
+            let Some(i) = held.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+                unpaired.push(p.kind);
+                return;
+            };
+            let q = held.remove(i);
             pb.set_message(p.kind.clone());
+            let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
-                feats_of(&st.target, None, &st.path.with(&p.component))
+                let paths = [
+                    sts[0].path.with(&p.component),
+                    sts[1].path.with(&q.component),
+                ];
+                feats_of(xs, [None, None], [&paths[0], &paths[1]])
             } else {
-                let d: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
-                feats_of(&st.target, Some((&d, 1.0)), &st.path)
+                let d0: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
+                let d1: Vec<&[f64]> = (0..prm.replicas).map(|r| q.delta.get(r)).collect();
+                feats_of(
+                    xs,
+                    [Some((&d0, 1.0)), Some((&d1, 1.0))],
+                    [&sts[0].path, &sts[1].path],
+                )
             };
             let scored = score(&f);
-            round.offer(p, f, scored, gap_now);
+            round.offer([p, q], f, scored, gap_now);
         };
-        let mut skipped = candidates::propose(&cx, &mut sink)?;
-        skipped.extend(candidates::output_path::proposals(
-            &cx, grid_seen, &mut sink,
+        let mut skipped1 = candidates::propose(&cx(0), &mut pair)?;
+        skipped1.extend(candidates::output_path::proposals(
+            &cx(0),
+            grid_seen,
+            &mut pair,
         )?);
+        // what either fold could not estimate is not tried
+        for nt in skipped1 {
+            if !skipped.iter().any(|s| s.kind == nt.kind) {
+                skipped.push(nt);
+            }
+        }
+        unpaired.extend(held.drain(..).map(|q| q.kind));
+        for kind in unpaired {
+            if !skipped.iter().any(|s| s.kind == kind) {
+                skipped.push(NotTried {
+                    kind,
+                    reason: "estimated on one fold's training part only: not scored".into(),
+                });
+            }
+        }
         if timing {
             eprintln!(
                 "gap timing: round {round_no}: candidates' features {:.3} s",
@@ -463,7 +552,7 @@ pub fn diagnose_with_progress(
         if stop_floor {
             notes.push(format!(
                 "the gap {:.3} is within the spread of the spec's own simulations (threshold {:.3}): the spec matches, nothing added",
-                st.gap, cal.gap_threshold
+                gap_now, cal.gap_threshold
             ));
             break;
         }
@@ -480,7 +569,7 @@ pub fn diagnose_with_progress(
             notes.push("no candidate effect could be estimated".into());
             break;
         };
-        if eff.gap_after > st.gap * (1.0 - prm.min_shrink) {
+        if eff.gap_after > gap_now * (1.0 - prm.min_shrink) {
             notes.push(format!(
                 "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
                 eff.kind,
@@ -489,7 +578,11 @@ pub fn diagnose_with_progress(
             ));
             break;
         }
-        slots.push(apply(&mut st, channel, p));
+        let [p0, p1] = p;
+        slots.push([
+            apply(&mut sts[0], channel, p0),
+            apply(&mut sts[1], channel, p1),
+        ]);
         let (runner_up, runner_up_gap_after, difference_sd) = match tie_with {
             Some((k, g, sd)) => (Some(k), Some(g), Some(sd)),
             None => (None, None, None),
@@ -512,7 +605,7 @@ pub fn diagnose_with_progress(
         steps.push(Step {
             action: "add",
             kind: eff.kind.clone(),
-            gap_before: st.gap,
+            gap_before: gap_now,
             gap_after: eff.gap_after,
             runner_up,
             runner_up_gap_after,
@@ -520,8 +613,8 @@ pub fn diagnose_with_progress(
             tie,
         });
         eff.step = Some(steps.len());
-        st.ens = e;
-        st.gap = eff.gap_after;
+        ens_now = e;
+        gap_now = eff.gap_after;
         added.push(eff);
         // backward: the earlier effect whose removal costs least, while its share is
         // below min_shrink
@@ -531,14 +624,14 @@ pub fn diagnose_with_progress(
                 if !removable(&slots, i) {
                     continue;
                 }
-                let f = feats_without(&st, &slots[i]);
+                let f = feats_without(&sts, &slots[i]);
                 let (g, e, _) = score(&f);
                 if best.as_ref().is_none_or(|b| g < b.1) {
                     best = Some((i, g, e));
                 }
             }
             let Some((i, g, e)) = best else { break };
-            let share = 1.0 - st.gap / g;
+            let share = 1.0 - gap_now / g;
             if share >= prm.min_shrink {
                 break;
             }
@@ -551,17 +644,29 @@ pub fn diagnose_with_progress(
             steps.push(Step {
                 action: "remove",
                 kind: added[i].kind.clone(),
-                gap_before: st.gap,
+                gap_before: gap_now,
                 gap_after: g,
                 runner_up: None,
                 runner_up_gap_after: None,
                 difference_sd: None,
                 tie: false,
             });
-            take_back(&mut st, channel, &mut slots, i);
+            let [s0, s1] = slots.remove(i);
+            take_back(
+                &mut sts[0],
+                channel,
+                s0,
+                slots.iter_mut().map(|s| &mut s[0]),
+            );
+            take_back(
+                &mut sts[1],
+                channel,
+                s1,
+                slots.iter_mut().map(|s| &mut s[1]),
+            );
             added.remove(i);
-            st.ens = e;
-            st.gap = g;
+            ens_now = e;
+            gap_now = g;
         }
         lap(&format!("round {round_no}: backward steps"));
         if added.len() >= prm.max_added {
@@ -576,32 +681,32 @@ pub fn diagnose_with_progress(
     pb.set_position(max_rounds as u64 + 1);
     pb.set_message("contributions");
     for i in 0..added.len() {
-        let f = feats_without(&st, &slots[i]);
+        let f = feats_without(&sts, &slots[i]);
         let (g, _, _) = score(&f);
-        added[i].contribution = Some(1.0 - st.gap / g);
+        added[i].contribution = Some(1.0 - gap_now / g);
     }
     added.sort_by(|a, b| {
         b.contribution
             .unwrap_or(0.0)
             .total_cmp(&a.contribution.unwrap_or(0.0))
     });
-    let explained = st.gap <= cal.gap_threshold;
+    let explained = gap_now <= cal.gap_threshold;
     if !explained {
         notes.push(format!(
             "unexplained: the gap after {:.3} is above the threshold {:.3}; no candidate explains the regions that remain (where_after)",
-            st.gap, cal.gap_threshold
+            gap_now, cal.gap_threshold
         ));
     }
-    let z1 = st.ens.z(&real_feats);
-    let where_after = distance::regions(&z1, &real_feats, &st.ens, &defs, &cal);
-    let pen1 = st.ens.spread_penalty(&ens_before);
+    let z1 = ens_now.z(&real_feats);
+    let where_after = distance::regions(&z1, &real_feats, &ens_now, &defs, &cal);
+    let pen1 = ens_now.spread_penalty(&ens_before);
     let family_after = distance::family_gaps(&z1, Some(&pen1), &defs);
     lap("contributions and regions");
     pb.set_position(max_rounds as u64 + 2);
     Ok(Diagnosis {
         channel: real.channel.clone(),
         gap_before,
-        gap_after: st.gap,
+        gap_after: gap_now,
         noise_floor: cal.noise_floor,
         gap_threshold: cal.gap_threshold,
         where_before,
@@ -611,11 +716,11 @@ pub fn diagnose_with_progress(
         steps,
         explained,
         not_tried,
-        spec_after: st.spec,
+        spec_after: sts[0].spec.clone(),
         defs,
         real: real_feats,
         ens_before,
-        ens_after: st.ens,
+        ens_after: ens_now,
         family_before,
         family_after,
         blocks,
@@ -658,37 +763,64 @@ fn pre_path_parts(
     Ok((parts, target))
 }
 
+/// A round's best candidate: its effect, ensemble statistics, proposals (one per
+/// fold) and replicas' features.
+type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
+
+/// What pairs fold 1's proposal with fold 2's: the kind, the component replaced and
+/// the form of an output-path component (a filter's order, a resolution on the rate
+/// or on the angle), so that the folds' estimates of one candidate meet.
+fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
+    let form = match &p.component {
+        Component::OutputFilter { order, .. } => format!("order {order}"),
+        Component::OutputResolution { on_angle, .. } => format!("on_angle {on_angle}"),
+        _ => String::new(),
+    };
+    (p.kind.clone(), p.replaces, form)
+}
+
 /// One round's candidates as they are scored: every effect (for the report), the best
-/// with its proposal and features, and the runner-up's features (for the tie test).
-/// At equal gaps the earlier candidate ranks first, as a stable sort would put it.
+/// with its proposals (one per fold) and features, and the runner-up's features (for
+/// the tie test). At equal gaps the earlier candidate ranks first, as a stable sort
+/// would put it.
 #[derive(Default)]
 struct Round {
     all: Vec<Effect>,
-    best: Option<(Effect, EnsembleStats, Proposal, Vec<Vec<f64>>)>,
+    best: Option<Best>,
     second: Option<(Effect, Vec<Vec<f64>>)>,
 }
 
 impl Round {
-    /// Takes candidate `p`, its replicas' features `f` and their score (gap, ensemble
-    /// statistics, family gaps), the gap before it being `gap_now`.
+    /// Takes candidate `p` (fold 1's estimate, then fold 2's), its replicas' features
+    /// `f` and their score (gap, ensemble statistics, family gaps), the gap before it
+    /// being `gap_now`. The effect reports fold 1's parameters, its note fold 2's.
     fn offer(
         &mut self,
-        p: Proposal,
+        p: [Proposal; 2],
         f: Vec<Vec<f64>>,
         (g, e, families): (f64, EnsembleStats, Vec<(Statistic, f64)>),
         gap_now: f64,
     ) {
+        let note = if p[1].params == p[0].params {
+            p[0].note.clone()
+        } else {
+            format!(
+                "{}; fold 2 (trained on the other half of the blocks): {}",
+                p[0].note, p[1].params
+            )
+        };
+        let p0 = &p[0];
         let eff = Effect {
-            kind: p.kind.clone(),
+            kind: p0.kind.clone(),
             gap_after: g,
             shrink: 1.0 - g / gap_now,
-            params: p.params.clone(),
-            note: p.note.clone(),
+            params: p0.params.clone(),
+            note,
             families,
             contribution: None,
             step: None,
-            component: p.component.clone(),
-            replaces: p.replaces,
+            component: p0.component.clone(),
+            replaces: p0.replaces,
         };
         self.all.push(eff.clone());
         match &self.best {
@@ -739,9 +871,15 @@ fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
         .collect()
 }
 
-/// A slot can be taken back unless a later one replaced the same component.
-fn removable(slots: &[Slot], i: usize) -> bool {
-    !slots[i + 1..].iter().any(|s| s.comp == slots[i].comp)
+/// A slot can be taken back unless a later one replaced the same component (in
+/// either fold).
+fn removable(slots: &[[Slot; 2]], i: usize) -> bool {
+    (0..2).all(|f| removable_comp(&slots.iter().map(|s| s[f].comp).collect::<Vec<_>>(), i))
+}
+
+/// In one fold, whose slots hold components `comps`: slot `i` can be taken back.
+fn removable_comp(comps: &[usize], i: usize) -> bool {
+    !comps[i + 1..].contains(&comps[i])
 }
 
 /// Adds proposal `p` to the state: its signal onto every replica's sum, its component
@@ -801,10 +939,15 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
     slot
 }
 
-/// Takes slot `i` back out of the state: its signal off every replica's sum, its
-/// component removed (or the replaced one restored).
-fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
-    let s = slots.remove(i);
+/// Takes slot `s` (removed from the list of slots) back out of the state: its signal
+/// off every replica's sum, its component removed (or the replaced one restored);
+/// `rest` are the slots left, whose indices follow.
+fn take_back<'a>(
+    st: &mut State,
+    channel: usize,
+    s: Slot,
+    rest: impl Iterator<Item = &'a mut Slot>,
+) {
     for (r, t) in st.target.iter_mut().enumerate() {
         let sig: &[f64] = match &s.replaced {
             Some((_, d)) => d.get(r),
@@ -831,7 +974,7 @@ fn take_back(st: &mut State, channel: usize, slots: &mut Vec<Slot>, i: usize) {
             for parts in st.parts.iter_mut() {
                 parts.remove(s.comp);
             }
-            for o in slots.iter_mut() {
+            for o in rest {
                 if o.comp > s.comp {
                     o.comp -= 1;
                 }
@@ -900,11 +1043,6 @@ mod tests {
             spec,
             target,
             parts,
-            ens: EnsembleStats {
-                mean: vec![],
-                sd: vec![],
-            },
-            gap: 1.0,
             path: PathStage::of(&[], 10.0),
         }
     }
@@ -974,8 +1112,10 @@ mod tests {
             let mut ids: Vec<usize> = vec![0, 1, 2];
             for want in order {
                 let i = ids.iter().position(|&x| x == want).unwrap();
-                assert!(removable(&slots, i));
-                take_back(&mut st, 0, &mut slots, i);
+                let comps: Vec<usize> = slots.iter().map(|s| s.comp).collect();
+                assert!(removable_comp(&comps, i));
+                let s = slots.remove(i);
+                take_back(&mut st, 0, s, slots.iter_mut());
                 ids.remove(i);
                 // what is left sums to the target, replica by replica
                 for r in 0..2 {
@@ -1053,7 +1193,8 @@ mod tests {
             let mut ids: Vec<usize> = vec![0, 1, 2];
             for want in order {
                 let i = ids.iter().position(|&x| x == want).unwrap();
-                take_back(&mut st, 0, &mut slots, i);
+                let s = slots.remove(i);
+                take_back(&mut st, 0, s, slots.iter_mut());
                 ids.remove(i);
                 assert_eq!(
                     st.path,
@@ -1162,10 +1303,10 @@ mod tests {
                 None,
                 candidates::Delta::Same(vec![]),
             );
-            round.offer(p, vec![vec![g]], (g, stats(), vec![]), 4.0);
+            round.offer([p.clone(), p], vec![vec![g]], (g, stats(), vec![]), 4.0);
         }
         assert_eq!(round.all.len(), 5);
-        let (b, _, p, f) = round.best.unwrap();
+        let (b, _, [p, _], f) = round.best.unwrap();
         assert_eq!((b.gap_after, f[0][0]), (1.0, 1.0));
         assert_eq!(p.component, Component::RateRamp { r: 0.5 });
         assert!((b.shrink - 0.75).abs() < 1e-15);
@@ -1193,7 +1334,8 @@ mod tests {
             let want: Vec<f64> = d.iter().map(|v| 0.5 + v).collect();
             assert_eq!(part(&st.parts, r, 1), want.as_slice());
         }
-        take_back(&mut st, 0, &mut slots, 0);
+        let s = slots.remove(0);
+        take_back(&mut st, 0, s, slots.iter_mut());
         for r in 0..2 {
             for t in 0..3 {
                 assert!((part(&st.parts, r, 1)[t] - 0.5).abs() < 1e-15);
@@ -1223,8 +1365,9 @@ mod tests {
                 candidates::Delta::Same(vec![0.0, 1.0, 2.0]),
             ),
         ));
-        assert!(!removable(&slots, 0));
-        assert!(removable(&slots, 1));
+        let comps: Vec<usize> = slots.iter().map(|s| s.comp).collect();
+        assert!(!removable_comp(&comps, 0));
+        assert!(removable_comp(&comps, 1));
     }
 
     #[test]

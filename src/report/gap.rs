@@ -82,9 +82,16 @@ fn panel(
     when: &str,
     unit: &str,
 ) -> Drawn {
-    let idx: Vec<usize> = (0..d.defs.len())
+    let mut idx: Vec<usize> = (0..d.defs.len())
         .filter(|&i| d.defs[i].statistic == stat && d.defs[i].lo > 0.0)
         .collect();
+    // fold 1's withheld part: the features up to where fold 2's start again
+    if let Some(k) = idx
+        .windows(2)
+        .position(|w| d.defs[w[1]].lo < d.defs[w[0]].lo)
+    {
+        idx.truncate(k + 1);
+    }
     if idx.len() < 2 {
         return Ok(());
     }
@@ -115,7 +122,7 @@ fn panel(
     let mut chart = ChartBuilder::on(area)
         .caption(
             format!(
-                "{name} of the withheld part, {when} (gap {})",
+                "{name} of fold 1's withheld part, {when} (gap {})",
                 gap_of(d, when)
             ),
             ("sans-serif", 16),

@@ -4,6 +4,7 @@
 
 use farma::diagnosis::bank::{self, CHANNEL, Case};
 use farma::diagnosis::{Diagnosis, GapParams, RealLog, diagnose};
+use farma::simulator::Component;
 
 fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
     let (x, temp) = bank::real_log(case, n, seed).unwrap();
@@ -94,6 +95,56 @@ fn a_matching_spec_reports_nothing_and_adds_nothing() {
         );
         assert!(!d.effects.is_empty(), "candidates are still listed");
     }
+}
+
+#[test]
+fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
+    // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s and the 120 s warm-up is over long
+    // before it ends
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::Warmup {
+        amplitude: 0.05,
+        tau_s: 120.0,
+    });
+    let case = Case {
+        expect: "warmup".into(),
+        spec,
+        truth,
+    };
+    let n = 72_000;
+    let d = run(&case, n, 4242, 12);
+    let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    assert!(
+        d.gap_before > d.gap_threshold,
+        "not significant: {} <= {}",
+        d.gap_before,
+        d.gap_threshold
+    );
+    let first = d.steps.first().map(|s| s.kind.as_str());
+    assert_eq!(first, Some("warmup"), "added {kinds:?}");
+    assert!(
+        d.explained && d.gap_after <= d.gap_threshold,
+        "gap after {} > threshold {} ({kinds:?})",
+        d.gap_after,
+        d.gap_threshold
+    );
+    let w = d.added.iter().find(|e| e.kind == "warmup").unwrap();
+    let tau_s = w.params["tau_s"].as_f64().unwrap();
+    assert!((60.0..240.0).contains(&tau_s), "tau_s {tau_s}");
+    // the withheld score's time windows (both folds) tile the whole log
+    let mut windows: Vec<(f64, f64)> = d
+        .defs
+        .iter()
+        .filter(|f| f.name == "mean")
+        .map(|f| (f.lo, f.hi))
+        .collect();
+    windows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(windows[0].0, 0.0);
+    for p in windows.windows(2) {
+        assert!((p[0].1 - p[1].0).abs() < 1e-9, "{p:?}");
+    }
+    assert!((windows.last().unwrap().1 - n as f64 / 10.0).abs() < 1e-9);
 }
 
 fn farma(args: &[&str]) -> std::process::Output {
