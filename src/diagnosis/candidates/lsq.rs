@@ -89,15 +89,23 @@ pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The minimiser of a unimodal `f` on [lo, hi] by golden-section search (`iters`
-/// steps, each shrinking the bracket by 0.618; Kiefer 1953).
-pub(super) fn golden_min(mut lo: f64, mut hi: f64, iters: usize, f: impl Fn(f64) -> f64) -> f64 {
+/// Golden-section search for the minimum of a unimodal `f` on [lo, hi] (`iters`
+/// steps, each shrinking the bracket by 0.618; Kiefer 1953): the last two interior
+/// points with their values and the final bracket. At equal values the left point is
+/// kept when `left_on_tie`.
+fn golden_search(
+    mut lo: f64,
+    mut hi: f64,
+    iters: usize,
+    left_on_tie: bool,
+    f: impl Fn(f64) -> f64,
+) -> ((f64, f64), (f64, f64), (f64, f64)) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let mut a = hi - g * (hi - lo);
     let mut b = lo + g * (hi - lo);
     let (mut fa, mut fb) = (f(a), f(b));
     for _ in 0..iters {
-        if fa < fb {
+        if fa < fb || (left_on_tie && fa == fb) {
             hi = b;
             b = a;
             fb = fa;
@@ -111,7 +119,21 @@ pub(super) fn golden_min(mut lo: f64, mut hi: f64, iters: usize, f: impl Fn(f64)
             fb = f(b);
         }
     }
+    ((a, fa), (b, fb), (lo, hi))
+}
+
+/// The minimiser of a unimodal `f` on [lo, hi] by golden-section search
+/// ([`golden_search`]): the middle of the final bracket.
+pub(super) fn golden_min(lo: f64, hi: f64, iters: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let (_, _, (lo, hi)) = golden_search(lo, hi, iters, false, f);
     0.5 * (lo + hi)
+}
+
+/// [`golden_search`] returning the better of its last two points and its value
+/// (argmin, min), the left one at a tie.
+pub(super) fn golden_argmin(lo: f64, hi: f64, iters: usize, f: impl Fn(f64) -> f64) -> (f64, f64) {
+    let ((a, fa), (b, fb), _) = golden_search(lo, hi, iters, true, f);
+    if fa <= fb { (a, fa) } else { (b, fb) }
 }
 
 /// First differences x_t - x_{t-1}, 0 at t = 0.

@@ -56,6 +56,7 @@
 //!   differently by each; the withheld scoring chooses); `saturation` at the
 //!   clipped limit, only when the log piles at an extreme.
 
+use super::lsq::golden_argmin;
 use super::{Context, Delta, NotTried, Proposal, params_json};
 use crate::error::Result;
 use crate::simulator::generate::output::LowPass;
@@ -256,26 +257,15 @@ fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
             .sum()
     };
     // start 1: columns a = g / P, b = g / (f^2 P), target y = (P - sq) / P
-    let (mut aa, mut ab, mut bb, mut ay, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for ((((lp, gi), s), f), k) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt) {
+    let rows = sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt);
+    let n = normal2(rows.map(|((((lp, gi), s), f), k)| {
         let p = lp.exp();
         let a = k.sqrt() * gi / p;
-        let b = k.sqrt() * gi / (f * f * p);
-        let y = k.sqrt() * (p - s) / p;
-        aa += a * a;
-        ab += a * b;
-        bb += b * b;
-        ay += a * y;
-        by += b * y;
-    }
-    let det = aa * bb - ab * ab;
-    let (mut w, mut r) = if det > 1e-12 * aa * bb {
-        ((ay * bb - by * ab) / det, (aa * by - ab * ay) / det)
-    } else {
-        (ay / aa, 0.0)
-    };
+        (a, k.sqrt() * gi / (f * f * p), k.sqrt() * (p - s) / p)
+    }));
+    let (mut w, mut r) = solve2(n);
     if r < 0.0 {
-        (w, r) = (ay / aa, 0.0);
+        (w, r) = (n.ay / n.aa, 0.0);
     }
     if w.is_nan() || w <= 0.0 {
         w = 1e-300;
@@ -301,26 +291,15 @@ fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
     }
     // Gauss-Newton on the log residual
     for _ in 0..20 {
-        let (mut jaa, mut jab, mut jbb, mut jae, mut jbe) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for ((((lp, gi), s), f), k) in sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt) {
+        let rows = sp.ln_p.iter().zip(g).zip(sq).zip(&sp.f_hz).zip(&sp.wt);
+        let j = normal2(rows.map(|((((lp, gi), s), f), k)| {
             let sm = ((w + r / (f * f)) * gi + s).max(1e-300);
             let e = k.sqrt() * (lp - sm.ln());
-            let a = k.sqrt() * gi / sm;
-            let b = k.sqrt() * gi / (f * f * sm);
-            jaa += a * a;
-            jab += a * b;
-            jbb += b * b;
-            jae += a * e;
-            jbe += b * e;
-        }
-        let det = jaa * jbb - jab * jab;
-        let (mut dw, mut dr) = if det > 1e-12 * jaa * jbb {
-            ((jae * jbb - jbe * jab) / det, (jaa * jbe - jab * jae) / det)
-        } else {
-            (jae / jaa, 0.0)
-        };
+            (k.sqrt() * gi / sm, k.sqrt() * gi / (f * f * sm), e)
+        }));
+        let (mut dw, mut dr) = solve2(j);
         if r + dr < 0.0 {
-            (dw, dr) = (jae / jaa, -r);
+            (dw, dr) = (j.ay / j.aa, -r);
         }
         if !(dw.is_finite() && dr.is_finite()) {
             break;
@@ -345,28 +324,47 @@ fn fit_level(sp: &Spectrum, g: &[f64], sq: &[f64]) -> (f64, f64) {
     (c, w)
 }
 
-/// Golden-section minimum of `f` on \[lo, hi\]: (argmin, min).
-fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, iters: usize) -> (f64, f64) {
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let mut a = hi - r * (hi - lo);
-    let mut b = lo + r * (hi - lo);
-    let (mut fa, mut fb) = (f(a), f(b));
-    for _ in 0..iters {
-        if fa <= fb {
-            hi = b;
-            b = a;
-            fb = fa;
-            a = hi - r * (hi - lo);
-            fa = f(a);
-        } else {
-            lo = a;
-            a = b;
-            fa = fb;
-            b = lo + r * (hi - lo);
-            fb = f(b);
-        }
+/// The sums of the normal equations of y on two columns a and b.
+#[derive(Clone, Copy)]
+struct Normal2 {
+    aa: f64,
+    ab: f64,
+    bb: f64,
+    ay: f64,
+    by: f64,
+}
+
+/// [`Normal2`] over the rows (a, b, y), summed in their order.
+fn normal2(rows: impl Iterator<Item = (f64, f64, f64)>) -> Normal2 {
+    let mut n = Normal2 {
+        aa: 0.0,
+        ab: 0.0,
+        bb: 0.0,
+        ay: 0.0,
+        by: 0.0,
+    };
+    for (a, b, y) in rows {
+        n.aa += a * a;
+        n.ab += a * b;
+        n.bb += b * b;
+        n.ay += a * y;
+        n.by += b * y;
     }
-    if fa <= fb { (a, fa) } else { (b, fb) }
+    n
+}
+
+/// The least-squares coefficients of y on (a, b) by Cramer's rule on the 2x2 normal
+/// equations; when they are near singular (det <= 1e-12 aa bb), a alone (b's 0).
+fn solve2(n: Normal2) -> (f64, f64) {
+    let det = n.aa * n.bb - n.ab * n.ab;
+    if det > 1e-12 * n.aa * n.bb {
+        (
+            (n.ay * n.bb - n.by * n.ab) / det,
+            (n.aa * n.by - n.ab * n.ay) / det,
+        )
+    } else {
+        (n.ay / n.aa, 0.0)
+    }
 }
 
 /// The shape |H|^2 at the spectrum's bins.
@@ -486,19 +484,19 @@ pub fn filter_fits(
         let zstep = 25f64.powf(1.0 / 14.0);
         // refine: alternate golden searches on ln bandwidth and ln damping
         for _ in 0..if order == 2 { 3 } else { 1 } {
-            let (u, _) = golden(
-                |u| fit_level(&sp, &shape(&sp, order, u.exp(), z), sq).0,
+            let (u, _) = golden_argmin(
                 (bw / step).max(lo).ln(),
                 (bw * step).min(hi).ln(),
                 30,
+                |u| fit_level(&sp, &shape(&sp, order, u.exp(), z), sq).0,
             );
             bw = u.exp();
             if let Some(zz) = z {
-                let (u, _) = golden(
-                    |u| fit_level(&sp, &shape(&sp, order, bw, Some(u.exp())), sq).0,
+                let (u, _) = golden_argmin(
                     (zz / zstep).max(0.2).ln(),
                     (zz * zstep).min(5.0).ln(),
                     30,
+                    |u| fit_level(&sp, &shape(&sp, order, bw, Some(u.exp())), sq).0,
                 );
                 z = Some(u.exp());
             }
