@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use crate::common::{self, farma, fixture, realdata, stderr, stdout};
-use farma::log::{CachePolicy, LogOptions, Progress, open_log};
 use farma::stats::adev::{
     self, CiOptions, Kind, TauGrid, avar, confidence_interval, curves, phase,
 };
@@ -176,14 +175,7 @@ fn matches_avar_on_adis16405_run1() {
         println!("SKIPPED: ../shared/realdata (ADIS16405 run 1 and avar's curve) not present");
         return;
     };
-    let cache = tempfile::tempdir().unwrap();
-    let store = open_log(
-        &parquet,
-        &LogOptions::default(),
-        &CachePolicy::Dir(cache.path().to_path_buf()),
-        &Progress::hidden(),
-    )
-    .unwrap();
+    let (_cache, store) = crate::common::open_store(&parquet);
     let rate_hz = store.sample_rate_hz();
     assert_eq!(rate_hz, 100.0);
     let (header, rows) = read_csv(&curve);

@@ -7,7 +7,6 @@
 use std::path::Path;
 
 use farma::diagnosis::candidates::output_path::{output_filter, saturation, value_grid};
-use farma::log::{CachePolicy, LogOptions, Progress, open_log};
 use farma::simulator::generate::streams::CHUNK;
 use farma::simulator::{SimRequest, Simulator, parse_spec};
 
@@ -158,14 +157,7 @@ fn adis16405_runs_output_step() {
             println!("SKIPPED: ../shared/realdata (ADIS16405 run {run}) not present");
             continue;
         };
-        let cache = tempfile::tempdir().unwrap();
-        let store = open_log(
-            &parquet,
-            &LogOptions::default(),
-            &CachePolicy::Dir(cache.path().to_path_buf()),
-            &Progress::hidden(),
-        )
-        .unwrap();
+        let (_cache, store) = crate::common::open_store(&parquet);
         let rate_hz = store.sample_rate_hz();
         let x = store.column("gyro_x_dps").unwrap();
         let g = value_grid(x).present().expect("the ADIS16405 output step");

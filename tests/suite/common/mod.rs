@@ -69,6 +69,21 @@ pub fn reference_parse_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     (names, cols)
 }
 
+/// A log opened with the default options into a store cached in a fresh temporary
+/// folder (returned too: the store lives while it does).
+pub fn open_store(path: &Path) -> (tempfile::TempDir, farma::store::Store) {
+    use farma::log::{CachePolicy, LogOptions, Progress, open_log};
+    let cache = tempfile::tempdir().unwrap();
+    let store = open_log(
+        path,
+        &LogOptions::default(),
+        &CachePolicy::Dir(cache.path().to_path_buf()),
+        &Progress::hidden(),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    (cache, store)
+}
+
 /// A whole Parquet file as one record batch (every batch the reader gives, concatenated).
 pub fn parquet_table(path: &Path) -> arrow_array::RecordBatch {
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
