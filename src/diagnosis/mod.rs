@@ -772,7 +772,20 @@ type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
 /// or on the angle), so that the folds' estimates of one candidate meet.
 fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
     let form = match &p.component {
-        Component::OutputFilter { order, .. } => format!("order {order}"),
+        Component::OutputFilter {
+            order,
+            damping,
+            discretization,
+            ..
+        } => format!(
+            "order {order} {}{}",
+            discretization.as_str(),
+            if *order == 2 && damping.is_none() {
+                " butterworth"
+            } else {
+                ""
+            }
+        ),
         Component::OutputResolution { on_angle, .. } => format!("on_angle {on_angle}"),
         _ => String::new(),
     };
@@ -1154,6 +1167,7 @@ mod tests {
             order: 2,
             bandwidth_hz: 1.5,
             damping: Some(0.6),
+            discretization: Default::default(),
         };
         let angle = Component::OutputResolution {
             quantum: 0.05,
@@ -1241,6 +1255,7 @@ mod tests {
                         order: 1,
                         bandwidth_hz: 4.0,
                         damping: None,
+                        discretization: Default::default(),
                     },
                     Component::ConstantBias { value: 0.1 },
                     Component::Saturation { limit: 0.35 },

@@ -94,6 +94,7 @@ mod tests {
             order: 1,
             bandwidth_hz: bw,
             damping: None,
+            discretization: Default::default(),
         }
     }
 

@@ -12,4 +12,6 @@ pub mod spec;
 pub mod write;
 
 pub use generate::{SimRequest, Simulated, Simulator, component_signal, simulate};
-pub use spec::{ChannelSpec, Component, FarmaModel, Kind, Spec, load_spec, parse_spec};
+pub use spec::{
+    ChannelSpec, Component, Discretization, FarmaModel, Kind, Spec, load_spec, parse_spec,
+};

@@ -432,6 +432,7 @@ fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
             order,
             bandwidth_hz,
             damping,
+            discretization: Default::default(),
         });
         let case = Case {
             expect: "output_filter".into(),

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use farma::error::EXIT_BAD_INPUT;
 use farma::simulator::spec::ar_is_stationary;
-use farma::simulator::{ChannelSpec, Component, FarmaModel, Kind, Spec, load_spec, parse_spec};
+use farma::simulator::{
+    ChannelSpec, Component, Discretization, FarmaModel, Kind, Spec, load_spec, parse_spec,
+};
 
 fn fixture(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
@@ -68,6 +70,7 @@ fn every_component() -> Spec {
                         order: 2,
                         bandwidth_hz: 2.0,
                         damping: Some(0.6),
+                        discretization: Default::default(),
                     },
                     Component::Saturation { limit: 5.0 },
                     Component::OutputResolution {
@@ -109,6 +112,7 @@ fn every_component() -> Spec {
                         order: 1,
                         bandwidth_hz: 1.0,
                         damping: None,
+                        discretization: Discretization::Bilinear,
                     },
                     Component::OutputResolution {
                         quantum: 0.00001,
@@ -602,6 +606,18 @@ fn bad_specs_name_the_key_and_the_problem() {
         (
             behind_noise("kind = \"output_filter\"\nbandwidth_hz = 1.0"),
             vec!["(output_filter): missing parameter 'order'"],
+        ),
+        (
+            behind_noise(
+                "kind = \"output_filter\"\norder = 1\nbandwidth_hz = 1.0\ndiscretization = \"tustin\"",
+            ),
+            vec!["'discretization'", "\"zoh\" or \"bilinear\""],
+        ),
+        (
+            behind_noise(
+                "kind = \"output_filter\"\norder = 1\nbandwidth_hz = 60.0\ndiscretization = \"bilinear\"",
+            ),
+            vec!["'bandwidth_hz' = 60 must be below the Nyquist frequency"],
         ),
         (
             behind_noise("kind = \"saturation\"\nlimit = -3"),

@@ -60,7 +60,7 @@ use super::lsq::golden_argmin;
 use super::{Context, Delta, NotTried, Proposal, params_json};
 use crate::error::Result;
 use crate::simulator::generate::output::LowPass;
-use crate::simulator::{Component, Kind};
+use crate::simulator::{Component, Discretization, Kind};
 use crate::stats::psd::{Detrend, welch};
 
 /// The most values [`value_grid`] reads (a stride over longer logs).
@@ -71,6 +71,10 @@ pub const FILTER_MIN_DEVIANCE: f64 = 50.0;
 /// Smallest further cost reduction for order 2 over order 1 (and for the angle form of
 /// the rounding noise over the rate form).
 pub const ORDER2_MIN_DEVIANCE: f64 = 10.0;
+
+/// The highest PSD bin a bilinear filter's fit reads, as a share of the Nyquist
+/// frequency (see [`filter_fits`]).
+pub const BILINEAR_TOP_SHARE: f64 = 0.9;
 
 /// An estimate, or why the effect is absent.
 #[derive(Clone, Debug, PartialEq)]
@@ -193,6 +197,8 @@ pub struct FilterFit {
     pub deviance: f64,
     /// The rounding noise was fitted as that of an angle quantizer.
     pub on_angle: bool,
+    /// The discretization fitted.
+    pub discretization: Discretization,
 }
 
 /// What [`output_filter`] fits to: the log's PSD bins above 10 % of the Nyquist
@@ -203,6 +209,8 @@ struct Spectrum {
     rate_hz: f64,
     /// Each bin's weight in the cost (mean 1).
     wt: Vec<f64>,
+    /// The discretization of the filters fitted.
+    disc: Discretization,
 }
 
 /// Which PSD bins a filter fit reads and how it weighs them.
@@ -369,7 +377,7 @@ fn solve2(n: Normal2) -> (f64, f64) {
 
 /// The shape |H|^2 at the spectrum's bins.
 fn shape(sp: &Spectrum, order: usize, bandwidth_hz: f64, damping: Option<f64>) -> Vec<f64> {
-    let h = LowPass::new(order, bandwidth_hz, damping, sp.rate_hz);
+    let h = LowPass::with(order, bandwidth_hz, damping, sp.disc, sp.rate_hz);
     sp.f_hz
         .iter()
         .map(|&f| h.power_response(f, sp.rate_hz))
@@ -379,10 +387,12 @@ fn shape(sp: &Spectrum, order: usize, bandwidth_hz: f64, damping: Option<f64>) -
 /// The low-pass output filter of `x` sampled at `rate_hz` (module doc); `grid`: the
 /// log's value grid, whose rounding noise is part of the model.
 pub fn output_filter(x: &[f64], rate_hz: f64, grid: Option<&Grid>) -> Result<Finding<FilterFit>> {
-    Ok(match filter_fits(x, rate_hz, grid, Band::ALL)? {
-        Ok(f) => f.chosen,
-        Err(why) => Finding::Absent(why),
-    })
+    Ok(
+        match filter_fits(x, rate_hz, grid, Band::ALL, Discretization::Zoh)? {
+            Ok(f) => f.chosen,
+            Err(why) => Finding::Absent(why),
+        },
+    )
 }
 
 /// The filter fits of one [`Band`]: the order chosen (as [`output_filter`] reports
@@ -399,6 +409,7 @@ pub fn filter_fits(
     rate_hz: f64,
     grid: Option<&Grid>,
     band: Band,
+    disc: Discretization,
 ) -> Result<std::result::Result<FilterFits, String>> {
     let l = 1024usize.min(crate::stats::psd::default_segment_len(x.len()));
     if x.len() < 4 * 256 || l < 256 {
@@ -409,9 +420,17 @@ pub fn filter_fits(
     }
     let psd = welch("output filter", x, rate_hz, l, Detrend::Constant)?;
     let nyq = rate_hz / 2.0;
+    // near the bilinear transform's zero at the Nyquist frequency the Welch estimate is
+    // the Hann window's leakage from the bins below, not the filter's response (its
+    // log falls without bound): those fits read the bins up to 0.9 of the Nyquist
+    // frequency, where the leakage of a 1024-sample segment is negligible
+    let top = match disc {
+        Discretization::Zoh => band.top_share,
+        Discretization::Bilinear => band.top_share.min(BILINEAR_TOP_SHARE),
+    };
     let (mut f_hz, mut ln_p) = (Vec::new(), Vec::new());
     for (f, p) in psd.freq_hz.iter().zip(&psd.psd) {
-        if *f >= 0.01 * nyq && *f <= band.top_share * nyq && *p > 0.0 {
+        if *f >= 0.01 * nyq && *f <= top * nyq && *p > 0.0 {
             f_hz.push(*f);
             ln_p.push(p.ln());
         }
@@ -433,6 +452,7 @@ pub fn filter_fits(
         ln_p,
         rate_hz,
         wt,
+        disc,
     };
     let nb = sp.f_hz.len();
     // rounding noise of the grid, on the rate and on the angle
@@ -448,7 +468,12 @@ pub fn filter_fits(
         .collect();
     let ones = vec![1.0; nb];
 
-    let (lo, hi) = (rate_hz / 500.0, 5.0 * rate_hz);
+    // a bilinear filter's bandwidth is below the Nyquist frequency
+    let hi = match disc {
+        Discretization::Zoh => 5.0 * rate_hz,
+        Discretization::Bilinear => 0.49 * rate_hz,
+    };
+    let lo = rate_hz / 500.0;
     let grid_bw: Vec<f64> = (0..=60)
         .map(|i| lo * (hi / lo).powf(i as f64 / 60.0))
         .collect();
@@ -539,7 +564,7 @@ pub fn filter_fits(
     // a fit of `order` as a filter, if it passes the tests of presence
     let as_fit = |b: &Best, order: usize| -> std::result::Result<FilterFit, String> {
         let deviance = (c_flat - b.cost) / var;
-        let h = LowPass::new(order, b.bw, b.z, rate_hz);
+        let h = LowPass::with(order, b.bw, b.z, disc, rate_hz);
         let at_nyquist = h.power_response(nyq, rate_hz);
         if deviance < FILTER_MIN_DEVIANCE || at_nyquist > 0.9 || b.bw >= hi * 0.999 {
             return Err(format!(
@@ -559,14 +584,42 @@ pub fn filter_fits(
             at_edge: b.edge,
             deviance,
             on_angle,
+            discretization: disc,
         })
     };
     let chosen = match as_fit(best, order) {
         Ok(f) => Finding::Present(f),
         Err(why) => Finding::Absent(why),
     };
+    // a digital filter designed by the bilinear transform is most often a Butterworth:
+    // order 2 at damping 1/sqrt(2) too, its bandwidth alone fitted (damping None, the
+    // spec's default), which a short log's PSD pins better than bandwidth and damping
+    // together
+    let butterworth = (disc == Discretization::Bilinear).then(|| {
+        let z = Some(crate::simulator::spec::DEFAULT_DAMPING);
+        let cost = |bw: f64| fit_level(&sp, &shape(&sp, 2, bw, z), &sq).0;
+        let i = (0..grid_bw.len())
+            .min_by(|a, b| cost(grid_bw[*a]).total_cmp(&cost(grid_bw[*b])))
+            .unwrap_or(0);
+        let step = (hi / lo).powf(1.0 / 60.0);
+        let (u, _) = golden_argmin(
+            (grid_bw[i] / step).max(lo).ln(),
+            (grid_bw[i] * step).min(hi).ln(),
+            30,
+            |u| cost(u.exp()),
+        );
+        let (cost, w) = fit_level(&sp, &shape(&sp, 2, u.exp(), z), &sq);
+        Best {
+            cost,
+            w,
+            bw: u.exp(),
+            z: None,
+            edge: i == 0 || i == grid_bw.len() - 1,
+        }
+    });
     let by_order = [(&b1, 1), (&b2, 2)]
         .into_iter()
+        .chain(butterworth.as_ref().map(|b| (b, 2)))
         .filter_map(|(b, o)| as_fit(b, o).ok())
         .collect();
     Ok(Ok(FilterFits { chosen, by_order }))
@@ -638,6 +691,23 @@ pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
     })
 }
 
+/// The training blocks joined end to end, each shifted by a constant so that its first
+/// sample repeats the previous block's last: a junction then adds no step, whose
+/// 1/f^2 spectrum would fill a filter's roll-off at high frequencies (the shifts are a
+/// random walk at the blocks' scale, which the fit's red part takes).
+fn joined_without_steps(cx: &Context) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for r in cx.ranges() {
+        let block = &cx.real[r.clone()];
+        let shift = match (out.last(), block.first()) {
+            (Some(a), Some(b)) => a - b,
+            _ => 0.0,
+        };
+        out.extend(block.iter().map(|v| v + shift));
+    }
+    out
+}
+
 /// The output-path candidates for the state `cx` (module doc), each handed to `sink`
 /// with an empty delta (an output-path component changes the path, not the sum);
 /// `grid_seen`: the withheld statistics show a value grid the simulations lack.
@@ -689,8 +759,16 @@ pub fn proposals(
     if !has(Kind::OutputFilter) {
         let mut at_edge = None;
         let mut found = 0;
-        for band in [Band::ALL, Band::LOW] {
-            let Ok(fits) = filter_fits(&x, fs, grid.as_ref(), band)? else {
+        // the zero-order hold on both bands; the bilinear transform (whose zero at the
+        // Nyquist frequency the LOW band exists to discount) on every bin
+        let tries = [
+            (Band::ALL, Discretization::Zoh),
+            (Band::LOW, Discretization::Zoh),
+            (Band::ALL, Discretization::Bilinear),
+        ];
+        let joined = joined_without_steps(cx);
+        for (band, disc) in tries {
+            let Ok(fits) = filter_fits(&joined, fs, grid.as_ref(), band, disc)? else {
                 continue;
             };
             for f in fits.by_order {
@@ -704,10 +782,12 @@ pub fn proposals(
                         order: f.order,
                         bandwidth_hz: f.bandwidth_hz,
                         damping: f.damping,
+                        discretization: disc,
                     },
                     format!(
-                        "order {} fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{} (the cost falls by {} residual variances against no filter)",
+                        "order {} ({}) fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{} (the cost falls by {} residual variances against no filter)",
                         f.order,
+                        disc.as_str(),
                         (100.0 * band.top_share).round(),
                         if band.log_weight {
                             ", bins weighted by 1 / f"
@@ -848,6 +928,7 @@ mod tests {
                     order,
                     bandwidth_hz: bw,
                     damping: z,
+                    discretization: Discretization::Zoh,
                 }],
                 4,
             );
@@ -895,6 +976,7 @@ mod tests {
                     order: 1,
                     bandwidth_hz: 10.0,
                     damping: None,
+                    discretization: Default::default(),
                 },
                 Component::OutputResolution {
                     quantum: q,
@@ -911,6 +993,49 @@ mod tests {
             .expect("a filter");
         assert!(f.on_angle && f.order == 1, "{f:?}");
         assert!((f.bandwidth_hz / 10.0 - 1.0).abs() < 0.1, "{f:?}");
+    }
+
+    #[test]
+    fn a_bilinear_butterworth_is_recovered_in_its_own_discretization() {
+        // the digital Butterworth of filter-design tools (scipy.signal.butter with fs):
+        // its zero at the Nyquist frequency is outside the zero-order hold's family
+        let fs = 100.0;
+        for (order, bw) in [(1, 12.0), (2, 8.4)] {
+            let x = sim(
+                240_000,
+                fs,
+                1.0,
+                0.0,
+                vec![Component::OutputFilter {
+                    order,
+                    bandwidth_hz: bw,
+                    damping: None,
+                    discretization: Discretization::Bilinear,
+                }],
+                13,
+            );
+            let fits = filter_fits(&x, fs, None, Band::ALL, Discretization::Bilinear)
+                .unwrap()
+                .unwrap();
+            let f = match fits.chosen {
+                Finding::Present(f) => f,
+                Finding::Absent(why) => panic!("{why}"),
+            };
+            assert_eq!(f.order, order, "{f:?}");
+            assert!((f.bandwidth_hz / bw - 1.0).abs() < 0.03, "{f:?}");
+            assert!(!f.at_edge && f.discretization == Discretization::Bilinear);
+            assert!((f.white_psd / (2.0 / fs) - 1.0).abs() < 0.1, "{f:?}");
+        }
+        // no filter: the bilinear fit finds none
+        let x = sim(240_000, fs, 1.0, 0.0, vec![], 14);
+        let fits = filter_fits(&x, fs, None, Band::ALL, Discretization::Bilinear)
+            .unwrap()
+            .unwrap();
+        assert!(
+            fits.by_order.iter().all(|f| f.at_edge),
+            "{:?}",
+            fits.by_order
+        );
     }
 
     #[test]

@@ -169,7 +169,13 @@ pub fn params_json(c: &Component) -> Value {
             order,
             bandwidth_hz,
             damping,
-        } => json!({ "order": order, "bandwidth_hz": bandwidth_hz, "damping": damping }),
+            discretization,
+        } => json!({
+            "order": order,
+            "bandwidth_hz": bandwidth_hz,
+            "damping": damping,
+            "discretization": discretization.as_str()
+        }),
         C::Saturation { limit } => json!({ "limit": limit }),
         C::OutputResolution { quantum, on_angle } => {
             json!({ "quantum": quantum, "on_angle": on_angle })

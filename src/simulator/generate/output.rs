@@ -28,10 +28,22 @@
 //! grows: a bandwidth above the Nyquist frequency is allowed (and changes little).
 //! The power response at frequency f is |H(e^(i w))|^2 with H(z) = C (I - Ad z^-1)^-1 Bd
 //! ([`LowPass::power_response`]), what the diagnosis fits to a PSD's roll-off.
+//!
+//! With `discretization = "bilinear"` the filter is instead the bilinear transform
+//! s = 2 f_s (1 - z^-1) / (1 + z^-1) of the continuous one at the prewarped natural
+//! frequency 2 f_s tan(pi bandwidth_hz / f_s), so that the digital response at
+//! bandwidth_hz equals the analog one there (Oppenheim & Schafer, *Discrete-Time
+//! Signal Processing*, 3rd ed., section 7.2.2; what scipy.signal.butter(order, fc,
+//! fs=fs) and MATLAB's butter design). With K = tan(pi bandwidth_hz / f_s):
+//! order 1, H(z) = K (1 + z^-1) / ((1 + K) + (K - 1) z^-1); order 2 (damping z),
+//! H(z) = K^2 (1 + z^-1)^2 / (a0 + a1 z^-1 + a2 z^-2) with a0 = 1 + 2 z K + K^2,
+//! a1 = 2 (K^2 - 1), a2 = 1 - 2 z K + K^2. Unit gain at 0 Hz, a zero at the Nyquist
+//! frequency (the transform maps s = infinity to z = -1), run in transposed direct
+//! form II.
 
 use std::f64::consts::PI;
 
-use crate::simulator::spec::{Component, DEFAULT_DAMPING, Kind};
+use crate::simulator::spec::{Component, DEFAULT_DAMPING, Discretization, Kind};
 
 /// A discretized low-pass output filter with its state.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,7 +52,11 @@ pub struct LowPass {
     ad: [[f64; 2]; 2],
     bd: [f64; 2],
     order: usize,
-    /// The state after the last sample (p, p'); (0, 0) before the first.
+    /// The bilinear filter's coefficients (b0, b1, b2) and (a1, a2) (a0 = 1), run in
+    /// place of the state recursion when present.
+    iir: Option<([f64; 3], [f64; 2])>,
+    /// The state after the last sample: (p, p') of the state recursion, or the two
+    /// delays of the transposed direct form II; (0, 0) before the first.
     state: [f64; 2],
 }
 
@@ -48,6 +64,41 @@ impl LowPass {
     /// The filter of `order` (1 or 2) at natural frequency `bandwidth_hz` with
     /// `damping` (order 2; None: 1/sqrt(2)) for samples at `rate_hz` (module doc).
     pub fn new(order: usize, bandwidth_hz: f64, damping: Option<f64>, rate_hz: f64) -> Self {
+        Self::with(order, bandwidth_hz, damping, Discretization::Zoh, rate_hz)
+    }
+
+    /// [`LowPass::new`] discretized as `disc` says (module doc). A bilinear filter's
+    /// bandwidth is held below 0.499999 of the rate (validation refuses one at or
+    /// above the Nyquist frequency).
+    pub fn with(
+        order: usize,
+        bandwidth_hz: f64,
+        damping: Option<f64>,
+        disc: Discretization,
+        rate_hz: f64,
+    ) -> Self {
+        if disc == Discretization::Bilinear {
+            let k = (std::f64::consts::PI * bandwidth_hz.min(0.499_999 * rate_hz) / rate_hz).tan();
+            let (b, a) = if order <= 1 {
+                let g = k / (1.0 + k);
+                ([g, g, 0.0], [(k - 1.0) / (k + 1.0), 0.0])
+            } else {
+                let z = damping.unwrap_or(DEFAULT_DAMPING);
+                let a0 = 1.0 + 2.0 * z * k + k * k;
+                let g = k * k / a0;
+                (
+                    [g, 2.0 * g, g],
+                    [2.0 * (k * k - 1.0) / a0, (1.0 - 2.0 * z * k + k * k) / a0],
+                )
+            };
+            return LowPass {
+                ad: [[0.0; 2]; 2],
+                bd: [0.0; 2],
+                order: order.clamp(1, 2),
+                iir: Some((b, a)),
+                state: [0.0; 2],
+            };
+        }
         let dt = 1.0 / rate_hz;
         let wn = 2.0 * PI * bandwidth_hz;
         if order <= 1 {
@@ -56,6 +107,7 @@ impl LowPass {
                 ad: [[a, 0.0], [0.0, 0.0]],
                 bd: [1.0 - a, 0.0],
                 order: 1,
+                iir: None,
                 state: [0.0; 2],
             };
         }
@@ -97,12 +149,27 @@ impl LowPass {
             ad,
             bd,
             order: 2,
+            iir: None,
             state: [0.0; 2],
         }
     }
 
     /// Filters `x` in place, the state carried on from the previous call.
     pub fn apply(&mut self, x: &mut [f64]) {
+        if let Some(([b0, b1, b2], [a1, a2])) = self.iir {
+            // transposed direct form II: y = b0 x + d1; d1 = b1 x - a1 y + d2;
+            // d2 = b2 x - a2 y
+            let [mut d1, mut d2] = self.state;
+            for x in x.iter_mut() {
+                let u = *x;
+                let y = b0 * u + d1;
+                d1 = b1 * u - a1 * y + d2;
+                d2 = b2 * u - a2 * y;
+                *x = y;
+            }
+            self.state = [d1, d2];
+            return;
+        }
         let [[a11, a12], [a21, a22]] = self.ad;
         let [b1, b2] = self.bd;
         let [mut p, mut v] = self.state;
@@ -130,6 +197,15 @@ impl LowPass {
         let w = 2.0 * PI * f_hz / rate_hz;
         // z^-1 = e^(-i w)
         let (c, s) = (w.cos(), -w.sin());
+        if let Some((b, a)) = self.iir {
+            // |B(z)|^2 / |A(z)|^2 at z^-1 = e^(-i w), z^-2 = e^(-2 i w)
+            let (c2, s2) = ((2.0 * w).cos(), -(2.0 * w).sin());
+            let nr = b[0] + b[1] * c + b[2] * c2;
+            let ni = b[1] * s + b[2] * s2;
+            let dr = 1.0 + a[0] * c + a[1] * c2;
+            let di = a[0] * s + a[1] * s2;
+            return (nr * nr + ni * ni) / (dr * dr + di * di);
+        }
         if self.order == 1 {
             let a = self.ad[0][0];
             let b = self.bd[0];
@@ -251,7 +327,14 @@ impl OutputPath {
                         order,
                         bandwidth_hz,
                         damping,
-                    } => Stage::Filter(LowPass::new(*order, *bandwidth_hz, *damping, rate_hz)),
+                        discretization,
+                    } => Stage::Filter(LowPass::with(
+                        *order,
+                        *bandwidth_hz,
+                        *damping,
+                        *discretization,
+                        rate_hz,
+                    )),
                     Component::Saturation { limit } => Stage::Saturation(*limit),
                     Component::OutputResolution { quantum, on_angle } => {
                         Stage::Resolution(Quantizer::new(*quantum, *on_angle))
@@ -360,6 +443,49 @@ mod tests {
     }
 
     #[test]
+    fn the_bilinear_filter_is_scipys_butterworth() {
+        // scipy.signal.butter(1, 12.0, fs=100) and butter(2, 0.84, fs=10)
+        let f = LowPass::with(1, 12.0, None, Discretization::Bilinear, 100.0);
+        let (b, a) = f.iir.unwrap();
+        for (x, y) in [b[0], b[1], a[0]]
+            .iter()
+            .zip([0.28363068, 0.28363068, -0.43273864])
+        {
+            assert!((x - y).abs() < 1e-8, "{x} {y}");
+        }
+        let f = LowPass::with(2, 0.84, None, Discretization::Bilinear, 10.0);
+        let (b, a) = f.iir.unwrap();
+        let want = [0.05017146, 0.10034292, 0.05017146, -1.27411492, 0.47480076];
+        for (x, y) in [b[0], b[1], b[2], a[0], a[1]].iter().zip(want) {
+            assert!((x - y).abs() < 1e-8, "{x} {y}");
+        }
+        // -3 dB exactly at the bandwidth, unit DC gain, a zero at Nyquist
+        for order in [1, 2] {
+            let mut f = LowPass::with(order, 20.0, None, Discretization::Bilinear, 100.0);
+            assert!((f.power_response(20.0, 100.0) - 0.5).abs() < 1e-12);
+            assert!((f.power_response(0.0, 100.0) - 1.0).abs() < 1e-12);
+            assert!(f.power_response(50.0, 100.0) < 1e-20);
+            // the power response is the filtered noise's variance, block by block
+            let k = 20_000;
+            let mean_h: f64 = (0..k)
+                .map(|i| f.power_response((i as f64 + 0.5) / k as f64 * 50.0, 100.0))
+                .sum::<f64>()
+                / k as f64;
+            let x0 = white(400_000, 4);
+            let mut x = x0.clone();
+            f.apply(&mut x);
+            let var = x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64;
+            assert!((var / mean_h - 1.0).abs() < 0.03, "{var} {mean_h}");
+            let mut g = LowPass::with(order, 20.0, None, Discretization::Bilinear, 100.0);
+            let mut y = x0;
+            for c in y.chunks_mut(777) {
+                g.apply(c);
+            }
+            assert!(y == x);
+        }
+    }
+
+    #[test]
     fn a_bandwidth_far_above_nyquist_is_the_identity() {
         for order in [1, 2] {
             let mut f = LowPass::new(order, 1e6, None, 100.0);
@@ -406,6 +532,7 @@ mod tests {
                 order: 2,
                 bandwidth_hz: 7.0,
                 damping: Some(0.5),
+                discretization: Default::default(),
             },
         ];
         let x0: Vec<f64> = white(10_007, 5).iter().map(|v| 3.0 * v).collect();

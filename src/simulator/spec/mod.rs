@@ -166,17 +166,43 @@ pub enum Component {
     /// The sensor's low-pass output filter, of `order` 1 or 2, with natural frequency
     /// `bandwidth_hz` \[Hz\] > 0 (the -3 dB frequency of order 1, and of order 2 at
     /// damping 1/sqrt(2)) and, for order 2, `damping` ratio > 0 (default 1/sqrt(2),
-    /// Butterworth). Discretized by zero-order hold (each sample held over its
-    /// interval), which is exact for any bandwidth, even above the Nyquist frequency.
+    /// Butterworth), discretized as `discretization` says ([`Discretization`]).
     /// First stage of the output path.
     OutputFilter {
         order: usize,
         bandwidth_hz: f64,
         damping: Option<f64>,
+        discretization: Discretization,
     },
     /// Saturation at the measurement range: every sample clamped to \[-limit, limit\],
     /// `limit` \[u\] > 0. Between the filter and the output resolution.
     Saturation { limit: f64 },
+}
+
+/// How an output filter's continuous low-pass becomes a digital one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Discretization {
+    /// Zero-order hold (`"zoh"`, the default): each input sample held over its
+    /// interval, the output the continuous filter's state at the interval's end; exact
+    /// for any bandwidth, even above the Nyquist frequency (an analog filter sampled).
+    #[default]
+    Zoh,
+    /// The bilinear transform with the bandwidth prewarped (`"bilinear"`): the digital
+    /// Butterworth of a sensor's DSP as filter-design tools give it (scipy.signal.butter
+    /// with fs, MATLAB butter), exact -3 dB point at bandwidth_hz (order 1, and order 2
+    /// at damping 1/sqrt(2)) and a zero at the Nyquist frequency; the bandwidth must be
+    /// below the Nyquist frequency.
+    Bilinear,
+}
+
+impl Discretization {
+    /// The name in a spec.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Discretization::Zoh => "zoh",
+            Discretization::Bilinear => "bilinear",
+        }
+    }
 }
 
 /// The default damping ratio of a second-order output filter (Butterworth).
@@ -344,7 +370,7 @@ impl Kind {
             Kind::Outliers => &["rate_hz", "scale"],
             Kind::Heteroskedastic => &["of", "slope"],
             Kind::CrossAxis => &["from", "gain"],
-            Kind::OutputFilter => &["order", "bandwidth_hz", "damping"],
+            Kind::OutputFilter => &["order", "bandwidth_hz", "damping", "discretization"],
             Kind::Saturation => &["limit"],
             Kind::OutputResolution => &["quantum", "on_angle"],
         }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use toml::{Table, Value};
 
-use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
+use super::{ChannelSpec, Component, Discretization, FarmaModel, Kind, Spec, noise_kinds};
 use crate::error::{Error, Result};
 
 /// Reads and validates the spec at `path` (errors exit with code 2).
@@ -399,10 +399,19 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
                 Some(o @ (1 | 2)) => o as usize,
                 _ => return Err(p.wrong("order", "1 or 2", v)),
             };
+            let discretization = match p.opt_string("discretization")?.as_deref() {
+                None | Some("zoh") => Discretization::Zoh,
+                Some("bilinear") => Discretization::Bilinear,
+                Some(_) => {
+                    let v = p.get("discretization")?;
+                    return Err(p.wrong("discretization", "\"zoh\" or \"bilinear\"", v));
+                }
+            };
             Component::OutputFilter {
                 order,
                 bandwidth_hz: p.f64("bandwidth_hz")?,
                 damping: p.opt_f64("damping")?,
+                discretization,
             }
         }
         Kind::Saturation => Component::Saturation {

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use toml::Value;
 
-use super::{Component, FarmaModel, Spec};
+use super::{Component, Discretization, FarmaModel, Spec};
 use crate::error::{Error, Result};
 
 impl Spec {
@@ -154,11 +154,15 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
             order,
             bandwidth_hz,
             damping,
+            discretization,
         } => {
             line(out, "order", order.to_string());
             line(out, "bandwidth_hz", float(*bandwidth_hz));
             if let Some(z) = damping {
                 line(out, "damping", float(*z));
+            }
+            if *discretization != Discretization::Zoh {
+                line(out, "discretization", string(discretization.as_str()));
             }
         }
         Component::Saturation { limit } => line(out, "limit", float(*limit)),

@@ -5,7 +5,7 @@
 
 use std::collections::HashSet;
 
-use super::{ChannelSpec, Component, FarmaModel, Kind, Spec, noise_kinds};
+use super::{ChannelSpec, Component, Discretization, FarmaModel, Kind, Spec, noise_kinds};
 use crate::fmt::num;
 
 /// The highest sample rate a simulation may run at, Hz (no gyro log comes near; above
@@ -162,6 +162,21 @@ impl Spec {
         }
         for ch in &self.channels {
             for (i, c) in ch.components.iter().enumerate() {
+                if let Component::OutputFilter {
+                    bandwidth_hz,
+                    discretization: Discretization::Bilinear,
+                    ..
+                } = c
+                    && *bandwidth_hz >= rate_hz / 2.0
+                {
+                    return Err(format!(
+                        "channel '{}' component {} (output_filter): 'bandwidth_hz' = {} must be below the Nyquist frequency {} Hz of the simulation's rate with discretization = \"bilinear\"",
+                        ch.name,
+                        i + 1,
+                        num(*bandwidth_hz),
+                        num(rate_hz / 2.0)
+                    ));
+                }
                 if let Some((key, x)) = numbers(c)
                     .into_iter()
                     .find(|(_, x)| x.abs() > MAX_MAGNITUDE)
@@ -379,11 +394,20 @@ impl Spec {
                     order,
                     bandwidth_hz,
                     damping,
+                    discretization,
                 } => {
                     if !(1..=2).contains(order) {
                         return Err(format!("{place}: 'order' must be 1 or 2, found {order}"));
                     }
                     check.positive("bandwidth_hz", *bandwidth_hz)?;
+                    let nyquist = self.sample_rate_hz / 2.0;
+                    if *discretization == Discretization::Bilinear && *bandwidth_hz >= nyquist {
+                        return Err(format!(
+                            "{place}: 'bandwidth_hz' = {} must be below the Nyquist frequency {} Hz (sample_rate_hz / 2) with discretization = \"bilinear\" (the prewarping maps the Nyquist frequency to an infinite analog one)",
+                            num(*bandwidth_hz),
+                            num(nyquist)
+                        ));
+                    }
                     if let Some(z) = damping {
                         if *order == 1 {
                             return Err(format!(
