@@ -426,7 +426,21 @@ pub fn diagnose_with_progress(
                 }
                 PathStage::of(&comps, rate_hz)
             });
-            feats_of(xs, [None, None], [&paths[0], &paths[1]])
+            // a joint slot's second change taken off the sums too
+            match (&s[0].also, &s[1].also) {
+                (Some(a0), Some(a1)) => {
+                    let d = [
+                        slot_signal(a0, &sts[0].parts),
+                        slot_signal(a1, &sts[1].parts),
+                    ];
+                    feats_of(
+                        xs,
+                        [Some((&d[0], -1.0)), Some((&d[1], -1.0))],
+                        [&paths[0], &paths[1]],
+                    )
+                }
+                _ => feats_of(xs, [None, None], [&paths[0], &paths[1]]),
+            }
         } else {
             let d = [
                 slot_signal(&s[0], &sts[0].parts),
@@ -494,7 +508,19 @@ pub fn diagnose_with_progress(
                     sts[0].path.with(&p.component),
                     sts[1].path.with(&q.component),
                 ];
-                feats_of(xs, [None, None], [&paths[0], &paths[1]])
+                // a joint candidate also changes a component's signal
+                fn also(pr: &Proposal, m: usize) -> Option<Vec<&[f64]>> {
+                    let (_, _, d) = pr.also.as_ref()?;
+                    Some((0..m).map(|r| d.get(r)).collect())
+                }
+                match (also(&p, prm.replicas), also(&q, prm.replicas)) {
+                    (Some(d0), Some(d1)) => feats_of(
+                        xs,
+                        [Some((d0.as_slice(), 1.0)), Some((d1.as_slice(), 1.0))],
+                        [&paths[0], &paths[1]],
+                    ),
+                    _ => feats_of(xs, [None, None], [&paths[0], &paths[1]]),
+                }
             } else {
                 let d0: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
                 let d1: Vec<&[f64]> = (0..prm.replicas).map(|r| q.delta.get(r)).collect();
@@ -789,7 +815,8 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
         Component::OutputResolution { on_angle, .. } => format!("on_angle {on_angle}"),
         _ => String::new(),
     };
-    (p.kind.clone(), p.replaces, form)
+    let joint = if p.also.is_some() { " joint" } else { "" };
+    (p.kind.clone(), p.replaces, form + joint)
 }
 
 /// One round's candidates as they are scored: every effect (for the report), the best
@@ -861,6 +888,9 @@ struct Slot {
     /// An output-path component: it changes no sum, only the path every sum goes
     /// through.
     path: bool,
+    /// The second change of a joint candidate (a replacement), made and taken back
+    /// with this one.
+    also: Option<Box<Slot>>,
 }
 
 /// Replica r's signal of component k in `parts` ([`State::parts`]): its own, or
@@ -887,7 +917,17 @@ fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
 /// A slot can be taken back unless a later one replaced the same component (in
 /// either fold).
 fn removable(slots: &[[Slot; 2]], i: usize) -> bool {
-    (0..2).all(|f| removable_comp(&slots.iter().map(|s| s[f].comp).collect::<Vec<_>>(), i))
+    (0..2).all(|f| {
+        let comps: Vec<usize> = slots.iter().map(|s| s[f].comp).collect();
+        // the component a joint slot's second change replaced, too
+        let also = |s: &Slot| s.also.as_ref().map(|a| a.comp);
+        removable_comp(&comps, i)
+            && also(&slots[i][f]).is_none_or(|k| {
+                slots[i + 1..]
+                    .iter()
+                    .all(|s| s[f].comp != k && also(&s[f]) != Some(k))
+            })
+    })
 }
 
 /// In one fold, whose slots hold components `comps`: slot `i` can be taken back.
@@ -897,7 +937,23 @@ fn removable_comp(comps: &[usize], i: usize) -> bool {
 
 /// Adds proposal `p` to the state: its signal onto every replica's sum, its component
 /// appended (or put in place of the one it replaces); returns where it sits.
-fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
+fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
+    // a joint candidate: its second change first, as a replacement of its own
+    let also = p.also.take().map(|(k, component, delta)| {
+        Box::new(apply(
+            st,
+            channel,
+            Proposal {
+                also: None,
+                kind: String::new(),
+                component,
+                replaces: Some(k),
+                params: serde_json::Value::Null,
+                delta,
+                note: String::new(),
+            },
+        ))
+    });
     let path = p.component.kind().is_output_path();
     for (r, t) in st.target.iter_mut().enumerate() {
         for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
@@ -927,6 +983,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
                 comp: k,
                 replaced: Some((old, p.delta)),
                 path,
+                also,
             }
         }
         None => {
@@ -943,6 +1000,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
                 comp: st.spec.channels[channel].components.len() - 1,
                 replaced: None,
                 path,
+                also,
             }
         }
     };
@@ -961,6 +1019,11 @@ fn take_back<'a>(
     s: Slot,
     rest: impl Iterator<Item = &'a mut Slot>,
 ) {
+    let mut s = s;
+    // a joint slot's second change: a replacement, which moves no index
+    if let Some(a) = s.also.take() {
+        take_back(st, channel, *a, std::iter::empty());
+    }
     for (r, t) in st.target.iter_mut().enumerate() {
         let sig: &[f64] = match &s.replaced {
             Some((_, d)) => d.get(r),
@@ -1066,6 +1129,7 @@ mod tests {
         delta: candidates::Delta,
     ) -> Proposal {
         Proposal {
+            also: None,
             kind: component.kind().as_str().into(),
             component,
             replaces,

@@ -28,6 +28,7 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
                 None => cx.sim.extra_signal(cx.spec, cx.channel, &comp)?,
             };
             out.push(Proposal {
+                also: None,
                 kind: "cross_axis".into(),
                 params: params_json(&comp),
                 component: comp,

@@ -105,6 +105,7 @@ pub(super) fn farma(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> 
         .map(|(r, s)| s.iter().zip(&cx.parts[r][k]).map(|(a, b)| a - b).collect())
         .collect();
     out.push(Proposal {
+        also: None,
         kind: "farma".into(),
         params: params_json(&comp),
         component: comp,

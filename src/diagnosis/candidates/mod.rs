@@ -108,6 +108,10 @@ pub struct Proposal {
     pub delta: Delta,
     /// How the parameters were estimated.
     pub note: String,
+    /// A second change made with this one, as one candidate: component `.0` of the
+    /// channel replaced by `.1`, its signal changed by `.2` (the output filter with the
+    /// white noise refitted before it, see `output_path::proposals`).
+    pub also: Option<(usize, Component, Delta)>,
 }
 
 /// A candidate that could not be tried, and why.
@@ -264,6 +268,7 @@ impl Found<'_> {
 /// A deterministic addition: component `c`, the same signal `sig` in every replica.
 fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
     Proposal {
+        also: None,
         kind: kind.into(),
         params: params_json(&c),
         component: c,

@@ -75,6 +75,7 @@ pub(super) fn power_law(
     }
     let comp = scaled(&unit_c, c).expect("noise kinds scale");
     out.push(Proposal {
+        also: None,
         kind: kind.as_str().into(),
         params: params_json(&comp),
         component: comp,
@@ -130,6 +131,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                 grid[grid.len() - 1],
             );
             out.push(Proposal {
+                also: None,
                 kind: "gauss_markov".into(),
                 params,
                 component: comp,

@@ -97,6 +97,7 @@ fn estimate_outliers(cx: &Context) -> Result<Option<Proposal>> {
     let comp = Component::Outliers { rate_hz, scale };
     let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
     Ok(Some(Proposal {
+        also: None,
         kind: "outliers".into(),
         params: params_json(&comp),
         component: comp,

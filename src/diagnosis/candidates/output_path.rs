@@ -72,6 +72,10 @@ pub const FILTER_MIN_DEVIANCE: f64 = 50.0;
 /// the rounding noise over the rate form).
 pub const ORDER2_MIN_DEVIANCE: f64 = 10.0;
 
+/// Smallest relative change of the white noise's n for the joint candidate (output
+/// filter with the white noise refitted) to be offered beside the filter alone.
+pub const JOINT_MIN_CHANGE: f64 = 0.05;
+
 /// The highest PSD bin a bilinear filter's fit reads, as a share of the Nyquist
 /// frequency (see [`filter_fits`]).
 pub const BILINEAR_TOP_SHARE: f64 = 0.9;
@@ -730,10 +734,23 @@ pub fn proposals(
     let lsb = grid
         .as_ref()
         .filter(|g| !g.decimal && g.levels as f64 <= 0.01 * x.len() as f64);
-    let mut offer = |c: Component, note: String| {
+    // the spec's white noise, which a joint candidate refits before the filter
+    let white = comps.iter().enumerate().find_map(|(k, c)| match c {
+        Component::WhiteNoise { n } if *n > 0.0 => Some((k, *n)),
+        _ => None,
+    });
+    let mut offer_also = |c: Component, note: String, also: Option<(usize, Component, Delta)>| {
+        let mut params = params_json(&c);
+        if let (Some((k, Component::WhiteNoise { n }, _)), serde_json::Value::Object(m)) =
+            (&also, &mut params)
+        {
+            m.insert("white_noise_n".into(), serde_json::json!(n));
+            m.insert("white_noise_component".into(), serde_json::json!(k + 1));
+        }
         sink(Proposal {
+            also,
             kind: c.kind().as_str().into(),
-            params: params_json(&c),
+            params,
             component: c,
             replaces: None,
             delta: Delta::Same(Vec::new()),
@@ -742,7 +759,7 @@ pub fn proposals(
     };
     if let (Some(g), true, false) = (lsb, grid_seen, has(Kind::OutputResolution)) {
         for on_angle in [false, true] {
-            offer(
+            offer_also(
                 Component::OutputResolution {
                     quantum: g.quantum,
                     on_angle,
@@ -753,6 +770,7 @@ pub fn proposals(
                     g.levels,
                     if on_angle { "integrated angle" } else { "rate" }
                 ),
+                None,
             );
         }
     }
@@ -777,7 +795,48 @@ pub fn proposals(
                     continue;
                 }
                 found += 1;
-                offer(
+                let filter = Component::OutputFilter {
+                    order: f.order,
+                    bandwidth_hz: f.bandwidth_hz,
+                    damping: f.damping,
+                    discretization: disc,
+                };
+                // the joint candidate: the white noise refitted to the fit's level W
+                // before the filter, n = sqrt(W / 2) (white noise n [u sqrt(s)] has the
+                // one-sided PSD 2 n^2 whatever the rate; the spec's other components
+                // are taken as red, their part of the bins above the roll-off's start
+                // being the fit's red part), when it moves n by more than
+                // JOINT_MIN_CHANGE: a datasheet's ARW is read on the filtered output,
+                // so the filter alone would lower the output's level
+                if let Some((k, n)) = white {
+                    let s = (f.white_psd / 2.0).sqrt() / n;
+                    if s.is_finite() && (s - 1.0).abs() > JOINT_MIN_CHANGE {
+                        let delta = Delta::Each(
+                            cx.parts
+                                .iter()
+                                .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
+                                .collect(),
+                        );
+                        offer_also(
+                            filter.clone(),
+                            format!(
+                                "order {} ({}) fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{}, with the white noise before it refitted to the fitted level: n = {} (factor {})",
+                                f.order,
+                                disc.as_str(),
+                                (100.0 * band.top_share).round(),
+                                if band.log_weight {
+                                    ", bins weighted by 1 / f"
+                                } else {
+                                    ""
+                                },
+                                crate::fmt::num(n * s),
+                                crate::fmt::num(s)
+                            ),
+                            Some((k, Component::WhiteNoise { n: n * s }, delta)),
+                        );
+                    }
+                }
+                offer_also(
                     Component::OutputFilter {
                         order: f.order,
                         bandwidth_hz: f.bandwidth_hz,
@@ -796,6 +855,7 @@ pub fn proposals(
                         },
                         crate::fmt::num(f.deviance)
                     ),
+                    None,
                 );
             }
         }
@@ -812,12 +872,13 @@ pub fn proposals(
     if !has(Kind::Saturation)
         && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
     {
-        offer(
+        offer_also(
             Component::Saturation { limit: c.limit },
             format!(
                 "the training values pile at the extreme(s) {}: clipped there",
                 crate::fmt::num(c.limit)
             ),
+            None,
         );
     }
     Ok(skipped)

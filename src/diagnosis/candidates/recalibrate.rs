@@ -55,6 +55,7 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, out: &mut Found) -> Resul
             m.insert("component".into(), json!(k + 1));
         }
         out.push(Proposal {
+            also: None,
             kind,
             params,
             component: comp,

@@ -206,6 +206,7 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
     let comp = Component::Heteroskedastic { of, slope };
     let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
     Ok(Some(Proposal {
+        also: None,
         kind: "heteroskedastic".into(),
         params: params_json(&comp),
         component: comp,
