@@ -470,3 +470,94 @@ fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
         );
     }
 }
+
+#[test]
+fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
+    use farma::simulator::Discretization;
+    // the base spec's sensor writing its rate through the bilinear first-order
+    // Butterworth of filter-design tools at 1.5 Hz (10 Hz samples): the zero-order
+    // hold's family lacks its zero at the Nyquist frequency
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::OutputFilter {
+        order: 1,
+        bandwidth_hz: 1.5,
+        damping: None,
+        discretization: Discretization::Bilinear,
+    });
+    let case = Case {
+        expect: "output_filter".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 8, 12);
+    assert_eq!(
+        d.steps.first().map(|s| s.kind.as_str()),
+        Some("output_filter"),
+        "{:?}",
+        d.steps
+    );
+    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    assert_eq!(f.params["discretization"], "bilinear", "{}", f.params);
+    let bw = f.params["bandwidth_hz"].as_f64().unwrap();
+    // order 1 at 1.5 Hz, or the order-2 form that matches it as closely
+    if f.params["order"] == 1 {
+        assert!((bw / 1.5 - 1.0).abs() < 0.1, "{}", f.params);
+    }
+    assert!(
+        d.explained,
+        "gap {} -> {} (threshold {})",
+        d.gap_before, d.gap_after, d.gap_threshold
+    );
+}
+
+#[test]
+fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
+    // the spec gives the white noise the sensor's filtered output shows (as a datasheet's
+    // ARW is); the truth is a larger white noise through a first-order filter at 2 Hz
+    // (10 Hz samples): the filter alone would lower the level further, the joint
+    // candidate refits the level before it
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components[0] = Component::WhiteNoise { n: 0.014 };
+    truth.channels[0].components.push(Component::OutputFilter {
+        order: 1,
+        bandwidth_hz: 2.0,
+        damping: None,
+        discretization: Default::default(),
+    });
+    let case = Case {
+        expect: "output_filter".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 9, 12);
+    assert_eq!(
+        d.steps.first().map(|s| s.kind.as_str()),
+        Some("output_filter"),
+        "{:?}",
+        d.steps
+    );
+    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    let n = f.params["white_noise_n"]
+        .as_f64()
+        .expect("the joint candidate");
+    assert!((n / 0.014 - 1.0).abs() < 0.1, "{}", f.params);
+    if f.params["order"] == 1 && f.params["discretization"] == "zoh" {
+        let bw = f.params["bandwidth_hz"].as_f64().unwrap();
+        assert!((bw / 2.0 - 1.0).abs() < 0.1, "{}", f.params);
+    }
+    // the spec after holds the refitted level and the filter
+    let comps = &d.spec_after.channels[0].components;
+    assert!(
+        comps
+            .iter()
+            .any(|c| matches!(c, Component::WhiteNoise { n } if (n / 0.014 - 1.0).abs() < 0.1)),
+        "{comps:?}"
+    );
+    assert!(
+        d.explained,
+        "gap {} -> {} (threshold {})",
+        d.gap_before, d.gap_after, d.gap_threshold
+    );
+}
