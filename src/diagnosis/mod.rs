@@ -848,6 +848,10 @@ struct Slot {
     /// An output-path component: it changes no sum, only the path every sum goes
     /// through.
     path: bool,
+    /// For an effect that also rescaled a spec component ([`Proposal::rescales`]): that
+    /// component's index and the component before (its signal's change is in the
+    /// slot's own).
+    rescaled: Option<(usize, Component)>,
 }
 
 /// Replica r's signal of component k in `parts` ([`State::parts`]): its own, or
@@ -871,10 +875,26 @@ fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
         .collect()
 }
 
-/// A slot can be taken back unless a later one replaced the same component (in
-/// either fold).
+/// A slot can be taken back unless a later one replaced or rescaled the component it
+/// sits in or one it rescaled (in either fold).
 fn removable(slots: &[[Slot; 2]], i: usize) -> bool {
-    (0..2).all(|f| removable_comp(&slots.iter().map(|s| s[f].comp).collect::<Vec<_>>(), i))
+    (0..2).all(|f| {
+        let changed = |s: &Slot| {
+            let mut c = vec![];
+            if s.replaced.is_some() {
+                c.push(s.comp);
+            }
+            c.extend(s.rescaled.as_ref().map(|r| r.0));
+            c
+        };
+        // the component it sits in (added or replaced) and the one it rescaled
+        let mut mine = vec![slots[i][f].comp];
+        mine.extend(slots[i][f].rescaled.as_ref().map(|r| r.0));
+        removable_comp(&slots.iter().map(|s| s[f].comp).collect::<Vec<_>>(), i)
+            && slots[i + 1..]
+                .iter()
+                .all(|s| changed(&s[f]).iter().all(|c| !mine.contains(c)))
+    })
 }
 
 /// In one fold, whose slots hold components `comps`: slot `i` can be taken back.
@@ -886,6 +906,9 @@ fn removable_comp(comps: &[usize], i: usize) -> bool {
 /// appended (or put in place of the one it replaces); returns where it sits.
 fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
     let path = p.component.kind().is_output_path();
+    let rescaled = p
+        .rescales
+        .map(|(k, c)| (k, std::mem::replace(&mut st.spec.channels[channel].components[k], c)));
     for (r, t) in st.target.iter_mut().enumerate() {
         for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
             *a += v;
@@ -914,6 +937,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
                 comp: k,
                 replaced: Some((old, p.delta)),
                 path,
+                rescaled,
             }
         }
         None => {
@@ -930,6 +954,7 @@ fn apply(st: &mut State, channel: usize, p: Proposal) -> Slot {
                 comp: st.spec.channels[channel].components.len() - 1,
                 replaced: None,
                 path,
+                rescaled,
             }
         }
     };
@@ -957,6 +982,9 @@ fn take_back<'a>(
             *a -= v;
         }
     }
+    if let Some((k, old)) = s.rescaled {
+        st.spec.channels[channel].components[k] = old;
+    }
     match s.replaced {
         Some((old, d)) => {
             st.spec.channels[channel].components[s.comp] = old;
@@ -977,6 +1005,11 @@ fn take_back<'a>(
             for o in rest {
                 if o.comp > s.comp {
                     o.comp -= 1;
+                }
+                if let Some((k, _)) = o.rescaled.as_mut()
+                    && *k > s.comp
+                {
+                    *k -= 1;
                 }
             }
         }
@@ -1056,6 +1089,7 @@ mod tests {
             kind: component.kind().as_str().into(),
             component,
             replaces,
+            rescales: None,
             params: Value::Null,
             delta,
             note: String::new(),

@@ -666,6 +666,7 @@ pub fn proposals(
             params: params_json(&c),
             component: c,
             replaces: None,
+            rescales: None,
             delta: Delta::Same(Vec::new()),
             note,
         })
