@@ -169,10 +169,12 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         / n as f64;
     let mut truth = bank::base_spec(rate_hz, true);
     truth.channels[0].components[0] = Component::WhiteNoise { n: 0.02 };
-    truth.channels[0].components.push(Component::Heteroskedastic {
-        of: Kind::WhiteNoise,
-        slope: k,
-    });
+    truth.channels[0]
+        .components
+        .push(Component::Heteroskedastic {
+            of: Kind::WhiteNoise,
+            slope: k,
+        });
     let mut spec = bank::base_spec(rate_hz, true);
     spec.channels[0].components[0] = Component::WhiteNoise {
         n: 0.02 * ms.sqrt(),
@@ -180,7 +182,11 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
     let mut req = SimRequest::new(n, rate_hz);
     req.temperature_c = Some(&temp);
     req.seed = Some(515);
-    let x = simulate(&truth, &req).unwrap().channel(CHANNEL).unwrap().to_vec();
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
     let real = RealLog {
         channel: CHANNEL.into(),
         x: &x,
@@ -201,7 +207,11 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         Some("heteroskedastic"),
         "added {kinds:?}"
     );
-    let h = d.added.iter().find(|e| e.kind == "heteroskedastic").unwrap();
+    let h = d
+        .added
+        .iter()
+        .find(|e| e.kind == "heteroskedastic")
+        .unwrap();
     let f = h.params["level_factor"].as_f64().unwrap();
     let want = 1.0 / ms.sqrt();
     assert!((f - want).abs() < 0.05 * want, "level {f} vs {want}");

@@ -211,8 +211,7 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         d
     };
     let dt: Vec<f64> = tp.t_c.iter().map(|t| t - tm).collect();
-    let Some((slope, v_mod)) = heteroskedastic_form(&d2, &dt, (total - v).max(0.0), &ranges)
-    else {
+    let Some((slope, v_mod)) = heteroskedastic_form(&d2, &dt, (total - v).max(0.0), &ranges) else {
         return Ok(None);
     };
     let f = (v_mod / v).sqrt();
@@ -286,8 +285,7 @@ mod tests {
                 })
                 .collect();
             let ranges = vec![std::ops::Range { start: 1, end: n }];
-            let (got, v_mod) =
-                heteroskedastic_form(&d2, &dt, 2.0 * (1.0 - phi), &ranges).unwrap();
+            let (got, v_mod) = heteroskedastic_form(&d2, &dt, 2.0 * (1.0 - phi), &ranges).unwrap();
             // 2 %, 5 % where the modulated noise carries a quarter of the variance
             let tol = if g < 1.0 { 0.05 } else { 0.02 };
             assert!((got - k).abs() < tol * k, "phi {phi} g {g}: {got} vs {k}");
