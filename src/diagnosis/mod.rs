@@ -115,6 +115,10 @@ pub struct Effect {
     pub contribution: Option<f64>,
     /// For an added effect: the search step (1-based) that added it.
     pub step: Option<usize>,
+    /// Parameters of either fold's estimate that stopped at an end of their search
+    /// range (`at_search_edge`): bounds, not estimates.
+    #[serde(skip)]
+    pub at_edge: Vec<String>,
     #[serde(skip)]
     pub component: Component,
     #[serde(skip)]
@@ -706,23 +710,39 @@ pub fn diagnose_with_progress(
     // each kept effect's share of the final joint model, the ranking reported
     pb.set_position(max_rounds as u64 + 1);
     pb.set_message("contributions");
+    // and, for the verdict, the gap without it and the jackknife sd of that difference
+    let f_final = (!added.is_empty()).then(|| {
+        feats_of(
+            [&sts[0].target, &sts[1].target],
+            [None, None],
+            [&sts[0].path, &sts[1].path],
+        )
+    });
+    let mut support = Vec::with_capacity(added.len());
     for i in 0..added.len() {
         let f = feats_without(&sts, &slots[i]);
         let (g, _, _) = score(&f);
         added[i].contribution = Some(1.0 - gap_now / g);
+        let sd = f_final
+            .as_ref()
+            .map(|ff| jackknife_sd(&f, ff, &real_feats, &ens_before, &defs))
+            .unwrap_or(0.0);
+        support.push(Support {
+            kind: added[i].kind.clone(),
+            gap_without: g,
+            sd,
+            at_edge: added[i].at_edge.clone(),
+        });
+    }
+    let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support);
+    if let Some(w) = why_not {
+        notes.push(w);
     }
     added.sort_by(|a, b| {
         b.contribution
             .unwrap_or(0.0)
             .total_cmp(&a.contribution.unwrap_or(0.0))
     });
-    let explained = gap_now <= cal.gap_threshold;
-    if !explained {
-        notes.push(format!(
-            "unexplained: the gap after {:.3} is above the threshold {:.3}; no candidate explains the regions that remain (where_after)",
-            gap_now, cal.gap_threshold
-        ));
-    }
     let z1 = ens_now.z(&real_feats);
     let where_after = distance::regions(&z1, &real_feats, &ens_now, &defs, &cal);
     let pen1 = ens_now.spread_penalty(&ens_before);
@@ -754,6 +774,61 @@ pub fn diagnose_with_progress(
         seed,
         notes,
     })
+}
+
+/// What an added effect brings to the final model, for [`verdict`].
+struct Support {
+    kind: String,
+    /// The final gap with this effect taken back (the others kept).
+    gap_without: f64,
+    /// Jackknife sd over the replicas of gap_without - the final gap ([`jackknife_sd`]).
+    sd: f64,
+    /// Its parameters at an end of their search range in either fold.
+    at_edge: Vec<String>,
+}
+
+/// Whether the added effects explain the log, and why not. The gap after must be within
+/// the threshold, and every effect the explanation rests on must be established: an
+/// effect without which the gap would be above the threshold must (a) lower it by more
+/// than two jackknife sd of the difference, else the ensemble cannot tell the
+/// explanation from one without it (a random walk and a temperature drift that
+/// together stand in for a bias step, each barely helping), and (b) have estimates in
+/// both folds, not a parameter stopped at an end of its search range: a bound says the
+/// log asks for what the candidate's form cannot give (a Gauss-Markov with its
+/// correlation time at the longest Allan cluster, standing in for a random telegraph
+/// bias), so an effect outside the candidates is as likely. An effect the gap does not
+/// need (the gap within the threshold without it) is not judged.
+fn verdict(gap: f64, threshold: f64, support: &[Support]) -> (bool, Option<String>) {
+    if gap > threshold {
+        return (
+            false,
+            Some(format!(
+                "unexplained: the gap after {gap:.3} is above the threshold {threshold:.3}; no candidate explains the regions that remain (where_after)"
+            )),
+        );
+    }
+    for s in support.iter().filter(|s| s.gap_without > threshold) {
+        if s.gap_without - gap <= 2.0 * s.sd {
+            return (
+                false,
+                Some(format!(
+                    "not explained: the gap {gap:.3} is within the threshold {threshold:.3} only with {}, whose share (the gap {:.3} without it) is within two jackknife sd ({:.3}) of the replicas: not established; an effect outside the candidates is as likely",
+                    s.kind, s.gap_without, s.sd
+                )),
+            );
+        }
+        if !s.at_edge.is_empty() {
+            return (
+                false,
+                Some(format!(
+                    "not explained: the gap {gap:.3} is within the threshold {threshold:.3} only with {}, whose {} stopped at an end of the search range (a bound, not an estimate): an effect outside the candidates is as likely",
+                    s.kind,
+                    s.at_edge.join(", ")
+                )),
+            );
+        }
+    }
+    (true, None)
 }
 
 /// Per replica, per component of the target channel, its signal.
@@ -859,6 +934,17 @@ impl Round {
             families,
             contribution: None,
             step: None,
+            at_edge: {
+                let mut v: Vec<String> = Vec::new();
+                for q in &p {
+                    if let Some(Value::Array(a)) = q.params.get("at_search_edge") {
+                        v.extend(a.iter().filter_map(|x| x.as_str().map(String::from)));
+                    }
+                }
+                v.sort();
+                v.dedup();
+                v
+            },
             component: p0.component.clone(),
             replaces: p0.replaces,
         };
@@ -891,6 +977,10 @@ struct Slot {
     /// The second change of a joint candidate (a replacement), made and taken back
     /// with this one.
     also: Option<Box<Slot>>,
+    /// For an effect that also rescaled a spec component ([`Proposal::rescales`]): that
+    /// component's index and the component before (its signal's change is in the
+    /// slot's own).
+    rescaled: Option<(usize, Component)>,
 }
 
 /// Replica r's signal of component k in `parts` ([`State::parts`]): its own, or
@@ -914,19 +1004,28 @@ fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
         .collect()
 }
 
-/// A slot can be taken back unless a later one replaced the same component (in
-/// either fold).
+/// A slot can be taken back unless a later one replaced or rescaled the component it
+/// sits in or one it rescaled (in either fold).
 fn removable(slots: &[[Slot; 2]], i: usize) -> bool {
     (0..2).all(|f| {
-        let comps: Vec<usize> = slots.iter().map(|s| s[f].comp).collect();
-        // the component a joint slot's second change replaced, too
-        let also = |s: &Slot| s.also.as_ref().map(|a| a.comp);
-        removable_comp(&comps, i)
-            && also(&slots[i][f]).is_none_or(|k| {
-                slots[i + 1..]
-                    .iter()
-                    .all(|s| s[f].comp != k && also(&s[f]) != Some(k))
-            })
+        // the components a slot changed: the one it replaced, the one it rescaled and
+        // the one a joint slot's second change replaced
+        let changed = |s: &Slot| {
+            let mut c = vec![];
+            if s.replaced.is_some() {
+                c.push(s.comp);
+            }
+            c.extend(s.rescaled.as_ref().map(|r| r.0));
+            c.extend(s.also.as_ref().map(|a| a.comp));
+            c
+        };
+        // the component it sits in (added or replaced) and the ones it changed
+        let mut mine = vec![slots[i][f].comp];
+        mine.extend(changed(&slots[i][f]));
+        removable_comp(&slots.iter().map(|s| s[f].comp).collect::<Vec<_>>(), i)
+            && slots[i + 1..]
+                .iter()
+                .all(|s| changed(&s[f]).iter().all(|c| !mine.contains(c)))
     })
 }
 
@@ -951,10 +1050,17 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
                 params: serde_json::Value::Null,
                 delta,
                 note: String::new(),
+                rescales: None,
             },
         ))
     });
     let path = p.component.kind().is_output_path();
+    let rescaled = p.rescales.map(|(k, c)| {
+        (
+            k,
+            std::mem::replace(&mut st.spec.channels[channel].components[k], c),
+        )
+    });
     for (r, t) in st.target.iter_mut().enumerate() {
         for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
             *a += v;
@@ -984,6 +1090,7 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
                 replaced: Some((old, p.delta)),
                 path,
                 also,
+                rescaled,
             }
         }
         None => {
@@ -1001,6 +1108,7 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
                 replaced: None,
                 path,
                 also,
+                rescaled,
             }
         }
     };
@@ -1033,6 +1141,9 @@ fn take_back<'a>(
             *a -= v;
         }
     }
+    if let Some((k, old)) = s.rescaled {
+        st.spec.channels[channel].components[k] = old;
+    }
     match s.replaced {
         Some((old, d)) => {
             st.spec.channels[channel].components[s.comp] = old;
@@ -1053,6 +1164,16 @@ fn take_back<'a>(
             for o in rest {
                 if o.comp > s.comp {
                     o.comp -= 1;
+                }
+                if let Some((k, _)) = o.rescaled.as_mut()
+                    && *k > s.comp
+                {
+                    *k -= 1;
+                }
+                if let Some(a) = o.also.as_mut()
+                    && a.comp > s.comp
+                {
+                    a.comp -= 1;
                 }
             }
         }
@@ -1133,10 +1254,51 @@ mod tests {
             kind: component.kind().as_str().into(),
             component,
             replaces,
+            rescales: None,
             params: Value::Null,
             delta,
             note: String::new(),
         }
+    }
+
+    fn support(gap_without: f64, sd: f64, at_edge: &[&str]) -> Support {
+        Support {
+            kind: "k".into(),
+            gap_without,
+            sd,
+            at_edge: at_edge.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn the_verdict_needs_every_effect_the_gap_rests_on_established() {
+        // above the threshold: not explained whatever the effects
+        assert!(!verdict(1.5, 1.3, &[support(4.0, 0.1, &[])]).0);
+        // nothing added, within the threshold
+        assert_eq!(verdict(1.0, 1.3, &[]), (true, None));
+        // a clear share
+        assert!(verdict(1.2, 1.3, &[support(4.0, 0.3, &[])]).0);
+        // needed (1.36 > 1.3) but within 2 sd (0.09 <= 0.107): not established
+        let (ok, why) = verdict(
+            1.27,
+            1.3,
+            &[support(4.0, 0.3, &[]), support(1.36, 0.0535, &[])],
+        );
+        assert!(!ok && why.unwrap().contains("jackknife"));
+        // within 2 sd but not needed (the gap within the threshold without it)
+        assert!(verdict(1.2, 1.3, &[support(1.25, 0.1, &[])]).0);
+        // needed, clear, but its parameter is a bound
+        let (ok, why) = verdict(1.34, 1.37, &[support(2.15, 0.1, &["tau_s"])]);
+        assert!(!ok && why.unwrap().contains("tau_s"));
+        // a bound on an effect the gap does not need is not judged
+        assert!(
+            verdict(
+                1.0,
+                1.37,
+                &[support(4.0, 0.3, &[]), support(1.1, 0.1, &["tau_s"])]
+            )
+            .0
+        );
     }
 
     #[test]

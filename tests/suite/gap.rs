@@ -147,6 +147,94 @@ fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
     assert!((windows.last().unwrap().1 - n as f64 / 10.0).abs() < 1e-9);
 }
 
+/// A heteroskedastic white noise whose spec gives its RMS level over the log: the
+/// simulator's scale 1 + k (T - Tm) has a mean of 1 but a mean square of
+/// 1 + k^2 var(T) (1.32 here, +-10 degC and k = 0.08), so the scale added at the spec's
+/// level simulates a noise 15 % louder than the log, a gap larger than the one it
+/// closes, and nothing was added. The candidate sets the level along with the slope.
+#[test]
+fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
+    use farma::simulator::{Kind, SimRequest, simulate};
+    let rate_hz = 10.0;
+    let n = 36_000;
+    let temp: Vec<f64> = (0..n)
+        .map(|k| 20.0 + 10.0 * (std::f64::consts::TAU * k as f64 / rate_hz / 1800.0).sin())
+        .collect();
+    let k = 0.08;
+    let tm = temp.iter().sum::<f64>() / n as f64;
+    let ms = temp
+        .iter()
+        .map(|t| (1.0 + k * (t - tm)).max(0.0).powi(2))
+        .sum::<f64>()
+        / n as f64;
+    let mut truth = bank::base_spec(rate_hz, true);
+    truth.channels[0].components[0] = Component::WhiteNoise { n: 0.02 };
+    truth.channels[0]
+        .components
+        .push(Component::Heteroskedastic {
+            of: Kind::WhiteNoise,
+            slope: k,
+        });
+    let mut spec = bank::base_spec(rate_hz, true);
+    spec.channels[0].components[0] = Component::WhiteNoise {
+        n: 0.02 * ms.sqrt(),
+    };
+    let mut req = SimRequest::new(n, rate_hz);
+    req.temperature_c = Some(&temp);
+    req.seed = Some(515);
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz,
+        temperature_c: Some(&temp),
+        others: vec![],
+        spec_dir: None,
+    };
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    assert!(d.gap_before > d.gap_threshold, "{}", d.gap_before);
+    assert_eq!(
+        d.steps.first().map(|s| s.kind.as_str()),
+        Some("heteroskedastic"),
+        "added {kinds:?}"
+    );
+    let h = d
+        .added
+        .iter()
+        .find(|e| e.kind == "heteroskedastic")
+        .unwrap();
+    let f = h.params["level_factor"].as_f64().unwrap();
+    let want = 1.0 / ms.sqrt();
+    assert!((f - want).abs() < 0.05 * want, "level {f} vs {want}");
+    let slope = h.params["slope"].as_f64().unwrap();
+    assert!((slope - k).abs() < 0.1 * k, "slope {slope}");
+    assert!(
+        d.gap_after <= d.gap_threshold,
+        "gap after {} > {} ({kinds:?})",
+        d.gap_after,
+        d.gap_threshold
+    );
+    // the spec after carries the level: its white noise is the truth's
+    let n_after = d.spec_after.channels[0]
+        .components
+        .iter()
+        .find_map(|c| match c {
+            Component::WhiteNoise { n } => Some(*n),
+            _ => None,
+        })
+        .unwrap();
+    assert!((n_after - 0.02).abs() < 0.05 * 0.02, "n after {n_after}");
+}
+
 fn farma(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_farma"))
         .args(args)

@@ -33,6 +33,7 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
                 params: params_json(&comp),
                 component: comp,
                 replaces: None,
+                rescales: None,
                 delta: Delta::Each(u),
                 note: format!("regression of the differences on those of '{name}'"),
             });

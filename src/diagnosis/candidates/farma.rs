@@ -110,6 +110,7 @@ pub(super) fn farma(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> 
         params: params_json(&comp),
         component: comp,
         replaces: Some(k),
+        rescales: None,
         delta: Delta::Each(delta),
         note: format!(
             "FARMA({p},{q},1) fitted to the training blocks of the training residual, f_m as polynomials of degree <= {MAX_DEGREE}, in place of the arma component"

@@ -28,9 +28,10 @@
 //!   maximum; the excess count over the ensemble's gives the rate, and the mean square
 //!   of the spikes, read as a normal sample truncated at the threshold
 //!   (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale and the share detected;
-//! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm gives
-//!   E[d^2] = a (1 + 2 phi slope (T - Tm)) to first order, phi being the share of the
-//!   modulated component in the variance of d (from the ensemble);
+//! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm and
+//!   (T - Tm)^2 gives E[d^2] = v_other + v_mod (1 + slope (T - Tm))^2, v_other being
+//!   the other components' variance of d (from the ensemble): the slope and the
+//!   modulated component's level (rescaled with the scale added);
 //! - cross_axis: gain = cov(d_x, d_o) / var(d_o) over the training part, for each other
 //!   channel o of the spec present in the log.
 //!
@@ -104,6 +105,10 @@ pub struct Proposal {
     /// The component added, or the replacement of component `replaces`.
     pub component: Component,
     pub replaces: Option<usize>,
+    /// A component of the spec put in place of component `.0` along with the one
+    /// added (a heteroskedastic scale's level on the noise it modulates); the change of
+    /// its signal is in `delta`, with the added component's.
+    pub rescales: Option<(usize, Component)>,
     pub params: Value,
     pub delta: Delta,
     /// How the parameters were estimated.
@@ -273,6 +278,7 @@ fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
         params: params_json(&c),
         component: c,
         replaces: None,
+        rescales: None,
         delta: Delta::Same(sig),
         note,
     }

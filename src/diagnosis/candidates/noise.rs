@@ -80,6 +80,7 @@ pub(super) fn power_law(
         params: params_json(&comp),
         component: comp,
         replaces: None,
+        rescales: None,
         delta: Delta::Each({
             for e in u.iter_mut().flatten() {
                 *e *= c;
@@ -136,6 +137,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
                 params,
                 component: comp,
                 replaces: None,
+                rescales: None,
                 delta: Delta::Each(u),
                 note,
             });

@@ -102,6 +102,7 @@ fn estimate_outliers(cx: &Context) -> Result<Option<Proposal>> {
         params: params_json(&comp),
         component: comp,
         replaces: None,
+        rescales: None,
         delta: Delta::Each(u),
         note: format!(
             "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations"

@@ -753,6 +753,7 @@ pub fn proposals(
             params,
             component: c,
             replaces: None,
+            rescales: None,
             delta: Delta::Same(Vec::new()),
             note,
         })

@@ -60,6 +60,7 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, out: &mut Found) -> Resul
             params,
             component: comp,
             replaces: Some(k),
+            rescales: None,
             delta,
             note: if is_noise(c) {
                 "size factor from the training Allan variance".into()

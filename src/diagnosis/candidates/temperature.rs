@@ -5,12 +5,13 @@
 //! - thermal_rate: least squares on dT/dt for each smoothing of a grid, the best by
 //!   residual sum of squares;
 //! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm and
-//!   (T - Tm)^2 gives E[d^2] = a (1 + 2 phi k (T - Tm) + phi k^2 (T - Tm)^2) exactly
-//!   for the simulator's scale 1 + k (T - Tm), phi being the share of the modulated
-//!   component in the variance of d (from the ensemble).
+//!   (T - Tm)^2 gives E[d^2] = v_other + v_mod (1 + k (T - Tm))^2 exactly for the
+//!   simulator's scale 1 + k (T - Tm), v_other being the other components' variance
+//!   of d (from the ensemble): the slope k and the modulated component's level v_mod,
+//!   which the proposal sets along with the scale.
 
 use super::lsq::{ls, ls_full, shrink_ranges};
-use super::params::params_json;
+use super::params::{params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
 use crate::error::Result;
@@ -139,29 +140,36 @@ pub(super) fn heteroskedastic(
     Ok(())
 }
 
-/// The slope k of the simulator's scale 1 + k (T - Tm) (`thermal::scale`) from the
-/// squared differences `d2` and `dt` = T - Tm over `ranges`, for a modulated component
-/// that carries the share `phi` of the differences' variance at scale 1: with the
-/// scale on that component, E[d^2] = a + 2 phi a k dT + phi a k^2 dT^2 exactly (a the
-/// variance at dT = 0), so least squares of d^2 on 1, dT and dT^2 gives the intercept
-/// a and the linear coefficient c1, and k = c1 / (2 phi a). Leaving the dT^2 term out
-/// puts phi a k^2 mean(dT^2) into the intercept and biases k low (by about 10 % for
-/// k = 0.06 over +-10 degC). None when the regression is singular or a <= 0.
-fn heteroskedastic_slope(
+/// The slope k of the simulator's scale 1 + k (T - Tm) (`thermal::scale`) and the
+/// variance `v_mod` of the modulated component's differences at scale 1 (at T = Tm),
+/// from the squared differences `d2` and `dt` = T - Tm over `ranges`, the other
+/// components' differences having the variance `v_other` (from the ensemble): with the
+/// scale on the modulated component, E[d^2] = v_other + v_mod (1 + k dT)^2
+/// = a + 2 v_mod k dT + v_mod k^2 dT^2 exactly (a = v_other + v_mod), so least squares
+/// of d^2 on 1, dT and dT^2 gives the intercept a and the linear coefficient c1, and
+/// v_mod = a - v_other, k = c1 / (2 v_mod). Leaving the dT^2 term out puts
+/// v_mod k^2 mean(dT^2) into the intercept and biases k low (by about 10 % for k = 0.06
+/// over +-10 degC). v_mod is not the spec's: a spec whose level is the noise's RMS over
+/// the log (sqrt(mean s^2) times its level at Tm) would otherwise be simulated louder
+/// than the log by that factor once the scale is added. None when the regression is
+/// singular or v_mod <= 0.
+fn heteroskedastic_form(
     d2: &[f64],
     dt: &[f64],
-    phi: f64,
+    v_other: f64,
     ranges: &[std::ops::Range<usize>],
-) -> Option<f64> {
+) -> Option<(f64, f64)> {
     let dt2: Vec<f64> = dt.iter().map(|v| v * v).collect();
     let (b, _) = ls_full(d2, &[dt, &dt2], true, ranges)?;
-    let (a, c1) = (b[0], b[1]);
-    (a > 0.0).then(|| c1 / (2.0 * a * phi))
+    let v_mod = b[0] - v_other;
+    (v_mod > 0.0).then(|| (b[1] / (2.0 * v_mod), v_mod))
 }
 
 /// The heteroskedastic proposal for the noise component with the largest share of the
 /// variance of the differences (None: no such component, no regression, or a
-/// non-positive intercept).
+/// non-positive level): the scale's slope and, with it, that component's level
+/// rescaled by f = sqrt(v_mod / its variance of the differences in the ensemble)
+/// ([`heteroskedastic_form`]); the signal added is (f s_t - 1) times the component's.
 fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<Option<Proposal>> {
     let comps = &cx.spec.channels[cx.channel].components;
     let ranges = shrink_ranges(cx.ranges());
@@ -178,20 +186,23 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         }
         s / c.max(1.0)
     };
-    let total: f64 = cx.target.iter().map(|t| var_d(t)).sum::<f64>();
+    let m = cx.target.len().max(1) as f64;
+    let total: f64 = cx.target.iter().map(|t| var_d(t)).sum::<f64>() / m;
     let mut best: Option<(usize, f64)> = None;
     for (k, c) in comps.iter().enumerate() {
         if !c.kind().is_noise() || matches!(c, Component::Farma(_)) {
             continue;
         }
-        let v: f64 = cx.parts.iter().map(|p| var_d(&p[k])).sum::<f64>();
+        let v: f64 = cx.parts.iter().map(|p| var_d(&p[k])).sum::<f64>() / m;
         if best.is_none_or(|b| v > b.1) {
             best = Some((k, v));
         }
     }
     let Some((k, v)) = best else { return Ok(None) };
+    if v <= 0.0 {
+        return Ok(None);
+    }
     let of = comps[k].kind();
-    let phi = (v / total.max(f64::MIN_POSITIVE)).clamp(1e-6, 1.0);
     let d2: Vec<f64> = {
         let mut d = vec![0.0; cx.real.len()];
         for (t, v) in d.iter_mut().enumerate().skip(1) {
@@ -200,39 +211,58 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         d
     };
     let dt: Vec<f64> = tp.t_c.iter().map(|t| t - tm).collect();
-    let Some(slope) = heteroskedastic_slope(&d2, &dt, phi, &ranges) else {
+    let Some((slope, v_mod)) = heteroskedastic_form(&d2, &dt, (total - v).max(0.0), &ranges) else {
         return Ok(None);
     };
+    let f = (v_mod / v).sqrt();
     let comp = Component::Heteroskedastic { of, slope };
-    let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
+    let level = scaled(&comps[k], f).expect("noise kinds scale");
+    // (s - 1) x times f, plus (f - 1) x: (f s - 1) x
+    let mut u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
+    for (r, ur) in u.iter_mut().enumerate() {
+        let x = if r > 0 && cx.parts[r][k].is_empty() {
+            &cx.parts[0][k]
+        } else {
+            &cx.parts[r][k]
+        };
+        for (a, b) in ur.iter_mut().zip(x) {
+            *a = f * *a + (f - 1.0) * b;
+        }
+    }
+    let mut params = params_json(&comp);
+    params["level_factor"] = serde_json::json!(f);
     Ok(Some(Proposal {
         also: None,
         kind: "heteroskedastic".into(),
-        params: params_json(&comp),
+        params,
         component: comp,
         replaces: None,
+        rescales: Some((k, level)),
         delta: Delta::Each(u),
         note: format!(
-            "regression of the squared differences on temperature; {} carries {:.0} % of their variance",
+            "regression of the squared differences on temperature; {} carries {:.0} % of their variance in the ensemble, its level at the mean temperature rescaled by {f:.3}",
             of.as_str(),
-            100.0 * phi
+            100.0 * v / total.max(f64::MIN_POSITIVE)
         ),
     }))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{heteroskedastic_slope, with_reference};
+    use super::{heteroskedastic_form, with_reference};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::StandardNormal;
 
-    /// White noise scaled by 1 + k (T - Tm) under a sinusoidal temperature of +-10 degC
-    /// (the modulated component alone, phi = 1, and beside an unmodulated noise of the
-    /// same variance, phi = 1/2): k comes back within 2 %, where the first-order form
-    /// without the dT^2 term is about 10 % low.
+    /// White noise scaled by g (1 + k (T - Tm)) under a sinusoidal temperature of
+    /// +-10 degC (the modulated component alone, phi = 1, and beside an unmodulated
+    /// noise of the same variance, phi = 1/2; the level g at the spec's, 1, and below
+    /// it, 0.6): k comes back within 2 % (5 % at g = 0.6, where the modulated noise
+    /// carries a quarter of the variance), and the level's variance of the differences
+    /// 2 phi g^2 within 2 %, where the first-order form without the dT^2 term is about
+    /// 10 % low on k.
     #[test]
-    fn the_heteroskedastic_slope_is_recovered_in_the_simulators_form() {
+    fn the_heteroskedastic_slope_and_level_are_recovered_in_the_simulators_form() {
         let n = 400_000;
         let k = 0.06;
         let mut rng = ChaCha8Rng::seed_from_u64(11);
@@ -240,11 +270,11 @@ mod tests {
         let dt: Vec<f64> = (0..n)
             .map(|t| 10.0 * (std::f64::consts::TAU * t as f64 / 50_000.0).sin())
             .collect();
-        for phi in [1.0f64, 0.5] {
+        for (phi, g) in [(1.0f64, 1.0f64), (0.5, 1.0), (0.5, 0.6)] {
             let other = (1.0 - phi).sqrt();
             let x: Vec<f64> = dt
                 .iter()
-                .map(|d| phi.sqrt() * (1.0 + k * d) * normal() + other * normal())
+                .map(|d| g * phi.sqrt() * (1.0 + k * d) * normal() + other * normal())
                 .collect();
             let d2: Vec<f64> = (0..n)
                 .map(|t| {
@@ -256,16 +286,23 @@ mod tests {
                 })
                 .collect();
             let ranges = vec![std::ops::Range { start: 1, end: n }];
-            let got = heteroskedastic_slope(&d2, &dt, phi, &ranges).unwrap();
-            assert!((got - k).abs() < 0.02 * k, "phi {phi}: {got} vs {k}");
+            let (got, v_mod) = heteroskedastic_form(&d2, &dt, 2.0 * (1.0 - phi), &ranges).unwrap();
+            // 2 %, 5 % where the modulated noise carries a quarter of the variance
+            let tol = if g < 1.0 { 0.05 } else { 0.02 };
+            assert!((got - k).abs() < tol * k, "phi {phi} g {g}: {got} vs {k}");
+            let want = 2.0 * phi * g * g;
+            assert!(
+                (v_mod - want).abs() < 0.02 * want,
+                "phi {phi} g {g}: level {v_mod} vs {want}"
+            );
             // the first-order form: intercept = mean d^2 - c1 mean dT
             let (b, _) = super::ls(&d2, &[&dt], true, &ranges).unwrap();
             let mean = |v: &[f64]| v[1..].iter().sum::<f64>() / (n - 1) as f64;
             let a = mean(&d2) - b[0] * mean(&dt);
-            let first_order = b[0] / (2.0 * a * phi);
+            let first_order = b[0] / (2.0 * (a - 2.0 * (1.0 - phi)));
             assert!(
                 first_order < 0.95 * k,
-                "phi {phi}: first order {first_order}"
+                "phi {phi} g {g}: first order {first_order}"
             );
         }
     }
