@@ -409,7 +409,18 @@ pub fn propose_folds(
         .map(|cx| cx.spec.channels[cx.channel].components.len())
         .max()
         .unwrap_or(0);
+    let lacks = |cx: &Context, k: Kind| {
+        !cx.spec.channels[cx.channel]
+            .components
+            .iter()
+            .any(|c| c.kind() == k)
+    };
     for step in steps(n_comps) {
+        if matches!(step, Step::GaussMarkov) && cxs.iter().all(|cx| lacks(cx, Kind::GaussMarkov)) {
+            let [o0, o1] = &mut outs;
+            noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
+            continue;
+        }
         for f in 0..2 {
             run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
         }
@@ -492,21 +503,54 @@ mod tests {
         let others = vec![("y".to_string(), real[1].as_slice())];
         let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
         let trains = [true, false].map(|t| Layout::new(&blocks, t, 100.0, None, &names));
-        let specs = [
-            spec(vec![
-                Component::WhiteNoise { n: 0.05 },
-                Component::ConstantBias { value: 0.1 },
-            ]),
-            spec(vec![
-                Component::WhiteNoise { n: 0.04 },
-                Component::ConstantBias { value: 0.2 },
-                Component::BiasInstability {
-                    b: 0.01,
-                    tau_min_s: None,
-                    tau_max_s: None,
-                },
-            ]),
-        ];
+        let bi = |b: f64| Component::BiasInstability {
+            b,
+            tau_min_s: None,
+            tau_max_s: None,
+        };
+        // two states with as many components (the unit signals of an added component
+        // are the same in both: gauss_markov's grid is simulated once for both), and
+        // two with a different count
+        for specs in [
+            [
+                spec(vec![
+                    Component::WhiteNoise { n: 0.05 },
+                    Component::ConstantBias { value: 0.1 },
+                    bi(0.004),
+                ]),
+                spec(vec![
+                    Component::WhiteNoise { n: 0.04 },
+                    Component::ConstantBias { value: 0.2 },
+                    bi(0.01),
+                ]),
+            ],
+            [
+                spec(vec![
+                    Component::WhiteNoise { n: 0.05 },
+                    Component::ConstantBias { value: 0.1 },
+                ]),
+                spec(vec![
+                    Component::WhiteNoise { n: 0.04 },
+                    Component::ConstantBias { value: 0.2 },
+                    bi(0.01),
+                ]),
+            ],
+        ] {
+            two_folds_case(&specs, &sim, &real, &others, &trains, &names, m, n);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn two_folds_case(
+        specs: &[Spec; 2],
+        sim: &SimBase,
+        real: &[Vec<f64>],
+        others: &[(String, &[f64])],
+        trains: &[Layout; 2],
+        names: &[String],
+        m: usize,
+        n: usize,
+    ) {
         let ens: Vec<_> = specs
             .iter()
             .map(|sp| {
@@ -524,18 +568,18 @@ mod tests {
                     .into_iter()
                     .map(|p| p.into_iter().map(Arc::new).collect())
                     .collect();
-                (target, parts, sim.channels(sp, &names).unwrap())
+                (target, parts, sim.channels(sp, names).unwrap())
             })
             .collect();
         let cxs: Vec<Context> = (0..2)
             .map(|f| Context {
                 spec: &specs[f],
                 channel: 0,
-                sim: &sim,
+                sim,
                 train: &trains[f],
                 real: &real[0],
                 temperature: None,
-                others: &others,
+                others,
                 sim_others: &ens[f].2,
                 target: &ens[f].0,
                 parts: &ens[f].1,
@@ -551,6 +595,11 @@ mod tests {
             })
             .collect();
         assert!(alone.iter().all(|(g, _)| g.len() >= 5));
+        assert!(
+            alone
+                .iter()
+                .all(|(g, _)| g.iter().any(|p| p.starts_with("gauss_markov")))
+        );
         // both, step by step: the order in which the two sinks are handed proposals
         let order: RefCell<Vec<usize>> = RefCell::new(Vec::new());
         let mut got: [Vec<String>; 2] = Default::default();
