@@ -35,7 +35,8 @@ pub mod features;
 pub mod path;
 pub mod report;
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
+use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::ProgressBar;
@@ -194,8 +195,10 @@ struct State {
     /// Per replica, per component of the target channel, its signal; a signal that is
     /// the same in every replica (a deterministic component, an added `Delta::Same`)
     /// is held by replica 0 only, the others holding an empty vector ([`part`] reads
-    /// either); an output-path component's is empty in every replica.
-    parts: Vec<Vec<Vec<f64>>>,
+    /// either); an output-path component's is empty in every replica. The signals are
+    /// shared: the two folds' states hold the spec's components' signals once, and a
+    /// signal is copied only when one of its holders changes it.
+    parts: PartSignals,
     /// The output path every replica's sum goes through: the spec's output-path
     /// components (in it or added).
     path: PathStage,
@@ -307,7 +310,7 @@ pub fn diagnose_with_progress(
     for (k, c) in spec.channels[channel].components.iter().enumerate() {
         if ensemble::is_deterministic(c) {
             for p in parts.iter_mut().skip(1) {
-                p[k] = Vec::new();
+                p[k] = Arc::default();
             }
         }
     }
@@ -484,27 +487,26 @@ pub fn diagnose_with_progress(
             target: &sts[f].target,
             parts: &sts[f].parts,
         };
-        // fold 2's estimates are held until fold 1's of the same kind arrive; each pair
+        // fold 2's estimates are held until fold 1's of the same kind arrive (the two
+        // folds estimate step by step, so only one step's are held at once); each pair
         // is scored as it is complete, and only the best (with its signals) and the
         // runner-up's features are kept
-        let mut held: Vec<Proposal> = Vec::new();
-        let mut skipped = candidates::propose(&cx(1), &mut |p: Proposal| held.push(p))?;
-        skipped.extend(candidates::output_path::proposals(
-            &cx(1),
-            grid_seen,
-            &mut |p: Proposal| held.push(p),
-        )?);
+        let held: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
+        let mut hold = |p: Proposal| held.borrow_mut().push(p);
         let mut round = Round::default();
         let mut unpaired: Vec<String> = Vec::new();
         // fold 1's estimate meets fold 2's of the same kind and form; an output-path
         // candidate changes the path every sum goes through, any other adds its signal
         // to the sums
         let mut pair = |p: Proposal| {
-            let Some(i) = held.iter().position(|q| pair_key(q) == pair_key(&p)) else {
-                unpaired.push(p.kind);
-                return;
+            let q = {
+                let mut h = held.borrow_mut();
+                let Some(i) = h.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+                    unpaired.push(p.kind);
+                    return;
+                };
+                h.remove(i)
             };
-            let q = held.remove(i);
             pb.set_message(p.kind.clone());
             let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
@@ -537,7 +539,13 @@ pub fn diagnose_with_progress(
             let scored = score(&f);
             round.offer([p, q], f, scored, gap_now);
         };
-        let mut skipped1 = candidates::propose(&cx(0), &mut pair)?;
+        let [mut skipped, mut skipped1] =
+            candidates::propose_folds([&cx(1), &cx(0)], [&mut hold, &mut pair])?;
+        skipped.extend(candidates::output_path::proposals(
+            &cx(1),
+            grid_seen,
+            &mut hold,
+        )?);
         skipped1.extend(candidates::output_path::proposals(
             &cx(0),
             grid_seen,
@@ -549,7 +557,7 @@ pub fn diagnose_with_progress(
                 skipped.push(nt);
             }
         }
-        unpaired.extend(held.drain(..).map(|q| q.kind));
+        unpaired.extend(held.into_inner().into_iter().map(|q| q.kind));
         for kind in unpaired {
             if !skipped.iter().any(|s| s.kind == kind) {
                 skipped.push(NotTried {
@@ -832,7 +840,7 @@ fn verdict(gap: f64, threshold: f64, support: &[Support]) -> (bool, Option<Strin
 }
 
 /// Per replica, per component of the target channel, its signal.
-type PartSignals = Vec<Vec<Vec<f64>>>;
+type PartSignals = Vec<Vec<Arc<Vec<f64>>>>;
 
 /// Each replica's component signals of the target channel (an empty signal for an
 /// output-path component, which changes the path, not the sum) and their sum: the
@@ -851,12 +859,12 @@ fn pre_path_parts(
     let mut target = Vec::with_capacity(signals.len());
     for sig in signals {
         let mut sum = vec![0.0; sim.n_samples];
-        let mut p: Vec<Vec<f64>> = vec![Vec::new(); comps.len()];
+        let mut p: Vec<Arc<Vec<f64>>> = vec![Arc::default(); comps.len()];
         for (k, v) in summed.iter().zip(sig) {
             for (a, b) in sum.iter_mut().zip(&v) {
                 *a += b;
             }
-            p[*k] = v;
+            p[*k] = Arc::new(v);
         }
         parts.push(p);
         target.push(sum);
@@ -985,7 +993,7 @@ struct Slot {
 
 /// Replica r's signal of component k in `parts` ([`State::parts`]): its own, or
 /// replica 0's where it holds none of its own (a signal the same in every replica).
-fn part(parts: &[Vec<Vec<f64>>], r: usize, k: usize) -> &[f64] {
+fn part(parts: &[Vec<Arc<Vec<f64>>>], r: usize, k: usize) -> &[f64] {
     if r > 0 && parts[r][k].is_empty() {
         &parts[0][k]
     } else {
@@ -995,7 +1003,7 @@ fn part(parts: &[Vec<Vec<f64>>], r: usize, k: usize) -> &[f64] {
 
 /// Each replica's signal of slot `s`: its component's part, or the change a
 /// replacement made.
-fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Vec<f64>>]) -> Vec<&'a [f64]> {
+fn slot_signal<'a>(s: &'a Slot, parts: &'a [Vec<Arc<Vec<f64>>>]) -> Vec<&'a [f64]> {
     (0..parts.len())
         .map(|r| match &s.replaced {
             Some((_, d)) => d.get(r),
@@ -1081,7 +1089,7 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
                 if r > 0 && parts[k].is_empty() {
                     continue;
                 }
-                for (a, v) in parts[k].iter_mut().zip(p.delta.get(r)) {
+                for (a, v) in Arc::make_mut(&mut parts[k]).iter_mut().zip(p.delta.get(r)) {
                     *a += v;
                 }
             }
@@ -1097,11 +1105,11 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
             st.spec.channels[channel].components.push(p.component);
             let same = matches!(p.delta, candidates::Delta::Same(_));
             for (r, parts) in st.parts.iter_mut().enumerate() {
-                parts.push(if same && r > 0 {
+                parts.push(Arc::new(if same && r > 0 {
                     Vec::new()
                 } else {
                     p.delta.get(r).to_vec()
-                });
+                }));
             }
             Slot {
                 comp: st.spec.channels[channel].components.len() - 1,
@@ -1151,7 +1159,7 @@ fn take_back<'a>(
                 if r > 0 && parts[s.comp].is_empty() {
                     continue;
                 }
-                for (a, v) in parts[s.comp].iter_mut().zip(d.get(r)) {
+                for (a, v) in Arc::make_mut(&mut parts[s.comp]).iter_mut().zip(d.get(r)) {
                     *a -= v;
                 }
             }
@@ -1228,13 +1236,16 @@ mod tests {
             }],
         };
         // two replicas, three samples, two components
-        let parts = vec![
-            vec![vec![0.1, -0.2, 0.3], vec![0.5; 3]],
-            vec![vec![-0.4, 0.0, 0.25], vec![0.5; 3]],
-        ];
+        let parts: PartSignals = [
+            [vec![0.1, -0.2, 0.3], vec![0.5; 3]],
+            [vec![-0.4, 0.0, 0.25], vec![0.5; 3]],
+        ]
+        .into_iter()
+        .map(|p| p.into_iter().map(Arc::new).collect())
+        .collect();
         let target = parts
             .iter()
-            .map(|p: &Vec<Vec<f64>>| (0..3).map(|t| p[0][t] + p[1][t]).collect())
+            .map(|p| (0..3).map(|t| p[0][t] + p[1][t]).collect())
             .collect();
         State {
             spec,
@@ -1560,7 +1571,7 @@ mod tests {
     fn a_part_held_once_gets_a_copy_per_replica_when_changed_differently_in_each() {
         let mut st = state();
         // the constant bias, the same in both replicas, held once
-        st.parts[1][1] = Vec::new();
+        st.parts[1][1] = Arc::default();
         let each = vec![vec![0.1, 0.2, 0.3], vec![-0.1, -0.2, -0.3]];
         let mut slots = vec![apply(
             &mut st,

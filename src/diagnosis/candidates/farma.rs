@@ -102,7 +102,12 @@ pub(super) fn farma(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> 
     let delta: Vec<Vec<f64>> = new
         .into_iter()
         .enumerate()
-        .map(|(r, s)| s.iter().zip(&cx.parts[r][k]).map(|(a, b)| a - b).collect())
+        .map(|(r, s)| {
+            s.iter()
+                .zip(cx.parts[r][k].iter())
+                .map(|(a, b)| a - b)
+                .collect()
+        })
         .collect();
     out.push(Proposal {
         also: None,

@@ -141,7 +141,7 @@ pub struct Context<'a> {
     /// Per replica, the target channel's simulation.
     pub target: &'a [Vec<f64>],
     /// Per replica, per spec component of the target channel, its signal.
-    pub parts: &'a [Vec<Vec<f64>>],
+    pub parts: &'a [Vec<std::sync::Arc<Vec<f64>>>],
 }
 
 impl Context<'_> {
@@ -284,81 +284,360 @@ fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
     }
 }
 
+/// One step of [`propose`]: the estimation of one kind of effect (or of the
+/// recalibration of one component), in the order the steps are tried.
+#[derive(Clone, Debug)]
+enum Step {
+    ConstantBias,
+    RateRamp,
+    Warmup,
+    Sinusoid,
+    TemperatureBias,
+    ThermalRate,
+    Heteroskedastic,
+    PowerLaw(Kind, Component),
+    GaussMarkov,
+    Outliers,
+    CrossAxis,
+    Arma,
+    Farma,
+    /// Recalibration of the target channel's component with this index.
+    Recalibrate(usize),
+}
+
+/// The steps of [`propose`] for a target channel of `n_comps` components.
+fn steps(n_comps: usize) -> Vec<Step> {
+    let mut s = vec![
+        Step::ConstantBias,
+        Step::RateRamp,
+        Step::Warmup,
+        Step::Sinusoid,
+        Step::TemperatureBias,
+        Step::ThermalRate,
+        Step::Heteroskedastic,
+    ];
+    s.extend(
+        noise::unit_components()
+            .into_iter()
+            .map(|(k, c)| Step::PowerLaw(k, c)),
+    );
+    s.extend([
+        Step::GaussMarkov,
+        Step::Outliers,
+        Step::CrossAxis,
+        Step::Arma,
+        Step::Farma,
+    ]);
+    s.extend((0..n_comps).map(Step::Recalibrate));
+    s
+}
+
+/// Runs `step` for the state `cx`, handing what it estimates to `out`.
+fn run_step(cx: &Context, tr: &Training, step: &Step, out: &mut Found) -> Result<()> {
+    let comps = &cx.spec.channels[cx.channel].components;
+    let has = |k: Kind| comps.iter().any(|c| c.kind() == k);
+    let no_temperature = "the log has no temperature channel (temperature_channel in the spec)";
+    let tm = |tp: &Temperature| tp.t_c.iter().sum::<f64>() / tr.n as f64;
+    match step {
+        Step::ConstantBias if !has(Kind::ConstantBias) => {
+            deterministic::constant_bias(cx, tr, out);
+        }
+        Step::RateRamp if !has(Kind::RateRamp) => deterministic::rate_ramp(cx, tr, out)?,
+        Step::Warmup if !has(Kind::Warmup) => deterministic::warmup(cx, tr, out)?,
+        Step::Sinusoid if !has(Kind::Sinusoid) => deterministic::sinusoid(cx, tr, out)?,
+        Step::TemperatureBias | Step::ThermalRate | Step::Heteroskedastic => {
+            let (kind, k) = match step {
+                Step::TemperatureBias => ("temperature_bias", Kind::TemperatureBias),
+                Step::ThermalRate => ("thermal_rate", Kind::ThermalRate),
+                _ => ("heteroskedastic", Kind::Heteroskedastic),
+            };
+            match cx.temperature {
+                None => out.skip(kind, no_temperature),
+                Some(_) if has(k) => {}
+                Some(tp) => match step {
+                    Step::TemperatureBias => temperature::temperature_bias(cx, tr, tm(tp), out)?,
+                    Step::ThermalRate => temperature::thermal_rate(cx, tr, out)?,
+                    _ => temperature::heteroskedastic(cx, tp, tm(tp), out)?,
+                },
+            }
+        }
+        Step::PowerLaw(kind, unit_c) if !has(*kind) => {
+            noise::power_law(cx, tr, *kind, unit_c.clone(), out)?
+        }
+        Step::GaussMarkov if !has(Kind::GaussMarkov) => noise::gauss_markov(cx, tr, out)?,
+        Step::Outliers if !has(Kind::Outliers) => outliers::outliers(cx, out)?,
+        Step::CrossAxis if !has(Kind::CrossAxis) => cross_axis::cross_axis(cx, tr, out)?,
+        Step::Arma if !has(Kind::Arma) => out.skip(
+            "arma",
+            "not estimated as an added effect: fit the drift with `farma fit` and add the model",
+        ),
+        Step::Farma if !has(Kind::Farma) => farma::farma(cx, tr, out)?,
+        Step::Recalibrate(k) => recalibrate::recalibrate(cx, tr, *k, out)?,
+        _ => {}
+    }
+    Ok(())
+}
+
 /// Every candidate for the current state, each handed to `sink` as it is estimated;
 /// returns those not tried. Each kind of component the target channel lacks is tried
 /// as an addition, in this order, then every component it has is tried for
 /// recalibration.
 pub fn propose(cx: &Context, sink: &mut dyn FnMut(Proposal)) -> Result<Vec<NotTried>> {
-    let comps = &cx.spec.channels[cx.channel].components;
-    let has = |k: Kind| comps.iter().any(|c| c.kind() == k);
     let tr = Training::new(cx);
     let mut out = Found {
         sink,
         skipped: Vec::new(),
     };
-
-    // -- deterministic additions
-    if !has(Kind::ConstantBias) {
-        deterministic::constant_bias(cx, &tr, &mut out);
+    for step in steps(cx.spec.channels[cx.channel].components.len()) {
+        run_step(cx, &tr, &step, &mut out)?;
     }
-    if !has(Kind::RateRamp) {
-        deterministic::rate_ramp(cx, &tr, &mut out)?;
-    }
-    if !has(Kind::Warmup) {
-        deterministic::warmup(cx, &tr, &mut out)?;
-    }
-    if !has(Kind::Sinusoid) {
-        deterministic::sinusoid(cx, &tr, &mut out)?;
-    }
-    match cx.temperature {
-        None => {
-            for k in ["temperature_bias", "thermal_rate", "heteroskedastic"] {
-                out.skip(
-                    k,
-                    "the log has no temperature channel (temperature_channel in the spec)",
-                );
-            }
-        }
-        Some(tp) => {
-            let tm = tp.t_c.iter().sum::<f64>() / tr.n as f64;
-            if !has(Kind::TemperatureBias) {
-                temperature::temperature_bias(cx, &tr, tm, &mut out)?;
-            }
-            if !has(Kind::ThermalRate) {
-                temperature::thermal_rate(cx, &tr, &mut out)?;
-            }
-            if !has(Kind::Heteroskedastic) {
-                temperature::heteroskedastic(cx, tp, tm, &mut out)?;
-            }
-        }
-    }
-
-    // -- noise additions, from the training Allan variance
-    for (kind, unit_c) in noise::unit_components() {
-        if !has(kind) {
-            noise::power_law(cx, &tr, kind, unit_c, &mut out)?;
-        }
-    }
-    if !has(Kind::GaussMarkov) {
-        noise::gauss_markov(cx, &tr, &mut out)?;
-    }
-    if !has(Kind::Outliers) {
-        outliers::outliers(cx, &mut out)?;
-    }
-    if !has(Kind::CrossAxis) {
-        cross_axis::cross_axis(cx, &tr, &mut out)?;
-    }
-    if !has(Kind::Arma) {
-        out.skip(
-            "arma",
-            "not estimated as an added effect: fit the drift with `farma fit` and add the model",
-        );
-    }
-    if !has(Kind::Farma) {
-        farma::farma(cx, &tr, &mut out)?;
-    }
-
-    // -- recalibration of what the spec has
-    recalibrate::recalibrate(cx, &tr, &mut out)?;
     Ok(out.skipped)
+}
+
+/// [`propose`] for two states at once, step by step: each step runs for `cxs[0]`, then
+/// for `cxs[1]`, so that a caller pairing the two states' estimates of one kind holds
+/// the first state's only until the second's of the same step arrive (not all of
+/// them). Each state's proposals reach its sink in the order [`propose`] hands them,
+/// and its candidates not tried are the same; [`propose`] is its slow twin.
+pub fn propose_folds(
+    cxs: [&Context; 2],
+    sinks: [&mut dyn FnMut(Proposal); 2],
+) -> Result<[Vec<NotTried>; 2]> {
+    let trs = cxs.map(Training::new);
+    let [s0, s1] = sinks;
+    let mut outs = [
+        Found {
+            sink: s0,
+            skipped: Vec::new(),
+        },
+        Found {
+            sink: s1,
+            skipped: Vec::new(),
+        },
+    ];
+    let n_comps = cxs
+        .iter()
+        .map(|cx| cx.spec.channels[cx.channel].components.len())
+        .max()
+        .unwrap_or(0);
+    let lacks = |cx: &Context, k: Kind| {
+        !cx.spec.channels[cx.channel]
+            .components
+            .iter()
+            .any(|c| c.kind() == k)
+    };
+    for step in steps(n_comps) {
+        if matches!(step, Step::GaussMarkov) && cxs.iter().all(|cx| lacks(cx, Kind::GaussMarkov)) {
+            let [o0, o1] = &mut outs;
+            noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
+            continue;
+        }
+        for f in 0..2 {
+            run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
+        }
+    }
+    let [o0, o1] = outs;
+    Ok([o0.skipped, o1.skipped])
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::RefCell;
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::diagnosis::blocks::Blocks;
+    use crate::simulator::ChannelSpec;
+
+    fn spec(x: Vec<Component>) -> Spec {
+        Spec {
+            sample_rate_hz: 100.0,
+            temperature_channel: None,
+            seed: Some(5),
+            channels: vec![
+                ChannelSpec {
+                    name: "x".into(),
+                    components: x,
+                },
+                ChannelSpec {
+                    name: "y".into(),
+                    components: vec![Component::WhiteNoise { n: 0.02 }],
+                },
+            ],
+        }
+    }
+
+    /// What a sink is handed, bit for bit: the component, the parameters, the
+    /// replaced index and every replica's delta.
+    fn record(p: &Proposal, m: usize) -> String {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let delta: Vec<Vec<u64>> = match &p.delta {
+            Delta::Same(v) => vec![bits(v)],
+            Delta::Each(_) => (0..m).map(|r| bits(p.delta.get(r))).collect(),
+        };
+        format!(
+            "{} {:?} {} {:?} {:?} {}",
+            p.kind, p.component, p.params, p.replaces, delta, p.note
+        )
+    }
+
+    #[test]
+    fn two_folds_step_by_step_propose_what_each_proposes_alone() {
+        let n = 20_000;
+        let m = 5;
+        let names = vec!["y".to_string()];
+        let sim = SimBase {
+            n_samples: n,
+            rate_hz: 100.0,
+            temperature_c: None,
+            seed: 5,
+            replicas: m,
+            base_dir: None,
+        };
+        // the "real" log: more noise, a random walk, a bias and a ramp than either state
+        let truth = spec(vec![
+            Component::WhiteNoise { n: 0.06 },
+            Component::RateRandomWalk { k: 0.01 },
+            Component::ConstantBias { value: 0.3 },
+            Component::RateRamp { r: 1e-4 },
+        ]);
+        let real_sim = SimBase {
+            replicas: 1,
+            seed: 9,
+            ..sim.clone()
+        };
+        let real = real_sim
+            .channels(&truth, &["x".to_string(), "y".to_string()])
+            .unwrap()
+            .pop()
+            .unwrap();
+        let others = vec![("y".to_string(), real[1].as_slice())];
+        let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
+        let trains = [true, false].map(|t| Layout::new(&blocks, t, 100.0, None, &names));
+        let bi = |b: f64| Component::BiasInstability {
+            b,
+            tau_min_s: None,
+            tau_max_s: None,
+        };
+        // two states with as many components (the unit signals of an added component
+        // are the same in both: gauss_markov's grid is simulated once for both), and
+        // two with a different count
+        for specs in [
+            [
+                spec(vec![
+                    Component::WhiteNoise { n: 0.05 },
+                    Component::ConstantBias { value: 0.1 },
+                    bi(0.004),
+                ]),
+                spec(vec![
+                    Component::WhiteNoise { n: 0.04 },
+                    Component::ConstantBias { value: 0.2 },
+                    bi(0.01),
+                ]),
+            ],
+            [
+                spec(vec![
+                    Component::WhiteNoise { n: 0.05 },
+                    Component::ConstantBias { value: 0.1 },
+                ]),
+                spec(vec![
+                    Component::WhiteNoise { n: 0.04 },
+                    Component::ConstantBias { value: 0.2 },
+                    bi(0.01),
+                ]),
+            ],
+        ] {
+            two_folds_case(&specs, &sim, &real, &others, &trains, &names, m, n);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn two_folds_case(
+        specs: &[Spec; 2],
+        sim: &SimBase,
+        real: &[Vec<f64>],
+        others: &[(String, &[f64])],
+        trains: &[Layout; 2],
+        names: &[String],
+        m: usize,
+        n: usize,
+    ) {
+        let ens: Vec<_> = specs
+            .iter()
+            .map(|sp| {
+                let k: Vec<usize> = (0..sp.channels[0].components.len()).collect();
+                let sig = sim.component_signals(sp, 0, &k).unwrap();
+                let target: Vec<Vec<f64>> = sig
+                    .iter()
+                    .map(|p| {
+                        (0..n)
+                            .map(|t| p.iter().fold(0.0, |a, v| a + v[t]))
+                            .collect()
+                    })
+                    .collect();
+                let parts: Vec<Vec<Arc<Vec<f64>>>> = sig
+                    .into_iter()
+                    .map(|p| p.into_iter().map(Arc::new).collect())
+                    .collect();
+                (target, parts, sim.channels(sp, names).unwrap())
+            })
+            .collect();
+        let cxs: Vec<Context> = (0..2)
+            .map(|f| Context {
+                spec: &specs[f],
+                channel: 0,
+                sim,
+                train: &trains[f],
+                real: &real[0],
+                temperature: None,
+                others,
+                sim_others: &ens[f].2,
+                target: &ens[f].0,
+                parts: &ens[f].1,
+            })
+            .collect();
+        // each state alone
+        let alone: Vec<(Vec<String>, Vec<String>)> = cxs
+            .iter()
+            .map(|cx| {
+                let mut got = Vec::new();
+                let skipped = propose(cx, &mut |p| got.push(record(&p, m))).unwrap();
+                (got, skipped.iter().map(|s| format!("{s:?}")).collect())
+            })
+            .collect();
+        assert!(alone.iter().all(|(g, _)| g.len() >= 5));
+        assert!(
+            alone
+                .iter()
+                .all(|(g, _)| g.iter().any(|p| p.starts_with("gauss_markov")))
+        );
+        // both, step by step: the order in which the two sinks are handed proposals
+        let order: RefCell<Vec<usize>> = RefCell::new(Vec::new());
+        let mut got: [Vec<String>; 2] = Default::default();
+        let [g0, g1] = &mut got;
+        let skipped = propose_folds(
+            [&cxs[0], &cxs[1]],
+            [
+                &mut |p| {
+                    order.borrow_mut().push(0);
+                    g0.push(record(&p, m))
+                },
+                &mut |p| {
+                    order.borrow_mut().push(1);
+                    g1.push(record(&p, m))
+                },
+            ],
+        )
+        .unwrap();
+        for f in 0..2 {
+            assert_eq!(got[f], alone[f].0, "fold {f}");
+            let s: Vec<String> = skipped[f].iter().map(|s| format!("{s:?}")).collect();
+            assert_eq!(s, alone[f].1, "fold {f}");
+        }
+        // interleaved: the first state's proposals do not all come before the second's
+        let order = order.into_inner();
+        let last0 = order.iter().rposition(|&f| f == 0).unwrap();
+        let first1 = order.iter().position(|&f| f == 1).unwrap();
+        assert!(first1 < last0, "{order:?}");
+    }
 }

@@ -92,31 +92,92 @@ pub(super) fn power_law(
     Ok(())
 }
 
+/// The tau_s grid of gauss_markov for the state `cx`: 8 log-spaced values from 2
+/// samples to the longest Allan cluster of its training part.
+fn gm_grid(cx: &Context, tr: &Training) -> Vec<f64> {
+    let fs = tr.fs;
+    let max_tau = cx.train.adev_factors().last().copied().unwrap_or(1) as f64 / fs;
+    log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8)
+}
+
+/// The unit gauss_markov component of correlation time `tau`.
+fn gm_unit(tau: f64) -> Component {
+    Component::GaussMarkov {
+        sigma: 1.0,
+        tau_s: tau,
+    }
+}
+
 /// gauss_markov: sigma from the excess training Allan variance for each tau_s of a log
 /// grid of 8 (from 2 samples to the longest Allan cluster), the best by weighted RSS.
 pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
-    let fs = tr.fs;
-    let max_tau = cx.train.adev_factors().last().copied().unwrap_or(1) as f64 / fs;
+    let grid = gm_grid(cx, tr);
+    let g = grid
+        .iter()
+        .map(|&tau| unit_mean_avar(cx, &gm_unit(tau)))
+        .collect::<Result<Vec<_>>>()?;
+    gm_propose(cx, tr, &grid, &g, out)
+}
+
+/// [`gauss_markov`] for two states whose unit signals are the same: each unit signal
+/// of the grid simulated once and read by both states' training parts. The signal of
+/// a component appended to the target channel depends on the seed, the replica, the
+/// channel, the component's index and its own parameters only (its random streams are
+/// keyed by these), so two states on one ensemble base whose target channels have as
+/// many components, with the same grid, get the same unit signals; otherwise each state
+/// simulates its own. [`gauss_markov`] on each state is its slow twin.
+pub(super) fn gauss_markov_folds(
+    cxs: [&Context; 2],
+    trs: [&Training; 2],
+    outs: [&mut Found; 2],
+) -> Result<()> {
+    let grids = [gm_grid(cxs[0], trs[0]), gm_grid(cxs[1], trs[1])];
+    let n_comps = |cx: &Context| cx.spec.channels[cx.channel].components.len();
+    let same_signals = std::ptr::eq(cxs[0].sim, cxs[1].sim)
+        && cxs[0].channel == cxs[1].channel
+        && n_comps(cxs[0]) == n_comps(cxs[1])
+        && grids[0] == grids[1];
+    let [o0, o1] = outs;
+    if !same_signals {
+        gauss_markov(cxs[0], trs[0], o0)?;
+        return gauss_markov(cxs[1], trs[1], o1);
+    }
+    let mut g: [Vec<Vec<f64>>; 2] = Default::default();
+    for &tau in &grids[0] {
+        let (a0, a1): (Vec<_>, Vec<_>) = cxs[0]
+            .sim
+            .extra_map(cxs[0].spec, cxs[0].channel, &gm_unit(tau), |u| {
+                (cxs[0].avar(u), cxs[1].avar(u))
+            })?
+            .into_iter()
+            .unzip();
+        g[0].push(mean_in_order(a0));
+        g[1].push(mean_in_order(a1));
+    }
+    gm_propose(cxs[0], trs[0], &grids[0], &g[0], o0)?;
+    gm_propose(cxs[1], trs[1], &grids[1], &g[1], o1)
+}
+
+/// The gauss_markov proposal of the state `cx` from `g[i]`, the mean training AVAR of
+/// the unit component of tau_s `grid[i]`: the tau of the best fit, its unit signals
+/// simulated again (the same streams) and scaled.
+fn gm_propose(
+    cx: &Context,
+    tr: &Training,
+    grid: &[f64],
+    g: &[Vec<f64>],
+    out: &mut Found,
+) -> Result<()> {
     let mut best: Option<(f64, f64, f64)> = None;
-    let grid = log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8);
-    for &tau in &grid {
-        let unit_c = Component::GaussMarkov {
-            sigma: 1.0,
-            tau_s: tau,
-        };
-        let (c, wrss) = allan_fit(tr, &unit_mean_avar(cx, &unit_c)?);
+    for (&tau, g) in grid.iter().zip(g) {
+        let (c, wrss) = allan_fit(tr, g);
         if c > 0.0 && best.as_ref().is_none_or(|b| wrss < b.2) {
             best = Some((c, tau, wrss));
         }
     }
     match best {
         Some((c, tau, _)) => {
-            // the best tau's unit signals again (the same streams), scaled
-            let unit_c = Component::GaussMarkov {
-                sigma: 1.0,
-                tau_s: tau,
-            };
-            let u = scaled_signals(cx, &unit_c, c)?;
+            let u = scaled_signals(cx, &gm_unit(tau), c)?;
             let comp = Component::GaussMarkov {
                 sigma: c,
                 tau_s: tau,

@@ -13,15 +13,15 @@ use crate::diagnosis::ensemble::is_deterministic;
 use crate::error::Result;
 use crate::simulator::Component;
 
-/// One `recalibrate:<kind>` proposal per component of the target channel that has a
-/// size factor, in the spec's order.
-pub(super) fn recalibrate(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
+/// The `recalibrate:<kind>` proposal of component `k` of the target channel, when it
+/// has a size factor (none when the channel has no component `k`).
+pub(super) fn recalibrate(cx: &Context, tr: &Training, k: usize, out: &mut Found) -> Result<()> {
     let comps = &cx.spec.channels[cx.channel].components;
     let (res, ranges, excess) = (&tr.res, &tr.ranges, &tr.excess);
-    for (k, c) in comps.iter().enumerate() {
+    if let Some(c) = comps.get(k) {
         let kind = format!("recalibrate:{}", c.kind());
         if scaled(c, 1.0).is_none() {
-            continue;
+            return Ok(());
         }
         let s = if is_noise(c) {
             let vk = cx.mean_avar(cx.parts.iter().map(|p| p[k].as_slice()));
@@ -29,16 +29,18 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, out: &mut Found) -> Resul
             let (s2, _) = fit_nonneg(&y, &vk, &tr.a_real, &tr.ms);
             s2.sqrt()
         } else if matches!(c, Component::Outliers { .. }) {
-            continue;
+            return Ok(());
         } else {
-            let sig = &cx.parts[0][k];
+            let sig: &[f64] = &cx.parts[0][k];
             let intercept = !matches!(c, Component::ConstantBias { .. });
             match ls(res, &[sig], intercept, ranges) {
                 Some((b, _)) => 1.0 + b[0],
-                None => continue,
+                None => return Ok(()),
             }
         };
-        let Some(comp) = scaled(c, s) else { continue };
+        let Some(comp) = scaled(c, s) else {
+            return Ok(());
+        };
         let delta = if is_deterministic(c) {
             Delta::Same(cx.parts[0][k].iter().map(|v| v * (s - 1.0)).collect())
         } else {
