@@ -225,7 +225,7 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         } else {
             &cx.parts[r][k]
         };
-        for (a, b) in ur.iter_mut().zip(x) {
+        for (a, b) in ur.iter_mut().zip(x.iter()) {
             *a = f * *a + (f - 1.0) * b;
         }
     }
