@@ -495,11 +495,7 @@ fn a_log_on_an_output_grid_gets_the_output_resolution_and_the_gap_closes() {
     assert_eq!(added.first(), Some(&"output_resolution"), "{added:?}");
     let q = d.added[0].params["quantum"].as_f64().unwrap();
     assert!((q - 0.025).abs() < 1e-9, "quantum {q}");
-    assert!(
-        d.explained,
-        "gap {} -> {} (threshold {})",
-        d.gap_before, d.gap_after, d.gap_threshold
-    );
+    assert_explained(&d);
     assert!(
         d.spec_after.channels[0]
             .components
@@ -551,11 +547,7 @@ fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
             (bw / bandwidth_hz - 1.0).abs() < 0.1,
             "order {order}: bandwidth {bw} Hz for {bandwidth_hz}"
         );
-        assert!(
-            d.explained,
-            "gap {} -> {} (threshold {})",
-            d.gap_before, d.gap_after, d.gap_threshold
-        );
+        assert_explained(&d);
     }
 }
 
@@ -579,12 +571,7 @@ fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
         truth,
     };
     let d = run(&case, 36_000, 8, 12);
-    assert_eq!(
-        d.steps.first().map(|s| s.kind.as_str()),
-        Some("output_filter"),
-        "{:?}",
-        d.steps
-    );
+    assert_first_step(&d, "output_filter");
     let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
     assert_eq!(f.params["discretization"], "bilinear", "{}", f.params);
     let bw = f.params["bandwidth_hz"].as_f64().unwrap();
@@ -592,11 +579,7 @@ fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
     if f.params["order"] == 1 {
         assert!((bw / 1.5 - 1.0).abs() < 0.1, "{}", f.params);
     }
-    assert!(
-        d.explained,
-        "gap {} -> {} (threshold {})",
-        d.gap_before, d.gap_after, d.gap_threshold
-    );
+    assert_explained(&d);
 }
 
 #[test]
@@ -620,12 +603,7 @@ fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
         truth,
     };
     let d = run(&case, 36_000, 9, 12);
-    assert_eq!(
-        d.steps.first().map(|s| s.kind.as_str()),
-        Some("output_filter"),
-        "{:?}",
-        d.steps
-    );
+    assert_first_step(&d, "output_filter");
     let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
     let n = f.params["white_noise_n"]
         .as_f64()
@@ -643,9 +621,24 @@ fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
             .any(|c| matches!(c, Component::WhiteNoise { n } if (n / 0.014 - 1.0).abs() < 0.1)),
         "{comps:?}"
     );
+    assert_explained(&d);
+}
+
+/// The diagnosis ends within its threshold with every effect established.
+fn assert_explained(d: &farma::diagnosis::Diagnosis) {
     assert!(
         d.explained,
-        "gap {} -> {} (threshold {})",
-        d.gap_before, d.gap_after, d.gap_threshold
+        "gap {} -> {} (threshold {}); notes {:?}",
+        d.gap_before, d.gap_after, d.gap_threshold, d.notes
+    );
+}
+
+/// The search's first step added `kind`.
+fn assert_first_step(d: &farma::diagnosis::Diagnosis, kind: &str) {
+    assert_eq!(
+        d.steps.first().map(|s| s.kind.as_str()),
+        Some(kind),
+        "{:?}",
+        d.steps
     );
 }

@@ -802,6 +802,17 @@ pub fn proposals(
                     damping: f.damping,
                     discretization: disc,
                 };
+                let fitted = format!(
+                    "order {} ({}) fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{}",
+                    f.order,
+                    disc.as_str(),
+                    (100.0 * band.top_share).round(),
+                    if band.log_weight {
+                        ", bins weighted by 1 / f"
+                    } else {
+                        ""
+                    },
+                );
                 // the joint candidate: the white noise refitted to the fit's level W
                 // before the filter, n = sqrt(W / 2) (white noise n [u sqrt(s)] has the
                 // one-sided PSD 2 n^2 whatever the rate; the spec's other components
@@ -821,15 +832,7 @@ pub fn proposals(
                         offer_also(
                             filter.clone(),
                             format!(
-                                "order {} ({}) fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{}, with the white noise before it refitted to the fitted level: n = {} (factor {})",
-                                f.order,
-                                disc.as_str(),
-                                (100.0 * band.top_share).round(),
-                                if band.log_weight {
-                                    ", bins weighted by 1 / f"
-                                } else {
-                                    ""
-                                },
+                                "{fitted}, with the white noise before it refitted to the fitted level: n = {} (factor {})",
                                 crate::fmt::num(n * s),
                                 crate::fmt::num(s)
                             ),
@@ -838,22 +841,9 @@ pub fn proposals(
                     }
                 }
                 offer_also(
-                    Component::OutputFilter {
-                        order: f.order,
-                        bandwidth_hz: f.bandwidth_hz,
-                        damping: f.damping,
-                        discretization: disc,
-                    },
+                    filter,
                     format!(
-                        "order {} ({}) fitted to the training PSD's roll-off up to {} % of the Nyquist frequency{} (the cost falls by {} residual variances against no filter)",
-                        f.order,
-                        disc.as_str(),
-                        (100.0 * band.top_share).round(),
-                        if band.log_weight {
-                            ", bins weighted by 1 / f"
-                        } else {
-                            ""
-                        },
+                        "{fitted} (the cost falls by {} residual variances against no filter)",
                         crate::fmt::num(f.deviance)
                     ),
                     None,
