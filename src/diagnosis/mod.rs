@@ -597,6 +597,7 @@ pub fn diagnose_with_progress(
         let tie_with = match (&best, &second) {
             (Some(b), Some(s)) => Some((
                 s.0.kind.clone(),
+                label(&s.0),
                 s.0.gap_after,
                 jackknife_sd(&b.3, &s.1, &real_feats, &ens_before, &defs),
             )),
@@ -621,9 +622,9 @@ pub fn diagnose_with_progress(
             apply(&mut sts[0], channel, p0),
             apply(&mut sts[1], channel, p1),
         ]);
-        let (runner_up, runner_up_gap_after, difference_sd) = match tie_with {
-            Some((k, g, sd)) => (Some(k), Some(g), Some(sd)),
-            None => (None, None, None),
+        let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
+            Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
+            None => (None, None, None, None),
         };
         let tie = match (runner_up_gap_after, difference_sd) {
             (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
@@ -632,12 +633,12 @@ pub fn diagnose_with_progress(
         if tie {
             notes.push(format!(
                 "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
-                eff.kind,
-                runner_up.as_deref().unwrap_or(""),
+                label(&eff),
+                runner_up_label.as_deref().unwrap_or(""),
                 eff.gap_after,
                 runner_up_gap_after.unwrap_or(f64::NAN),
                 difference_sd.unwrap_or(f64::NAN),
-                eff.kind
+                label(&eff)
             ));
         }
         steps.push(Step {
@@ -880,7 +881,15 @@ type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
 /// the form of an output-path component (a filter's order, a resolution on the rate
 /// or on the angle), so that the folds' estimates of one candidate meet.
 fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
-    let form = match &p.component {
+    let joint = if p.also.is_some() { " joint" } else { "" };
+    (p.kind.clone(), p.replaces, form(&p.component) + joint)
+}
+
+/// The form that tells two output-path candidates of one kind apart: a filter's order
+/// and discretization, a resolution on the rate or on the angle; empty for the other
+/// kinds.
+fn form(c: &Component) -> String {
+    match c {
         Component::OutputFilter {
             order,
             damping,
@@ -895,11 +904,27 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
                 ""
             }
         ),
-        Component::OutputResolution { on_angle, .. } => format!("on_angle {on_angle}"),
+        Component::OutputResolution { on_angle, .. } => if *on_angle {
+            "on the angle"
+        } else {
+            "on the rate"
+        }
+        .to_string(),
         _ => String::new(),
+    }
+}
+
+/// An effect's kind with its form ([`form`], or a cross-axis coupling's other channel)
+/// in parentheses, for the notes.
+fn label(e: &Effect) -> String {
+    let f = match &e.component {
+        Component::CrossAxis { from, .. } => format!("from {from}"),
+        c => form(c),
     };
-    let joint = if p.also.is_some() { " joint" } else { "" };
-    (p.kind.clone(), p.replaces, form + joint)
+    match f {
+        f if f.is_empty() => e.kind.clone(),
+        f => format!("{} ({f})", e.kind),
+    }
 }
 
 /// One round's candidates as they are scored: every effect (for the report), the best
