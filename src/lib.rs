@@ -12,6 +12,7 @@
 //! - [`stats`]: channel statistics (Allan deviations, noise terms, PSD, ACF);
 //! - [`simulator`]: the gyro drift simulator (the simulation spec and the generator);
 //! - [`diagnosis`]: the sim-to-real gap diagnosis (`farma gap`);
+//! - [`num`]: numeric primitives (fast exact rounding);
 //! - [`output`]: Parquet tables written atomically, JSON helpers;
 //! - [`workflow`]: the paper's workflow (prep, select, check, analyze);
 //! - [`cli`]: the `farma` command line (a thin layer over the above);
@@ -26,6 +27,7 @@ pub mod fmt;
 pub mod jobs;
 pub mod log;
 pub mod model;
+pub mod num;
 pub mod output;
 pub mod report;
 pub mod simulator;

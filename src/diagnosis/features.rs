@@ -389,6 +389,43 @@ impl Layout {
         temperature: Option<&Temperature>,
         others: &[&[f64]],
     ) -> Vec<f64> {
+        self.compute_with(x, temperature, &self.others(others))
+    }
+
+    /// What the cross-axis features need of each other channel in `others` on this
+    /// layout's blocks, computed once for every series compared with the same channels
+    /// (see [`OtherSide`]).
+    pub fn others<'o>(&self, others: &[&'o [f64]]) -> Vec<OtherSide<'o>> {
+        others
+            .iter()
+            .map(|o| {
+                let diffs = self
+                    .ranges
+                    .iter()
+                    .flat_map(|r| (r.start + 1..r.end).map(move |t| o[t] - o[t - 1]));
+                let window_means: Vec<f64> = self
+                    .windows
+                    .iter()
+                    .map(|w| mean_var(&o[w.clone()]).0)
+                    .collect();
+                OtherSide {
+                    x: o,
+                    diff: CorrSide::of(diffs),
+                    window_mean: CorrSide::of(window_means.iter().copied()),
+                    window_means,
+                }
+            })
+            .collect()
+    }
+
+    /// [`Layout::compute`] with the other channels' side of the cross-axis features
+    /// computed beforehand by [`Layout::others`].
+    pub fn compute_with(
+        &self,
+        x: &[f64],
+        temperature: Option<&Temperature>,
+        others: &[OtherSide],
+    ) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.defs.len());
         out.extend(self.ln_avar(x));
         out.extend(self.ln_psd(x));
@@ -409,14 +446,20 @@ impl Layout {
         out.extend(self.state(x));
         debug_assert!(others.len() == self.n_other);
         for o in others.iter().take(self.n_other) {
-            out.push(corr_pairs(self.ranges.iter().flat_map(|r| {
-                (r.start + 1..r.end).map(move |t| (x[t] - x[t - 1], o[t] - o[t - 1]))
-            })));
-            out.push(corr_pairs(
-                self.windows
+            let diffs = || {
+                self.ranges
                     .iter()
-                    .map(|w| (mean_var(&x[w.clone()]).0, mean_var(&o[w.clone()]).0)),
-            ));
+                    .flat_map(|r| (r.start + 1..r.end).map(move |t| x[t] - x[t - 1]))
+            };
+            let o_diffs = self
+                .ranges
+                .iter()
+                .flat_map(|r| (r.start + 1..r.end).map(move |t| o.x[t] - o.x[t - 1]));
+            out.push(o.diff.corr(diffs, o_diffs));
+            out.push(
+                o.window_mean
+                    .corr(|| means.iter().copied(), o.window_means.iter().copied()),
+            );
         }
         debug_assert_eq!(out.len(), self.defs.len());
         out
@@ -495,11 +538,14 @@ impl Layout {
             .flat_map(|r| (r.start + 1..r.end).map(move |t| x[t] - x[t - 1]))
             .collect();
         let (m, v) = mean_var(&d);
-        let m4 = d.iter().map(|e| (e - m).powi(4)).sum::<f64>() / d.len() as f64;
-        let kurt = if v > 0.0 { m4 / (v * v) } else { 1.0 };
+        // the fourth central moment and |d| in one pass
+        let mut s4 = 0.0;
         for e in d.iter_mut() {
+            s4 += (*e - m).powi(4);
             *e = e.abs();
         }
+        let m4 = s4 / d.len() as f64;
+        let kurt = if v > 0.0 { m4 / (v * v) } else { 1.0 };
         // the order statistics of |d| at the ranks of p = 0.5, 0.999, 0.9999
         let len = d.len();
         let rank = |p: f64| ((p * (len - 1) as f64).round() as usize).min(len - 1);
@@ -509,25 +555,35 @@ impl Layout {
         // values in one cell of a grid of 1e-9 of the largest magnitude are one value:
         // a rate computed as a difference of rounded angles carries float noise in its
         // last digits (0.22904528993991607 and 0.2290452899399163), not more levels
-        let values = || {
-            self.ranges
-                .iter()
-                .flat_map(|r| x[r.clone()].iter().copied())
-        };
-        let cell = 1e-9
-            * values()
-                .filter(|v| v.is_finite())
-                .fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut largest = 0.0f64;
+        for r in &self.ranges {
+            for v in &x[r.clone()] {
+                if v.is_finite() {
+                    largest = largest.max(v.abs());
+                }
+            }
+        }
+        let cell = 1e-9 * largest;
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
+        let distinct = if cell > 0.0 {
+            distinct_count(self.ranges.iter().flat_map(|r| {
+                x[r.clone()]
+                    .iter()
+                    .map(|v| crate::num::round_half_away(v / cell))
+            }))
+        } else {
+            distinct_count(
+                self.ranges
+                    .iter()
+                    .flat_map(|r| x[r.clone()].iter().copied()),
+            )
+        };
         vec![
             v.max(f64::MIN_POSITIVE).sqrt().ln(),
             kurt.max(f64::MIN_POSITIVE).ln(),
             ratio(q[1]),
             ratio(q[2]),
-            (distinct_count(values().map(|v| if cell > 0.0 { (v / cell).round() } else { v }))
-                as f64
-                / n_part as f64)
-                .ln(),
+            (distinct as f64 / n_part as f64).ln(),
         ]
     }
 
@@ -708,7 +764,9 @@ pub fn mean_var(x: &[f64]) -> (f64, f64) {
     (m, v)
 }
 
-/// Pearson correlation of the pairs (0 when either side is constant).
+/// Pearson correlation of the pairs (0 when either side is constant): the slow twin of
+/// [`CorrSide::corr`], which gives the same value bit for bit.
+#[cfg(test)]
 fn corr_pairs(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
     let v: Vec<(f64, f64)> = pairs.collect();
     let n = v.len().max(1) as f64;
@@ -725,6 +783,60 @@ fn corr_pairs(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
         sab / (saa * sbb).sqrt()
     } else {
         0.0
+    }
+}
+
+/// One other channel as the cross-axis features compare a series with it, on one
+/// layout's blocks: its samples, and its side of the two correlations (of the
+/// differences, of the window means), the same for every series compared with it.
+#[derive(Clone, Debug)]
+pub struct OtherSide<'o> {
+    x: &'o [f64],
+    diff: CorrSide,
+    window_means: Vec<f64>,
+    window_mean: CorrSide,
+}
+
+/// One side b of a Pearson correlation of pairs (a_i, b_i), i < n: the count n, the
+/// mean m_b = sum_i b_i / n (summed as b_i / n in order) and the centred sum of squares
+/// S_bb = sum_i (b_i - m_b)^2. The correlation with a side a is
+/// S_ab / sqrt(S_aa S_bb) (0 when S_aa or S_bb is 0), every sum taken in the order of
+/// the pairs, so that it equals [`corr_pairs`] of the zipped pairs bit for bit.
+#[derive(Clone, Copy, Debug)]
+struct CorrSide {
+    n: usize,
+    mean: f64,
+    ss: f64,
+}
+
+impl CorrSide {
+    fn of(b: impl Iterator<Item = f64> + Clone) -> CorrSide {
+        let n = b.clone().count();
+        let nf = n.max(1) as f64;
+        let mean = b.clone().fold(0.0, |m, y| m + y / nf);
+        let ss = b.fold(0.0, |s, y| s + (y - mean) * (y - mean));
+        CorrSide { n, mean, ss }
+    }
+
+    /// The correlation of `a` (a fresh iterator per call, n values) with this side,
+    /// whose values `b` gives again in the same order.
+    fn corr<A: Iterator<Item = f64>>(
+        &self,
+        a: impl Fn() -> A,
+        b: impl Iterator<Item = f64>,
+    ) -> f64 {
+        let nf = self.n.max(1) as f64;
+        let ma = a().fold(0.0, |m, x| m + x / nf);
+        let (mut sab, mut saa) = (0.0, 0.0);
+        for (x, y) in a().zip(b) {
+            sab += (x - ma) * (y - self.mean);
+            saa += (x - ma) * (x - ma);
+        }
+        if saa > 0.0 && self.ss > 0.0 {
+            sab / (saa * self.ss).sqrt()
+        } else {
+            0.0
+        }
     }
 }
 
@@ -763,7 +875,7 @@ pub fn round_to(x: &[f64], step: f64) -> Vec<f64> {
 /// [`round_to`] in place.
 pub fn round_in_place(x: &mut [f64], step: f64) {
     for v in x {
-        *v = (*v / step).round() * step;
+        *v = crate::num::round_half_away(*v / step) * step;
     }
 }
 
@@ -857,5 +969,110 @@ mod selection_tests {
                 "n {n}"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod cross_axis_tests {
+    use super::{Layout, corr_pairs, mean_var};
+    use crate::diagnosis::blocks::Blocks;
+
+    #[test]
+    fn the_cross_axis_features_are_the_pairwise_correlations_bit_for_bit() {
+        let n = 20_011;
+        let mut s = 3u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let x: Vec<f64> = (0..n).map(|_| next()).collect();
+        let o1: Vec<f64> = x.iter().map(|v| 0.3 * v + next()).collect();
+        let o2: Vec<f64> = (0..n)
+            .map(|t| (t as f64 * 1e-3).sin() + 0.1 * next())
+            .collect();
+        let flat = vec![1.5; n];
+        let names: Vec<String> = ["a", "b", "c"].map(String::from).to_vec();
+        let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
+        for training in [false, true] {
+            let l = Layout::new(&blocks, training, 100.0, None, &names);
+            let others: [&[f64]; 3] = [&o1, &o2, &flat];
+            let got = l.compute(&x, None, &others);
+            let tail = &got[got.len() - 2 * others.len()..];
+            for (j, o) in others.iter().enumerate() {
+                let diff = corr_pairs(l.ranges.iter().flat_map(|r| {
+                    (r.start + 1..r.end).map(|t| (x[t] - x[t - 1], o[t] - o[t - 1]))
+                }));
+                let wm = corr_pairs(
+                    l.windows
+                        .iter()
+                        .map(|w| (mean_var(&x[w.clone()]).0, mean_var(&o[w.clone()]).0)),
+                );
+                assert_eq!(tail[2 * j].to_bits(), diff.to_bits(), "{j}");
+                assert_eq!(tail[2 * j + 1].to_bits(), wm.to_bits(), "{j}");
+            }
+            // a constant channel's differences have no spread: no correlation
+            assert_eq!(tail[4], 0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod timing_probe {
+    use super::*;
+    #[test]
+    #[ignore]
+    fn probe_compute_parts() {
+        let n = 1_000_000usize;
+        let mut s = 7u64;
+        let x: Vec<f64> = (0..n)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5) * 100.0).round() / 100.0
+            })
+            .collect();
+        let o1 = x.iter().rev().copied().collect::<Vec<_>>();
+        let o2 = x.iter().map(|v| v * 0.3).collect::<Vec<_>>();
+        let blocks = Blocks::interleaved(n, 12, 0.5).unwrap();
+        let names = vec!["a".to_string(), "b".to_string()];
+        let l = Layout::new(&blocks, false, 100.0, None, &names);
+        let reps = 10;
+        let t = |what: &str, f: &dyn Fn()| {
+            let t0 = std::time::Instant::now();
+            for _ in 0..reps {
+                f();
+            }
+            eprintln!(
+                "{what}: {:.2} ms",
+                t0.elapsed().as_secs_f64() * 1e3 / reps as f64
+            );
+        };
+        t("compute", &|| {
+            std::hint::black_box(l.compute(&x, None, &[&o1, &o2]));
+        });
+        let sides = l.others(&[&o1, &o2]);
+        t("compute_with", &|| {
+            std::hint::black_box(l.compute_with(&x, None, &sides));
+        });
+        t("ln_avar", &|| {
+            std::hint::black_box(l.ln_avar(&x));
+        });
+        t("ln_psd", &|| {
+            std::hint::black_box(l.ln_psd(&x));
+        });
+        t("distribution", &|| {
+            std::hint::black_box(l.distribution(&x));
+        });
+        t("state", &|| {
+            std::hint::black_box(l.state(&x));
+        });
+        t("round", &|| {
+            let mut y = x.clone();
+            round_in_place(&mut y, 0.01);
+            std::hint::black_box(y);
+        });
     }
 }

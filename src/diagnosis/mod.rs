@@ -322,6 +322,14 @@ pub fn diagnose_with_progress(
             (-step.log10()).round().max(0.0)
         ));
     }
+    // each replica's other channels as the cross-axis features of each fold see them
+    let other_sides: Vec<[Vec<features::OtherSide>; 2]> = sim_others
+        .iter()
+        .map(|os| {
+            let o: Vec<&[f64]> = os.iter().map(|v| v.as_slice()).collect();
+            [0, 1].map(|fold| withheld[fold].others(&o))
+        })
+        .collect();
     // the output path the spec has: every candidate's sum goes through it too (a
     // continuous change added to rounded simulations would leave the grid)
     let path0 = PathStage::of(&spec.channels[channel].components, rate_hz);
@@ -335,7 +343,6 @@ pub fn diagnose_with_progress(
             let out: Vec<Vec<f64>> = (0..prm.replicas)
                 .into_par_iter()
                 .map(|r| {
-                    let o: Vec<&[f64]> = sim_others[r].iter().map(|v| v.as_slice()).collect();
                     let mut out = Vec::with_capacity(defs.len());
                     for fold in 0..2 {
                         let x = &xs[fold][r];
@@ -352,10 +359,10 @@ pub fn diagnose_with_progress(
                                 features::round_in_place(y, step);
                             }
                         }
-                        out.extend(withheld[fold].compute(
+                        out.extend(withheld[fold].compute_with(
                             y.as_deref().unwrap_or(x),
                             temperature.as_ref(),
-                            &o,
+                            &other_sides[r][fold],
                         ));
                     }
                     out

@@ -264,14 +264,14 @@ impl Quantizer {
         let q = self.quantum;
         if !self.on_angle {
             for x in x.iter_mut() {
-                *x = (*x / q).round() * q;
+                *x = crate::num::round_half_away(*x / q) * q;
             }
             return;
         }
         let mut e = self.carry;
         for x in x.iter_mut() {
             let s = e + *x / q;
-            let k = s.round();
+            let k = crate::num::round_half_away(s);
             e = s - k;
             *x = k * q;
         }
