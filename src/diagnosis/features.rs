@@ -702,14 +702,28 @@ pub fn order_statistics_by_sort(v: &[f64], ranks: &[usize]) -> Vec<f64> {
 /// `dedup` counts them (values equal under `==` counted once, so -0 and +0 are one
 /// value, and every NaN its own): the bit patterns, -0 read as +0, in a hash set, plus
 /// the NaNs. [`distinct_count_by_sort`] is its slow twin.
+///
+/// A direct-mapped table of the last key seen in each of `RECENT` slots (indexed by the
+/// key's hash) stands before the set: a key found there is in the set already and is
+/// not hashed into it again, which spares the set's probing for a series on a grid of
+/// few values (a rounded log); a miss only costs the insert it would have made anyway.
 pub fn distinct_count(x: impl Iterator<Item = f64>) -> usize {
+    const RECENT: usize = 1 << 10;
+    // a NaN's bit pattern: never a key (NaNs are counted apart)
+    const EMPTY: u64 = u64::MAX;
+    let mut recent = [EMPTY; RECENT];
     let mut seen: std::collections::HashSet<u64, BitsHash> = Default::default();
     let mut nans = 0;
     for v in x {
         if v.is_nan() {
             nans += 1;
         } else {
-            seen.insert(if v == 0.0 { 0 } else { v.to_bits() });
+            let key = if v == 0.0 { 0 } else { v.to_bits() };
+            let slot = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 54) as usize;
+            if recent[slot] != key {
+                recent[slot] = key;
+                seen.insert(key);
+            }
         }
     }
     seen.len() + nans
