@@ -33,6 +33,7 @@ pub mod distance;
 pub mod ensemble;
 pub mod features;
 pub mod path;
+mod reestimate;
 pub mod report;
 
 use std::cell::{Cell, RefCell};
@@ -130,7 +131,8 @@ pub struct Effect {
 /// or an earlier one taken back.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
-    /// `add` or `remove`.
+    /// `add`, `remove`, or `reestimate` (a kept effect estimated again with the
+    /// later ones in place, replacing the old estimate: the module `reestimate`).
     pub action: &'static str,
     pub kind: String,
     pub gap_before: f64,
@@ -188,6 +190,7 @@ pub struct Diagnosis {
 
 /// One fold's state of the search: its spec (the effects added with that fold's
 /// estimates) and the ensemble simulated from it.
+#[derive(Clone)]
 struct State {
     spec: Spec,
     /// Per replica, the pre-path sum of the target channel's components.
@@ -460,8 +463,29 @@ pub fn diagnose_with_progress(
             )
         }
     };
-    // forward steps add the best candidate; after each, backward steps take back an
-    // earlier effect whose share in the joint model fell below min_shrink
+    // after each addition, the earlier effects estimated again with it in place
+    let feats_refit = |s: &[State; 2], d: [Option<&[&[f64]]>; 2]| {
+        feats_of(
+            [&s[0].target, &s[1].target],
+            d.map(|d| d.map(|d| (d, 1.0))),
+            [&s[0].path, &s[1].path],
+        )
+    };
+    let refit = reestimate::Refit {
+        channel,
+        replicas: prm.replicas,
+        sim: &sim,
+        withheld: &withheld,
+        real: real.x,
+        temperature: temperature.as_ref(),
+        others: &real.others,
+        sim_others: &sim_others,
+        feats: &feats_refit,
+        score: &score,
+    };
+    // forward steps add the best candidate; after each, the earlier effects are
+    // estimated again with it in place, then backward steps take back an earlier
+    // effect whose share in the joint model fell below min_shrink
     for round_no in 1..=max_rounds {
         pb.set_position(round_no as u64);
         pb.set_message(format!("round {round_no}"));
@@ -655,6 +679,15 @@ pub fn diagnose_with_progress(
         ens_now = e;
         gap_now = eff.gap_after;
         added.push(eff);
+        refit.after_addition(&mut reestimate::Search {
+            sts: &mut sts,
+            slots: &mut slots,
+            added: &mut added,
+            gap_now: &mut gap_now,
+            ens_now: &mut ens_now,
+            steps: &mut steps,
+        })?;
+        lap(&format!("round {round_no}: re-estimation"));
         // backward: the earlier effect whose removal costs least, while its share is
         // below min_shrink
         while added.len() >= 2 {
@@ -999,6 +1032,7 @@ impl Round {
 }
 
 /// Where an added effect sits in the spec, so that the search can take it back.
+#[derive(Clone)]
 struct Slot {
     /// Index of its component in the channel's list.
     comp: usize,
