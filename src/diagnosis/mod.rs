@@ -609,7 +609,7 @@ pub fn diagnose_with_progress(
         } = round;
         all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
-            first = Some(all);
+            first = Some(all.clone());
         }
         if stop_floor {
             notes.push(format!(
@@ -628,7 +628,7 @@ pub fn diagnose_with_progress(
             _ => None,
         };
         drop(second);
-        let Some((mut eff, e, p, _)) = best else {
+        let Some((eff, e, p, _)) = best else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };
@@ -641,11 +641,6 @@ pub fn diagnose_with_progress(
             ));
             break;
         }
-        let [p0, p1] = p;
-        slots.push([
-            apply(&mut sts[0], channel, p0),
-            apply(&mut sts[1], channel, p1),
-        ]);
         let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
             Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
             None => (None, None, None, None),
@@ -665,7 +660,7 @@ pub fn diagnose_with_progress(
                 label(&eff)
             ));
         }
-        steps.push(Step {
+        let step = Step {
             action: "add",
             kind: eff.kind.clone(),
             gap_before: gap_now,
@@ -674,19 +669,30 @@ pub fn diagnose_with_progress(
             runner_up_gap_after,
             difference_sd,
             tie,
-        });
-        eff.step = Some(steps.len());
-        ens_now = e;
-        gap_now = eff.gap_after;
-        added.push(eff);
-        refit.after_addition(&mut reestimate::Search {
-            sts: &mut sts,
-            slots: &mut slots,
-            added: &mut added,
-            gap_now: &mut gap_now,
-            ens_now: &mut ens_now,
-            steps: &mut steps,
-        })?;
+        };
+        // the best and its rivals (the round's runner-up and the first round's
+        // candidates, each admissible on its own when it was scored), each added with
+        // the earlier effects estimated again: the lowest joint gap is kept
+        let rivals = reestimate::rivals(
+            &all,
+            first.as_deref().unwrap_or_default(),
+            &added,
+            [gap_now, gap_before].map(|g| g * (1.0 - prm.min_shrink)),
+        );
+        if let Some(note) = refit.add_best_of(
+            &mut reestimate::Search {
+                sts: &mut sts,
+                slots: &mut slots,
+                added: &mut added,
+                gap_now: &mut gap_now,
+                ens_now: &mut ens_now,
+                steps: &mut steps,
+            },
+            (p, eff, e, step),
+            &rivals,
+        )? {
+            notes.push(note);
+        }
         lap(&format!("round {round_no}: re-estimation"));
         // backward: the earlier effect whose removal costs least, while its share is
         // below min_shrink

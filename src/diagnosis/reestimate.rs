@@ -7,15 +7,65 @@
 //! Additive Models", section 4.3), on both folds as a forward step estimates it, and
 //! replaces the old estimate when the withheld gap falls; when one did, the newest
 //! effect is estimated again as well, since it was fitted against the old one.
+//!
+//! Which effect a round adds is judged the same way: the round's best and its rivals
+//! ([`rivals`]: the round's runner-up and the first round's candidates, each of which
+//! shrank the gap by `min_shrink` on its own when it was scored) are each added, on a
+//! copy of the search, with the earlier effects re-estimated, and the one with the
+//! lowest joint gap is kept. A candidate the log showed evidence for at the start
+//! (a sinusoid, a thermal-rate drift) that an earlier effect partly absorbed (a
+//! Gauss-Markov process taking the sinusoid's variance, a temperature bias the part
+//! of the drift that follows the temperature) ranks low on its own in later rounds,
+//! but wins once the earlier effect is estimated again beside it.
 
 use super::candidates::{self, Context, Proposal};
 use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
-    Effect, EnsembleStats, Round, Slot, State, Statistic, Step, apply, pair_key, removable,
+    Effect, EnsembleStats, Round, Slot, State, Statistic, Step, apply, form, pair_key, removable,
     take_back,
 };
 use crate::error::Result;
+
+/// Most candidates besides a round's best tried with the earlier effects re-estimated
+/// (each costs a copy of both folds' ensembles and one re-estimation per kept effect).
+pub(super) const RIVALS: usize = 4;
+
+/// A round's rivals of its best (`round[0]`; `round` and `first`, the first round's
+/// candidates, sorted best first): the round's runner-up when its gap is within
+/// `admissible[0]`, then the first round's candidates whose gap was within
+/// `admissible[1]`, none of the best's kind, of a kind kept in `added`, or on the
+/// output path, each (kind, replaced component, form) once, at most [`RIVALS`].
+pub(super) fn rivals<'e>(
+    round: &'e [Effect],
+    first: &'e [Effect],
+    added: &[Effect],
+    admissible: [f64; 2],
+) -> Vec<&'e Effect> {
+    let Some(best) = round.first() else {
+        return Vec::new();
+    };
+    let key = |e: &Effect| (e.kind.clone(), e.replaces, form(&e.component));
+    let mut out: Vec<&Effect> = Vec::new();
+    let runner_up = round.get(1).filter(|e| e.gap_after <= admissible[0]);
+    for e in runner_up
+        .into_iter()
+        .chain(first.iter().filter(|e| e.gap_after <= admissible[1]))
+    {
+        if e.kind == best.kind
+            || added.iter().any(|a| a.kind == e.kind)
+            || e.component.kind().is_output_path()
+            || out.iter().any(|o| key(o) == key(e))
+        {
+            continue;
+        }
+        out.push(e);
+        if out.len() == RIVALS {
+            break;
+        }
+    }
+    out
+}
 
 /// The replicas' features of both folds' states, each state's sum plus the given
 /// change (one signal per replica) when there is one.
@@ -52,7 +102,161 @@ pub(super) struct Search<'s> {
     pub steps: &'s mut Vec<Step>,
 }
 
+/// An owned copy of the search's state ([`Search`]), for trying an addition.
+#[derive(Clone)]
+struct Trial {
+    sts: [State; 2],
+    slots: Vec<[Slot; 2]>,
+    added: Vec<Effect>,
+    gap_now: f64,
+    ens_now: EnsembleStats,
+    steps: Vec<Step>,
+}
+
+impl Trial {
+    fn of(s: &Search) -> Self {
+        Trial {
+            sts: s.sts.clone(),
+            slots: s.slots.clone(),
+            added: s.added.clone(),
+            gap_now: *s.gap_now,
+            ens_now: s.ens_now.clone(),
+            steps: s.steps.clone(),
+        }
+    }
+
+    fn search(&mut self) -> Search<'_> {
+        Search {
+            sts: &mut self.sts,
+            slots: &mut self.slots,
+            added: &mut self.added,
+            gap_now: &mut self.gap_now,
+            ens_now: &mut self.ens_now,
+            steps: &mut self.steps,
+        }
+    }
+
+    fn write_back(self, s: &mut Search) {
+        *s.sts = self.sts;
+        *s.slots = self.slots;
+        *s.added = self.added;
+        *s.gap_now = self.gap_now;
+        *s.ens_now = self.ens_now;
+        *s.steps = self.steps;
+    }
+}
+
+/// A round's best candidate: its proposals (fold 1's, fold 2's), effect, ensemble
+/// statistics and the `add` step that reports it.
+pub(super) type Added = ([Proposal; 2], Effect, EnsembleStats, Step);
+
 impl Refit<'_> {
+    /// Adds `a` to the search: its proposals applied to both folds' states, its step
+    /// recorded, then the earlier effects re-estimated ([`Refit::after_addition`]).
+    fn add(&self, s: &mut Search, a: Added) -> Result<()> {
+        let ([p0, p1], mut eff, e, step) = a;
+        s.slots.push([
+            apply(&mut s.sts[0], self.channel, p0),
+            apply(&mut s.sts[1], self.channel, p1),
+        ]);
+        s.steps.push(step);
+        eff.step = Some(s.steps.len());
+        *s.ens_now = e;
+        *s.gap_now = eff.gap_after;
+        s.added.push(eff);
+        self.after_addition(s)
+    }
+
+    /// Adds the round's best `best`, or, when the search already keeps effects, the
+    /// one of `best` and `rivals` ([`rivals`]) whose joint gap with the earlier
+    /// effects re-estimated is lowest (at equal gaps the earlier ranks first). Returns
+    /// a note when a rival was added instead of the best.
+    pub fn add_best_of(
+        &self,
+        s: &mut Search,
+        best: Added,
+        rivals: &[&Effect],
+    ) -> Result<Option<String>> {
+        if s.added.is_empty() || rivals.is_empty() {
+            self.add(s, best)?;
+            return Ok(None);
+        }
+        let (best_kind, best_gap) = (best.1.kind.clone(), best.1.gap_after);
+        let mut won = Trial::of(s);
+        self.add(&mut won.search(), best)?;
+        let mut winner: Option<&Effect> = None;
+        for r in rivals {
+            let mut t = Trial::of(s);
+            let Some(a) = self.estimate(&t, r, &best_kind, best_gap)? else {
+                continue;
+            };
+            self.add(&mut t.search(), a)?;
+            if t.gap_now < won.gap_now {
+                won = t;
+                winner = Some(r);
+            }
+        }
+        let note = winner.map(|r| {
+            format!(
+                "{} added instead of {} (the round's best, gap {:.3}): with the earlier effects estimated again beside it, the joint gap is {:.3}",
+                r.kind, best_kind, best_gap, won.gap_now
+            )
+        });
+        won.write_back(s);
+        Ok(note)
+    }
+
+    /// Rival `r` of a round estimated again on both folds' states of `t` (its kind
+    /// proposed, the pair of its form kept) and scored; its `add` step names the
+    /// round's best as the runner-up.
+    fn estimate(
+        &self,
+        t: &Trial,
+        r: &Effect,
+        best_kind: &str,
+        best_gap: f64,
+    ) -> Result<Option<Added>> {
+        let mut props: [Vec<Proposal>; 2] = Default::default();
+        {
+            let [p0, p1] = &mut props;
+            candidates::propose_kind_folds(
+                [&self.cx(&t.sts[0], 0), &self.cx(&t.sts[1], 1)],
+                &r.kind,
+                [&mut |p| p0.push(p), &mut |p| p1.push(p)],
+            )?;
+        }
+        let [ps0, mut ps1] = props;
+        let same =
+            |p: &Proposal| p.replaces == r.replaces && form(&p.component) == form(&r.component);
+        let Some(p) = ps0.into_iter().find(|p| same(p)) else {
+            return Ok(None);
+        };
+        let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+            return Ok(None);
+        };
+        let q = ps1.swap_remove(j);
+        let d0: Vec<&[f64]> = (0..self.replicas).map(|k| p.delta.get(k)).collect();
+        let d1: Vec<&[f64]> = (0..self.replicas).map(|k| q.delta.get(k)).collect();
+        let f = (self.feats)(&t.sts, [Some(&d0), Some(&d1)]);
+        let scored = (self.score)(&f);
+        let mut round = Round::default();
+        round.offer([p, q], f, scored, t.gap_now);
+        let Some((eff, e, props, _)) = round.best else {
+            return Ok(None);
+        };
+        let step = Step {
+            action: "add",
+            kind: eff.kind.clone(),
+            gap_before: t.gap_now,
+            gap_after: eff.gap_after,
+            runner_up: Some(best_kind.to_string()),
+            runner_up_gap_after: Some(best_gap),
+            difference_sd: None,
+            tie: false,
+        };
+        Ok(Some((props, eff, e, step)))
+    }
+
     /// Fold f's estimation context for state `st`: it trains on the other fold's
     /// withheld part, as the forward steps do.
     fn cx<'b>(&'b self, st: &'b State, f: usize) -> Context<'b> {
