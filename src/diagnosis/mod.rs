@@ -68,6 +68,10 @@ pub struct GapParams {
     pub max_added: usize,
     /// Smallest relative shrink of the gap for an effect to be added.
     pub min_shrink: f64,
+    /// Estimate the kept effects again after each addition and let a round's rivals
+    /// compete with its best (the module `reestimate`); false: plain forward and
+    /// backward steps.
+    pub reestimate: bool,
 }
 
 impl Default for GapParams {
@@ -79,6 +83,7 @@ impl Default for GapParams {
             seed: None,
             max_added: 4,
             min_shrink: 0.05,
+            reestimate: true,
         }
     }
 }
@@ -472,6 +477,7 @@ pub fn diagnose_with_progress(
         )
     };
     let refit = reestimate::Refit {
+        enabled: prm.reestimate,
         channel,
         replicas: prm.replicas,
         sim: &sim,
@@ -632,44 +638,6 @@ pub fn diagnose_with_progress(
             notes.push("no candidate effect could be estimated".into());
             break;
         };
-        if eff.gap_after > gap_now * (1.0 - prm.min_shrink) {
-            notes.push(format!(
-                "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
-                eff.kind,
-                100.0 * eff.shrink,
-                100.0 * prm.min_shrink
-            ));
-            break;
-        }
-        let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
-            Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
-            None => (None, None, None, None),
-        };
-        let tie = match (runner_up_gap_after, difference_sd) {
-            (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
-            _ => false,
-        };
-        if tie {
-            notes.push(format!(
-                "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
-                label(&eff),
-                runner_up_label.as_deref().unwrap_or(""),
-                eff.gap_after,
-                runner_up_gap_after.unwrap_or(f64::NAN),
-                difference_sd.unwrap_or(f64::NAN),
-                label(&eff)
-            ));
-        }
-        let step = Step {
-            action: "add",
-            kind: eff.kind.clone(),
-            gap_before: gap_now,
-            gap_after: eff.gap_after,
-            runner_up,
-            runner_up_gap_after,
-            difference_sd,
-            tie,
-        };
         // the best and its rivals (the round's runner-up and the first round's
         // candidates, each admissible on its own when it was scored), each added with
         // the earlier effects estimated again: the lowest joint gap is kept
@@ -679,19 +647,76 @@ pub fn diagnose_with_progress(
             &added,
             [gap_now, gap_before].map(|g| g * (1.0 - prm.min_shrink)),
         );
-        if let Some(note) = refit.add_best_of(
-            &mut reestimate::Search {
-                sts: &mut sts,
-                slots: &mut slots,
-                added: &mut added,
-                gap_now: &mut gap_now,
-                ens_now: &mut ens_now,
-                steps: &mut steps,
-            },
-            (p, eff, e, step),
-            &rivals,
-        )? {
+        let floor_gap = gap_now * (1.0 - prm.min_shrink);
+        if eff.gap_after > floor_gap {
+            // a rival may still shrink it enough with the earlier effects re-estimated
+            let instead = refit.rival_instead(
+                &mut reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                },
+                &rivals,
+                (&eff.kind, eff.gap_after),
+                floor_gap,
+            )?;
+            let Some(note) = instead else {
+                notes.push(format!(
+                    "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
+                    eff.kind,
+                    100.0 * eff.shrink,
+                    100.0 * prm.min_shrink
+                ));
+                break;
+            };
             notes.push(note);
+        } else {
+            let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
+                Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
+                None => (None, None, None, None),
+            };
+            let tie = match (runner_up_gap_after, difference_sd) {
+                (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
+                _ => false,
+            };
+            if tie {
+                notes.push(format!(
+                    "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
+                    label(&eff),
+                    runner_up_label.as_deref().unwrap_or(""),
+                    eff.gap_after,
+                    runner_up_gap_after.unwrap_or(f64::NAN),
+                    difference_sd.unwrap_or(f64::NAN),
+                    label(&eff)
+                ));
+            }
+            let step = Step {
+                action: "add",
+                kind: eff.kind.clone(),
+                gap_before: gap_now,
+                gap_after: eff.gap_after,
+                runner_up,
+                runner_up_gap_after,
+                difference_sd,
+                tie,
+            };
+            if let Some(note) = refit.add_best_of(
+                &mut reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                },
+                (p, eff, e, step),
+                &rivals,
+            )? {
+                notes.push(note);
+            }
         }
         lap(&format!("round {round_no}: re-estimation"));
         // backward: the earlier effect whose removal costs least, while its share is

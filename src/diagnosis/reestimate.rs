@@ -77,6 +77,8 @@ pub(super) type ScoreFn<'a> =
 /// What re-estimation reads from the diagnosis: the log and the simulation base the
 /// forward steps estimate on, and the scoring they use.
 pub(super) struct Refit<'a> {
+    /// False: no re-estimation and no rivals (an addition is the round's best alone).
+    pub enabled: bool,
     pub channel: usize,
     pub replicas: usize,
     pub sim: &'a SimBase<'a>,
@@ -164,7 +166,10 @@ impl Refit<'_> {
         *s.ens_now = e;
         *s.gap_now = eff.gap_after;
         s.added.push(eff);
-        self.after_addition(s)
+        if self.enabled {
+            self.after_addition(s)?;
+        }
+        Ok(())
     }
 
     /// Adds the round's best `best`, or, when the search already keeps effects, the
@@ -177,7 +182,7 @@ impl Refit<'_> {
         best: Added,
         rivals: &[&Effect],
     ) -> Result<Option<String>> {
-        if s.added.is_empty() || rivals.is_empty() {
+        if !self.enabled || s.added.is_empty() || rivals.is_empty() {
             self.add(s, best)?;
             return Ok(None);
         }
@@ -204,6 +209,42 @@ impl Refit<'_> {
         });
         won.write_back(s);
         Ok(note)
+    }
+
+    /// When the round's best (`best`: its kind and gap) shrinks the gap too little:
+    /// the rival whose joint gap, added with the earlier effects re-estimated, is
+    /// lowest and within `needed`, added; returns a note, or None (nothing added)
+    /// when no rival reaches `needed` or the search keeps no effect yet.
+    pub fn rival_instead(
+        &self,
+        s: &mut Search,
+        rivals: &[&Effect],
+        best: (&str, f64),
+        needed: f64,
+    ) -> Result<Option<String>> {
+        if !self.enabled || s.added.is_empty() {
+            return Ok(None);
+        }
+        let mut won: Option<(Trial, &Effect)> = None;
+        for &r in rivals {
+            let mut t = Trial::of(s);
+            let Some(a) = self.estimate(&t, r, best.0, best.1)? else {
+                continue;
+            };
+            self.add(&mut t.search(), a)?;
+            if t.gap_now <= needed && won.as_ref().is_none_or(|w| t.gap_now < w.0.gap_now) {
+                won = Some((t, r));
+            }
+        }
+        let Some((t, r)) = won else {
+            return Ok(None);
+        };
+        let note = format!(
+            "{} added though the round's best ({}, gap {:.3}) shrinks the gap too little: with the earlier effects estimated again beside it, the joint gap is {:.3}",
+            r.kind, best.0, best.1, t.gap_now
+        );
+        t.write_back(s);
+        Ok(Some(note))
     }
 
     /// Rival `r` of a round estimated again on both folds' states of `t` (its kind
