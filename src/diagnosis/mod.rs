@@ -24,6 +24,8 @@
 //!   estimates, the note fold 2's. Forward
 //!   steps add the best candidate, backward steps take back an earlier effect whose
 //!   share in the joint model fell below `min_shrink`, near-ties are reported as ties;
+//! - `reestimate.rs`: after each addition, the kept effects estimated again with the
+//!   others in place, and a round's best weighed against its rivals that way;
 //! - [`report`]: Parquet tables and the SVG report.
 
 pub mod bank;
@@ -120,7 +122,8 @@ pub struct Effect {
     /// For an added effect: 1 - the final gap / the final gap without it (its share
     /// in the joint model); None for an effect not kept.
     pub contribution: Option<f64>,
-    /// For an added effect: the search step (1-based) that added it.
+    /// For an added effect: the search step (1-based) that added it, or that last
+    /// estimated it again.
     pub step: Option<usize>,
     /// Parameters of either fold's estimate that stopped at an end of their search
     /// range (`at_search_edge`): bounds, not estimates.
@@ -132,8 +135,8 @@ pub struct Effect {
     pub replaces: Option<usize>,
 }
 
-/// One step of the search: an effect added (the best of a round, with the runner-up)
-/// or an earlier one taken back.
+/// One step of the search: an effect added (the best of a round, with the runner-up,
+/// or a rival of the best), a kept one estimated again, or an earlier one taken back.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
     /// `add`, `remove`, or `reestimate` (a kept effect estimated again with the
@@ -171,7 +174,7 @@ pub struct Diagnosis {
     /// Effects kept by the search, largest contribution to the final model first
     /// (shrink relative to the gap before each was added; `step` says when).
     pub added: Vec<Effect>,
-    /// The search's steps: additions and removals, in order.
+    /// The search's steps: additions, re-estimations and removals, in order.
     pub steps: Vec<Step>,
     /// The gap after is within the threshold: the spec, with the effects added,
     /// matches the log on the withheld part (true also when nothing was significant).
