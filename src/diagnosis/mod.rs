@@ -24,6 +24,8 @@
 //!   estimates, the note fold 2's. Forward
 //!   steps add the best candidate, backward steps take back an earlier effect whose
 //!   share in the joint model fell below `min_shrink`, near-ties are reported as ties;
+//! - `reestimate.rs`: after each addition, the kept effects estimated again with the
+//!   others in place, and a round's best weighed against its rivals that way;
 //! - [`report`]: Parquet tables and the SVG report.
 
 pub mod bank;
@@ -33,6 +35,7 @@ pub mod distance;
 pub mod ensemble;
 pub mod features;
 pub mod path;
+mod reestimate;
 pub mod report;
 
 use std::cell::{Cell, RefCell};
@@ -67,6 +70,10 @@ pub struct GapParams {
     pub max_added: usize,
     /// Smallest relative shrink of the gap for an effect to be added.
     pub min_shrink: f64,
+    /// Estimate the kept effects again after each addition and let a round's rivals
+    /// compete with its best (the module `reestimate`); false: plain forward and
+    /// backward steps.
+    pub reestimate: bool,
 }
 
 impl Default for GapParams {
@@ -78,6 +85,7 @@ impl Default for GapParams {
             seed: None,
             max_added: 4,
             min_shrink: 0.05,
+            reestimate: true,
         }
     }
 }
@@ -114,7 +122,8 @@ pub struct Effect {
     /// For an added effect: 1 - the final gap / the final gap without it (its share
     /// in the joint model); None for an effect not kept.
     pub contribution: Option<f64>,
-    /// For an added effect: the search step (1-based) that added it.
+    /// For an added effect: the search step (1-based) that added it, or that last
+    /// estimated it again.
     pub step: Option<usize>,
     /// Parameters of either fold's estimate that stopped at an end of their search
     /// range (`at_search_edge`): bounds, not estimates.
@@ -126,11 +135,12 @@ pub struct Effect {
     pub replaces: Option<usize>,
 }
 
-/// One step of the search: an effect added (the best of a round, with the runner-up)
-/// or an earlier one taken back.
+/// One step of the search: an effect added (the best of a round, with the runner-up,
+/// or a rival of the best), a kept one estimated again, or an earlier one taken back.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
-    /// `add` or `remove`.
+    /// `add`, `remove`, or `reestimate` (a kept effect estimated again with the
+    /// later ones in place, replacing the old estimate: the module `reestimate`).
     pub action: &'static str,
     pub kind: String,
     pub gap_before: f64,
@@ -164,7 +174,7 @@ pub struct Diagnosis {
     /// Effects kept by the search, largest contribution to the final model first
     /// (shrink relative to the gap before each was added; `step` says when).
     pub added: Vec<Effect>,
-    /// The search's steps: additions and removals, in order.
+    /// The search's steps: additions, re-estimations and removals, in order.
     pub steps: Vec<Step>,
     /// The gap after is within the threshold: the spec, with the effects added,
     /// matches the log on the withheld part (true also when nothing was significant).
@@ -188,6 +198,7 @@ pub struct Diagnosis {
 
 /// One fold's state of the search: its spec (the effects added with that fold's
 /// estimates) and the ensemble simulated from it.
+#[derive(Clone)]
 struct State {
     spec: Spec,
     /// Per replica, the pre-path sum of the target channel's components.
@@ -467,8 +478,30 @@ pub fn diagnose_with_progress(
             )
         }
     };
-    // forward steps add the best candidate; after each, backward steps take back an
-    // earlier effect whose share in the joint model fell below min_shrink
+    // after each addition, the earlier effects estimated again with it in place
+    let feats_refit = |s: &[State; 2], d: [Option<&[&[f64]]>; 2]| {
+        feats_of(
+            [&s[0].target, &s[1].target],
+            d.map(|d| d.map(|d| (d, 1.0))),
+            [&s[0].path, &s[1].path],
+        )
+    };
+    let refit = reestimate::Refit {
+        enabled: prm.reestimate,
+        channel,
+        replicas: prm.replicas,
+        sim: &sim,
+        withheld: &withheld,
+        real: real.x,
+        temperature: temperature.as_ref(),
+        others: &real.others,
+        sim_others: &sim_others,
+        feats: &feats_refit,
+        score: &score,
+    };
+    // forward steps add the best candidate; after each, the earlier effects are
+    // estimated again with it in place, then backward steps take back an earlier
+    // effect whose share in the joint model fell below min_shrink
     for round_no in 1..=max_rounds {
         pb.set_position(round_no as u64);
         pb.set_message(format!("round {round_no}"));
@@ -592,7 +625,7 @@ pub fn diagnose_with_progress(
         } = round;
         all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
-            first = Some(all);
+            first = Some(all.clone());
         }
         if stop_floor {
             notes.push(format!(
@@ -611,57 +644,91 @@ pub fn diagnose_with_progress(
             _ => None,
         };
         drop(second);
-        let Some((mut eff, e, p, _)) = best else {
+        let Some((eff, e, p, _)) = best else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };
-        if eff.gap_after > gap_now * (1.0 - prm.min_shrink) {
-            notes.push(format!(
-                "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
-                eff.kind,
-                100.0 * eff.shrink,
-                100.0 * prm.min_shrink
-            ));
-            break;
+        // the best and its rivals (the round's runner-up and the first round's
+        // candidates, each admissible on its own when it was scored), each added with
+        // the earlier effects estimated again: the lowest joint gap is kept
+        let rivals = reestimate::rivals(
+            &all,
+            first.as_deref().unwrap_or_default(),
+            &added,
+            [gap_now, gap_before].map(|g| g * (1.0 - prm.min_shrink)),
+        );
+        let floor_gap = gap_now * (1.0 - prm.min_shrink);
+        if eff.gap_after > floor_gap {
+            // a rival may still shrink it enough with the earlier effects re-estimated
+            let instead = refit.rival_instead(
+                &mut reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                },
+                &rivals,
+                (&eff.kind, eff.gap_after),
+                floor_gap,
+            )?;
+            let Some(note) = instead else {
+                notes.push(format!(
+                    "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
+                    eff.kind,
+                    100.0 * eff.shrink,
+                    100.0 * prm.min_shrink
+                ));
+                break;
+            };
+            notes.push(note);
+        } else {
+            let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
+                Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
+                None => (None, None, None, None),
+            };
+            let tie = match (runner_up_gap_after, difference_sd) {
+                (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
+                _ => false,
+            };
+            if tie {
+                notes.push(format!(
+                    "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
+                    label(&eff),
+                    runner_up_label.as_deref().unwrap_or(""),
+                    eff.gap_after,
+                    runner_up_gap_after.unwrap_or(f64::NAN),
+                    difference_sd.unwrap_or(f64::NAN),
+                    label(&eff)
+                ));
+            }
+            let step = Step {
+                action: "add",
+                kind: eff.kind.clone(),
+                gap_before: gap_now,
+                gap_after: eff.gap_after,
+                runner_up,
+                runner_up_gap_after,
+                difference_sd,
+                tie,
+            };
+            if let Some(note) = refit.add_best_of(
+                &mut reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                },
+                (p, eff, e, step),
+                &rivals,
+            )? {
+                notes.push(note);
+            }
         }
-        let [p0, p1] = p;
-        slots.push([
-            apply(&mut sts[0], channel, p0),
-            apply(&mut sts[1], channel, p1),
-        ]);
-        let (runner_up, runner_up_label, runner_up_gap_after, difference_sd) = match tie_with {
-            Some((k, l, g, sd)) => (Some(k), Some(l), Some(g), Some(sd)),
-            None => (None, None, None, None),
-        };
-        let tie = match (runner_up_gap_after, difference_sd) {
-            (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
-            _ => false,
-        };
-        if tie {
-            notes.push(format!(
-                "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
-                label(&eff),
-                runner_up_label.as_deref().unwrap_or(""),
-                eff.gap_after,
-                runner_up_gap_after.unwrap_or(f64::NAN),
-                difference_sd.unwrap_or(f64::NAN),
-                label(&eff)
-            ));
-        }
-        steps.push(Step {
-            action: "add",
-            kind: eff.kind.clone(),
-            gap_before: gap_now,
-            gap_after: eff.gap_after,
-            runner_up,
-            runner_up_gap_after,
-            difference_sd,
-            tie,
-        });
-        eff.step = Some(steps.len());
-        ens_now = e;
-        gap_now = eff.gap_after;
-        added.push(eff);
+        lap(&format!("round {round_no}: re-estimation"));
         // backward: the earlier effect whose removal costs least, while its share is
         // below min_shrink
         while added.len() >= 2 {
@@ -1006,6 +1073,7 @@ impl Round {
 }
 
 /// Where an added effect sits in the spec, so that the search can take it back.
+#[derive(Clone)]
 struct Slot {
     /// Index of its component in the channel's list.
     comp: usize,

@@ -98,6 +98,92 @@ fn a_matching_spec_reports_nothing_and_adds_nothing() {
 }
 
 #[test]
+fn a_gauss_markov_that_took_a_sinusoids_variance_is_estimated_again_beside_it() {
+    // a Gauss-Markov drift and a sinusoid of a period shorter than its correlation
+    // time, both withheld: estimated first, alone, the Gauss-Markov process takes the
+    // sinusoid's variance (a short correlation time), after which the sinusoid widens
+    // the band too much to be added; the sinusoid added as a rival of the round, with
+    // the Gauss-Markov process estimated again beside it, closes the gap
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components.extend([
+        Component::GaussMarkov {
+            sigma: 0.012,
+            tau_s: 15.0,
+        },
+        Component::Sinusoid {
+            amplitude: 0.01,
+            freq_hz: 0.14,
+            phase_rad: 0.3,
+        },
+    ]);
+    let case = Case {
+        expect: String::new(),
+        spec,
+        truth,
+    };
+    let (x, temp) = bank::real_log(&case, 36_000, 1234).unwrap();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz: 10.0,
+        temperature_c: temp.as_deref(),
+        others: vec![],
+        spec_dir: None,
+    };
+    let diagnose_with = |reestimate: bool| {
+        let prm = GapParams {
+            replicas: 12,
+            reestimate,
+            ..GapParams::default()
+        };
+        diagnose(&real, &case.spec, &prm).unwrap()
+    };
+    let kinds = |d: &Diagnosis| {
+        let mut k: Vec<String> = d.added.iter().map(|e| e.kind.clone()).collect();
+        k.sort();
+        k
+    };
+    let steps = |d: &Diagnosis| {
+        d.steps
+            .iter()
+            .map(|s| format!("{} {} {:.3}", s.action, s.kind, s.gap_after))
+            .collect::<Vec<_>>()
+    };
+    // without re-estimation: the biased Gauss-Markov process alone, the gap open
+    let plain = diagnose_with(false);
+    assert_eq!(plain.steps[0].kind, "gauss_markov", "{:?}", steps(&plain));
+    assert!(
+        !kinds(&plain).contains(&"sinusoid".to_string()) && !plain.explained,
+        "{:?} gap {} threshold {}",
+        steps(&plain),
+        plain.gap_after,
+        plain.gap_threshold
+    );
+    assert!(plain.steps.iter().all(|s| s.action != "reestimate"));
+    // with it: both effects, the Gauss-Markov re-estimated near the truth, explained
+    let d = diagnose_with(true);
+    assert_eq!(kinds(&d), ["gauss_markov", "sinusoid"], "{:?}", steps(&d));
+    assert!(
+        d.steps
+            .iter()
+            .any(|s| s.action == "reestimate" && s.kind == "gauss_markov"),
+        "{:?}",
+        steps(&d)
+    );
+    let gm = d.added.iter().find(|e| e.kind == "gauss_markov").unwrap();
+    let tau_s = gm.params["tau_s"].as_f64().unwrap();
+    let sigma = gm.params["sigma"].as_f64().unwrap();
+    assert!((10.0..22.5).contains(&tau_s), "tau_s {tau_s} (true 15)");
+    assert!(
+        (0.009..0.015).contains(&sigma),
+        "sigma {sigma} (true 0.012)"
+    );
+    assert_explained(&d);
+    assert!(d.gap_after < plain.gap_after);
+}
+
+#[test]
 fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
     // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s and the 120 s warm-up is over long
     // before it ends

@@ -440,6 +440,83 @@ pub fn propose_folds(
     Ok([o0.skipped, o1.skipped])
 }
 
+/// The kind of effect `step` estimates for a target channel with components `comps`:
+/// a component kind, or `recalibrate:<kind>` (none for a recalibration of a component
+/// the channel does not have).
+fn step_kind(step: &Step, comps: &[Component]) -> Option<String> {
+    let k = match step {
+        Step::ConstantBias => Kind::ConstantBias,
+        Step::RateRamp => Kind::RateRamp,
+        Step::Warmup => Kind::Warmup,
+        Step::Sinusoid => Kind::Sinusoid,
+        Step::TemperatureBias => Kind::TemperatureBias,
+        Step::ThermalRate => Kind::ThermalRate,
+        Step::Heteroskedastic => Kind::Heteroskedastic,
+        Step::PowerLaw(k, _) => *k,
+        Step::GaussMarkov => Kind::GaussMarkov,
+        Step::Outliers => Kind::Outliers,
+        Step::CrossAxis => Kind::CrossAxis,
+        Step::Arma => Kind::Arma,
+        Step::Farma => Kind::Farma,
+        Step::Recalibrate(i) => {
+            return comps.get(*i).map(|c| format!("recalibrate:{}", c.kind()));
+        }
+    };
+    Some(k.as_str().to_string())
+}
+
+/// [`propose_folds`] for the steps that estimate an effect of kind `kind` only (a
+/// component kind or `recalibrate:<kind>`): the re-estimation of one kept effect with
+/// the others in place. Each state's sink is handed the proposals of that kind that
+/// [`propose_folds`] hands it, in the same order; [`propose_folds`] with its proposals
+/// filtered by kind is its slow twin.
+pub fn propose_kind_folds(
+    cxs: [&Context; 2],
+    kind: &str,
+    sinks: [&mut dyn FnMut(Proposal); 2],
+) -> Result<()> {
+    let trs = cxs.map(Training::new);
+    let [s0, s1] = sinks;
+    let mut f0 = |p: Proposal| {
+        if p.kind == kind {
+            s0(p)
+        }
+    };
+    let mut f1 = |p: Proposal| {
+        if p.kind == kind {
+            s1(p)
+        }
+    };
+    let mut outs = [
+        Found {
+            sink: &mut f0,
+            skipped: Vec::new(),
+        },
+        Found {
+            sink: &mut f1,
+            skipped: Vec::new(),
+        },
+    ];
+    let comps = |cx: &Context| cx.spec.channels[cx.channel].components.clone();
+    let n_comps = cxs.iter().map(|cx| comps(cx).len()).max().unwrap_or(0);
+    let lacks = |cx: &Context, k: Kind| !comps(cx).iter().any(|c| c.kind() == k);
+    for step in steps(n_comps) {
+        let wanted = |f: usize| step_kind(&step, &comps(cxs[f])).as_deref() == Some(kind);
+        if !wanted(0) && !wanted(1) {
+            continue;
+        }
+        if matches!(step, Step::GaussMarkov) && cxs.iter().all(|cx| lacks(cx, Kind::GaussMarkov)) {
+            let [o0, o1] = &mut outs;
+            noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
+            continue;
+        }
+        for f in 0..2 {
+            run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use std::cell::RefCell;
@@ -639,5 +716,31 @@ mod tests {
         let last0 = order.iter().rposition(|&f| f == 0).unwrap();
         let first1 = order.iter().position(|&f| f == 1).unwrap();
         assert!(first1 < last0, "{order:?}");
+        // one kind at a time: what the two states are handed of that kind
+        let kind_of = |r: &String| r.split(' ').next().unwrap_or("").to_string();
+        let mut kinds: Vec<String> = got.iter().flatten().map(kind_of).collect();
+        kinds.sort();
+        kinds.dedup();
+        assert!(kinds.len() >= 5, "{kinds:?}");
+        for kind in &kinds {
+            let mut one: [Vec<String>; 2] = Default::default();
+            let [o0, o1] = &mut one;
+            propose_kind_folds(
+                [&cxs[0], &cxs[1]],
+                kind,
+                [&mut |p| o0.push(record(&p, m)), &mut |p| {
+                    o1.push(record(&p, m))
+                }],
+            )
+            .unwrap();
+            for f in 0..2 {
+                let want: Vec<String> = got[f]
+                    .iter()
+                    .filter(|r| &kind_of(r) == kind)
+                    .cloned()
+                    .collect();
+                assert_eq!(one[f], want, "fold {f}, kind {kind}");
+            }
+        }
     }
 }

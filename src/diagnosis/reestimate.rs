@@ -1,0 +1,416 @@
+//! Re-estimation of the effects the search keeps: an effect estimated while another
+//! one was still in the residual comes out biased (a Gauss-Markov process takes a
+//! sinusoid's variance, a temperature bias the part of a thermal-rate drift that
+//! follows the temperature), and greedy forward steps never revisit it. After each
+//! addition, each earlier effect is estimated again with the others in place
+//! (one Gauss-Seidel sweep of backfitting: Hastie and Tibshirani 1990, "Generalized
+//! Additive Models", section 4.3), on both folds as a forward step estimates it, and
+//! replaces the old estimate when the withheld gap falls; when one did, the newest
+//! effect is estimated again as well, since it was fitted against the old one.
+//!
+//! Which effect a round adds is judged the same way: the round's best and its rivals
+//! ([`rivals`]: the round's runner-up and the first round's candidates, each of which
+//! shrank the gap by `min_shrink` on its own when it was scored) are each added, on a
+//! copy of the search, with the earlier effects re-estimated, and the one with the
+//! lowest joint gap is kept. A candidate the log showed evidence for at the start
+//! (a sinusoid, a thermal-rate drift) that an earlier effect partly absorbed (a
+//! Gauss-Markov process taking the sinusoid's variance, a temperature bias the part
+//! of the drift that follows the temperature) ranks low on its own in later rounds,
+//! but wins once the earlier effect is estimated again beside it.
+
+use super::candidates::{self, Context, Proposal};
+use super::ensemble::SimBase;
+use super::features::{Layout, Temperature};
+use super::{
+    Effect, EnsembleStats, Round, Slot, State, Statistic, Step, apply, form, pair_key, removable,
+    take_back,
+};
+use crate::error::Result;
+
+/// Most candidates besides a round's best tried with the earlier effects re-estimated
+/// (each costs a copy of both folds' ensembles and one re-estimation per kept effect).
+pub(super) const RIVALS: usize = 4;
+
+/// A round's rivals of its best (`round[0]`; `round` and `first`, the first round's
+/// candidates, sorted best first): the round's runner-up when its gap is within
+/// `admissible[0]`, then the first round's candidates whose gap was within
+/// `admissible[1]`, none of the best's kind, of a kind kept in `added`, or on the
+/// output path, each (kind, replaced component, form) once, at most [`RIVALS`].
+pub(super) fn rivals<'e>(
+    round: &'e [Effect],
+    first: &'e [Effect],
+    added: &[Effect],
+    admissible: [f64; 2],
+) -> Vec<&'e Effect> {
+    let Some(best) = round.first() else {
+        return Vec::new();
+    };
+    let key = |e: &Effect| (e.kind.clone(), e.replaces, form(&e.component));
+    let mut out: Vec<&Effect> = Vec::new();
+    let runner_up = round.get(1).filter(|e| e.gap_after <= admissible[0]);
+    for e in runner_up
+        .into_iter()
+        .chain(first.iter().filter(|e| e.gap_after <= admissible[1]))
+    {
+        if e.kind == best.kind
+            || added.iter().any(|a| a.kind == e.kind)
+            || e.component.kind().is_output_path()
+            || out.iter().any(|o| key(o) == key(e))
+        {
+            continue;
+        }
+        out.push(e);
+        if out.len() == RIVALS {
+            break;
+        }
+    }
+    out
+}
+
+/// The replicas' features of both folds' states, each state's sum plus the given
+/// change (one signal per replica) when there is one.
+pub(super) type FeatsFn<'a> = dyn Fn(&[State; 2], [Option<&[&[f64]]>; 2]) -> Vec<Vec<f64>> + 'a;
+/// The withheld score of the replicas' features: gap, ensemble statistics, family gaps.
+pub(super) type ScoreFn<'a> =
+    dyn Fn(&[Vec<f64>]) -> (f64, EnsembleStats, Vec<(Statistic, f64)>) + 'a;
+
+/// What re-estimation reads from the diagnosis: the log and the simulation base the
+/// forward steps estimate on, and the scoring they use.
+pub(super) struct Refit<'a> {
+    /// False: no re-estimation and no rivals (an addition is the round's best alone).
+    pub enabled: bool,
+    pub channel: usize,
+    pub replicas: usize,
+    pub sim: &'a SimBase<'a>,
+    /// The withheld layouts of fold 1 and fold 2 (each fold trains on the other's).
+    pub withheld: &'a [Layout; 2],
+    pub real: &'a [f64],
+    pub temperature: Option<&'a Temperature>,
+    pub others: &'a [(String, &'a [f64])],
+    pub sim_others: &'a [Vec<Vec<f64>>],
+    pub feats: &'a FeatsFn<'a>,
+    pub score: &'a ScoreFn<'a>,
+}
+
+/// Where the search stands: both folds' states, the slots and effects kept (in the
+/// order they were added), the gap and ensemble statistics of the joint model, and the
+/// steps so far.
+pub(super) struct Search<'s> {
+    pub sts: &'s mut [State; 2],
+    pub slots: &'s mut Vec<[Slot; 2]>,
+    pub added: &'s mut Vec<Effect>,
+    pub gap_now: &'s mut f64,
+    pub ens_now: &'s mut EnsembleStats,
+    pub steps: &'s mut Vec<Step>,
+}
+
+/// An owned copy of the search's state ([`Search`]), for trying an addition.
+#[derive(Clone)]
+struct Trial {
+    sts: [State; 2],
+    slots: Vec<[Slot; 2]>,
+    added: Vec<Effect>,
+    gap_now: f64,
+    ens_now: EnsembleStats,
+    steps: Vec<Step>,
+}
+
+impl Trial {
+    fn of(s: &Search) -> Self {
+        Trial {
+            sts: s.sts.clone(),
+            slots: s.slots.clone(),
+            added: s.added.clone(),
+            gap_now: *s.gap_now,
+            ens_now: s.ens_now.clone(),
+            steps: s.steps.clone(),
+        }
+    }
+
+    fn search(&mut self) -> Search<'_> {
+        Search {
+            sts: &mut self.sts,
+            slots: &mut self.slots,
+            added: &mut self.added,
+            gap_now: &mut self.gap_now,
+            ens_now: &mut self.ens_now,
+            steps: &mut self.steps,
+        }
+    }
+
+    fn write_back(self, s: &mut Search) {
+        *s.sts = self.sts;
+        *s.slots = self.slots;
+        *s.added = self.added;
+        *s.gap_now = self.gap_now;
+        *s.ens_now = self.ens_now;
+        *s.steps = self.steps;
+    }
+}
+
+/// A round's best candidate: its proposals (fold 1's, fold 2's), effect, ensemble
+/// statistics and the `add` step that reports it.
+pub(super) type Added = ([Proposal; 2], Effect, EnsembleStats, Step);
+
+impl Refit<'_> {
+    /// Adds `a` to the search: its proposals applied to both folds' states, its step
+    /// recorded, then the earlier effects re-estimated ([`Refit::after_addition`]).
+    fn add(&self, s: &mut Search, a: Added) -> Result<()> {
+        let ([p0, p1], mut eff, e, step) = a;
+        s.slots.push([
+            apply(&mut s.sts[0], self.channel, p0),
+            apply(&mut s.sts[1], self.channel, p1),
+        ]);
+        s.steps.push(step);
+        eff.step = Some(s.steps.len());
+        *s.ens_now = e;
+        *s.gap_now = eff.gap_after;
+        s.added.push(eff);
+        if self.enabled {
+            self.after_addition(s)?;
+        }
+        Ok(())
+    }
+
+    /// Adds the round's best `best`, or, when the search already keeps effects, the
+    /// one of `best` and `rivals` ([`rivals`]) whose joint gap with the earlier
+    /// effects re-estimated is lowest (at equal gaps the earlier ranks first). Returns
+    /// a note when a rival was added instead of the best.
+    pub fn add_best_of(
+        &self,
+        s: &mut Search,
+        best: Added,
+        rivals: &[&Effect],
+    ) -> Result<Option<String>> {
+        if !self.enabled || s.added.is_empty() || rivals.is_empty() {
+            self.add(s, best)?;
+            return Ok(None);
+        }
+        let (best_kind, best_gap) = (best.1.kind.clone(), best.1.gap_after);
+        let mut won = Trial::of(s);
+        self.add(&mut won.search(), best)?;
+        let mut winner: Option<&Effect> = None;
+        for r in rivals {
+            let mut t = Trial::of(s);
+            let Some(a) = self.estimate(&t, r, &best_kind, best_gap)? else {
+                continue;
+            };
+            self.add(&mut t.search(), a)?;
+            if t.gap_now < won.gap_now {
+                won = t;
+                winner = Some(r);
+            }
+        }
+        let note = winner.map(|r| {
+            format!(
+                "{} added instead of {} (the round's best, gap {:.3}): with the earlier effects estimated again beside it, the joint gap is {:.3}",
+                r.kind, best_kind, best_gap, won.gap_now
+            )
+        });
+        won.write_back(s);
+        Ok(note)
+    }
+
+    /// When the round's best (`best`: its kind and gap) shrinks the gap too little:
+    /// the rival whose joint gap, added with the earlier effects re-estimated, is
+    /// lowest and within `needed`, added; returns a note, or None (nothing added)
+    /// when no rival reaches `needed` or the search keeps no effect yet.
+    pub fn rival_instead(
+        &self,
+        s: &mut Search,
+        rivals: &[&Effect],
+        best: (&str, f64),
+        needed: f64,
+    ) -> Result<Option<String>> {
+        if !self.enabled || s.added.is_empty() {
+            return Ok(None);
+        }
+        let mut won: Option<(Trial, &Effect)> = None;
+        for &r in rivals {
+            let mut t = Trial::of(s);
+            let Some(a) = self.estimate(&t, r, best.0, best.1)? else {
+                continue;
+            };
+            self.add(&mut t.search(), a)?;
+            if t.gap_now <= needed && won.as_ref().is_none_or(|w| t.gap_now < w.0.gap_now) {
+                won = Some((t, r));
+            }
+        }
+        let Some((t, r)) = won else {
+            return Ok(None);
+        };
+        let note = format!(
+            "{} added though the round's best ({}, gap {:.3}) shrinks the gap too little: with the earlier effects estimated again beside it, the joint gap is {:.3}",
+            r.kind, best.0, best.1, t.gap_now
+        );
+        t.write_back(s);
+        Ok(Some(note))
+    }
+
+    /// Rival `r` of a round estimated again on both folds' states of `t` (its kind
+    /// proposed, the pair of its form kept) and scored; its `add` step names the
+    /// round's best as the runner-up.
+    fn estimate(
+        &self,
+        t: &Trial,
+        r: &Effect,
+        best_kind: &str,
+        best_gap: f64,
+    ) -> Result<Option<Added>> {
+        let mut props: [Vec<Proposal>; 2] = Default::default();
+        {
+            let [p0, p1] = &mut props;
+            candidates::propose_kind_folds(
+                [&self.cx(&t.sts[0], 0), &self.cx(&t.sts[1], 1)],
+                &r.kind,
+                [&mut |p| p0.push(p), &mut |p| p1.push(p)],
+            )?;
+        }
+        let [ps0, mut ps1] = props;
+        let same =
+            |p: &Proposal| p.replaces == r.replaces && form(&p.component) == form(&r.component);
+        let Some(p) = ps0.into_iter().find(|p| same(p)) else {
+            return Ok(None);
+        };
+        let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+            return Ok(None);
+        };
+        let q = ps1.swap_remove(j);
+        let d0: Vec<&[f64]> = (0..self.replicas).map(|k| p.delta.get(k)).collect();
+        let d1: Vec<&[f64]> = (0..self.replicas).map(|k| q.delta.get(k)).collect();
+        let f = (self.feats)(&t.sts, [Some(&d0), Some(&d1)]);
+        let scored = (self.score)(&f);
+        let mut round = Round::default();
+        round.offer([p, q], f, scored, t.gap_now);
+        let Some((eff, e, props, _)) = round.best else {
+            return Ok(None);
+        };
+        let step = Step {
+            action: "add",
+            kind: eff.kind.clone(),
+            gap_before: t.gap_now,
+            gap_after: eff.gap_after,
+            runner_up: Some(best_kind.to_string()),
+            runner_up_gap_after: Some(best_gap),
+            difference_sd: None,
+            tie: false,
+        };
+        Ok(Some((props, eff, e, step)))
+    }
+
+    /// Fold f's estimation context for state `st`: it trains on the other fold's
+    /// withheld part, as the forward steps do.
+    fn cx<'b>(&'b self, st: &'b State, f: usize) -> Context<'b> {
+        Context {
+            spec: &st.spec,
+            channel: self.channel,
+            sim: self.sim,
+            train: &self.withheld[1 - f],
+            real: self.real,
+            temperature: self.temperature,
+            others: self.others,
+            sim_others: self.sim_others,
+            target: &st.target,
+            parts: &st.parts,
+        }
+    }
+
+    /// After an addition (the last of `s.added`): each earlier effect re-estimated in
+    /// turn, from the earliest, then the newest when any earlier one changed. Each
+    /// re-estimation that lowers the gap is a step `reestimate`; the effect moves to
+    /// the end of the kept list (its step is the re-estimation's).
+    pub fn after_addition(&self, s: &mut Search) -> Result<()> {
+        let Some(newest) = s.added.last().and_then(|e| e.step) else {
+            return Ok(());
+        };
+        let earlier: Vec<usize> = s.added.iter().filter_map(|e| e.step).collect();
+        let mut changed = false;
+        for id in earlier.into_iter().filter(|&id| id != newest) {
+            changed |= self.one(s, id)?;
+        }
+        if changed {
+            self.one(s, newest)?;
+        }
+        Ok(())
+    }
+
+    /// Re-estimates the kept effect added at step `id` (when it can be taken back and
+    /// is not an output-path effect, whose estimation depends on the path); returns
+    /// whether it was replaced.
+    fn one(&self, s: &mut Search, id: usize) -> Result<bool> {
+        let Some(i) = s.added.iter().position(|e| e.step == Some(id)) else {
+            return Ok(false);
+        };
+        if !removable(s.slots, i) || s.slots[i][0].path || s.slots[i][1].path {
+            return Ok(false);
+        }
+        let kind = s.added[i].kind.clone();
+        // both folds' states with the effect taken out, the others in
+        let mut trial = s.sts.clone();
+        let mut trial_slots = s.slots.clone();
+        let [s0, s1] = trial_slots.remove(i);
+        take_back(
+            &mut trial[0],
+            self.channel,
+            s0,
+            trial_slots.iter_mut().map(|x| &mut x[0]),
+        );
+        take_back(
+            &mut trial[1],
+            self.channel,
+            s1,
+            trial_slots.iter_mut().map(|x| &mut x[1]),
+        );
+        let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+        let mut props: [Vec<Proposal>; 2] = Default::default();
+        {
+            let [p0, p1] = &mut props;
+            candidates::propose_kind_folds(
+                [&self.cx(&trial[0], 0), &self.cx(&trial[1], 1)],
+                &kind,
+                [&mut |p| p0.push(p), &mut |p| p1.push(p)],
+            )?;
+        }
+        let [ps0, mut ps1] = props;
+        let mut round = Round::default();
+        for p in ps0 {
+            let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+                continue;
+            };
+            let q = ps1.remove(j);
+            let d0: Vec<&[f64]> = (0..self.replicas).map(|r| p.delta.get(r)).collect();
+            let d1: Vec<&[f64]> = (0..self.replicas).map(|r| q.delta.get(r)).collect();
+            let f = (self.feats)(&trial, [Some(&d0), Some(&d1)]);
+            let scored = (self.score)(&f);
+            round.offer([p, q], f, scored, gap_without);
+        }
+        let Some((mut eff, e, [p0, p1], _)) = round.best else {
+            return Ok(false);
+        };
+        if eff.gap_after >= *s.gap_now {
+            return Ok(false);
+        }
+        trial_slots.push([
+            apply(&mut trial[0], self.channel, p0),
+            apply(&mut trial[1], self.channel, p1),
+        ]);
+        *s.sts = trial;
+        *s.slots = trial_slots;
+        s.steps.push(Step {
+            action: "reestimate",
+            kind: eff.kind.clone(),
+            gap_before: *s.gap_now,
+            gap_after: eff.gap_after,
+            runner_up: None,
+            runner_up_gap_after: None,
+            difference_sd: None,
+            tie: false,
+        });
+        eff.step = Some(s.steps.len());
+        *s.gap_now = eff.gap_after;
+        *s.ens_now = e;
+        s.added.remove(i);
+        s.added.push(eff);
+        Ok(true)
+    }
+}
