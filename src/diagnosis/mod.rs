@@ -54,6 +54,10 @@ pub use distance::{Calibration, EnsembleStats, Region};
 pub use features::{FeatureDef, Layout, Statistic, Temperature};
 pub use path::PathStage;
 
+/// What a not-tried reason adds when the other fold did estimate the candidate.
+const ONE_FOLD_ONLY: &str = "the other fold estimated it, not scored (what one half of \
+    the blocks shows and the other does not)";
+
 /// Settings of a diagnosis.
 #[derive(Clone, Debug)]
 pub struct GapParams {
@@ -534,7 +538,7 @@ pub fn diagnose_with_progress(
         let held: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
         let mut hold = |p: Proposal| held.borrow_mut().push(p);
         let mut round = Round::default();
-        let mut unpaired: Vec<String> = Vec::new();
+        let mut unpaired: Vec<(String, String)> = Vec::new();
         // fold 1's estimate meets fold 2's of the same kind and form; an output-path
         // candidate changes the path every sum goes through, any other adds its signal
         // to the sums
@@ -542,7 +546,7 @@ pub fn diagnose_with_progress(
             let q = {
                 let mut h = held.borrow_mut();
                 let Some(i) = h.iter().position(|q| pair_key(q) == pair_key(&p)) else {
-                    unpaired.push(p.kind);
+                    unpaired.push((p.kind, p.note));
                     return;
                 };
                 h.remove(i)
@@ -597,13 +601,18 @@ pub fn diagnose_with_progress(
                 skipped.push(nt);
             }
         }
-        unpaired.extend(held.into_inner().into_iter().map(|q| q.kind));
-        for kind in unpaired {
-            if !skipped.iter().any(|s| s.kind == kind) {
-                skipped.push(NotTried {
+        unpaired.extend(held.into_inner().into_iter().map(|q| (q.kind, q.note)));
+        for (kind, note) in unpaired {
+            match skipped.iter_mut().find(|s| s.kind == kind) {
+                // the other fold's estimate, told once: the two halves disagree
+                Some(s) if !s.reason.contains(ONE_FOLD_ONLY) => {
+                    s.reason = format!("{} in one fold; {ONE_FOLD_ONLY}: {note}", s.reason)
+                }
+                Some(_) => {}
+                None => skipped.push(NotTried {
                     kind,
                     reason: "estimated on one fold's training part only: not scored".into(),
-                });
+                }),
             }
         }
         if timing {

@@ -728,3 +728,59 @@ fn assert_first_step(d: &farma::diagnosis::Diagnosis, kind: &str) {
         d.steps
     );
 }
+
+#[test]
+fn spikes_in_one_half_of_the_blocks_are_not_scored_and_the_reason_says_so() {
+    // a knock is a local event: ten spikes, all in fold 1's training part, leave fold 2
+    // nothing to estimate from, so outliers is not scored; the reason gives both folds'
+    // counts
+    let spec = bank::base_spec(10.0, false);
+    let case = Case {
+        expect: String::new(),
+        spec: spec.clone(),
+        truth: spec,
+    };
+    let n = 36_000;
+    let (mut x, _) = bank::real_log(&case, n, 91).unwrap();
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    let sd = {
+        let m = x.iter().sum::<f64>() / n as f64;
+        (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n as f64).sqrt()
+    };
+    let blocks =
+        farma::diagnosis::Blocks::interleaved(n, prm.n_blocks, prm.train_fraction).unwrap();
+    let longest = blocks
+        .part(true)
+        .into_iter()
+        .max_by_key(|r| r.len())
+        .unwrap();
+    let step = longest.len() / 11;
+    for k in 1..=10 {
+        x[longest.start + k * step] += 30.0 * sd;
+    }
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz: case.spec.sample_rate_hz,
+        temperature_c: None,
+        others: vec![],
+        spec_dir: None,
+    };
+    let d = diagnose(&real, &case.spec, &prm).unwrap();
+    let nt = d
+        .not_tried
+        .iter()
+        .find(|t| t.kind == "outliers")
+        .unwrap_or_else(|| panic!("outliers tried: {:?}", d.not_tried));
+    assert!(
+        nt.reason.contains("(0 above 6 robust sd")
+            && nt.reason.contains("the other fold estimated it")
+            && nt.reason.contains("10 spikes above 6 robust sd"),
+        "{}",
+        nt.reason
+    );
+    assert!(!d.added.iter().any(|e| e.kind == "outliers"));
+}

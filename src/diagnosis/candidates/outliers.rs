@@ -12,15 +12,12 @@ use crate::error::Result;
 use crate::simulator::Component;
 use crate::stats::special::normal_cdf;
 
-/// outliers: [`estimate_outliers`]; not tried when the training part has no more
-/// spikes than the simulations.
+/// outliers: [`estimate_outliers`]; not tried when the training part has fewer than 3
+/// spikes more than the simulations (the reason gives both counts).
 pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     match estimate_outliers(cx)? {
-        Some(p) => out.push(p),
-        None => out.skip(
-            "outliers",
-            "no more spikes in the training part than in the simulations",
-        ),
+        Ok(p) => out.push(p),
+        Err(why) => out.skip("outliers", &why),
     }
     Ok(())
 }
@@ -59,8 +56,9 @@ fn normal_tail(c: f64) -> f64 {
     normal_cdf(-c)
 }
 
-/// The outliers proposal (None: fewer than 3 spikes more than the simulations').
-fn estimate_outliers(cx: &Context) -> Result<Option<Proposal>> {
+/// The outliers proposal, or why there is none (fewer than 3 spikes more than the
+/// simulations': the two counts).
+fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, String>> {
     let ranges = cx.ranges();
     let (c_real, ss_real, thr) = spikes(cx.real, ranges);
     let c_ens = cx
@@ -71,7 +69,10 @@ fn estimate_outliers(cx: &Context) -> Result<Option<Proposal>> {
         / cx.target.len() as f64;
     let excess = c_real as f64 - c_ens;
     if excess < 3.0 || c_real == 0 || thr <= 0.0 {
-        return Ok(None);
+        return Ok(Err(format!(
+            "no more spikes in the training part than in the simulations ({c_real} above 6 \
+             robust sd against {c_ens:.1})"
+        )));
     }
     let m2 = ss_real / c_real as f64;
     // solve m2 = scale^2 (1 + c phi(c) / Q(c)), c = thr / scale, by bisection on ln scale
@@ -96,7 +97,7 @@ fn estimate_outliers(cx: &Context) -> Result<Option<Proposal>> {
     let rate_hz = (excess / (t_train * p_detect)).min(cx.rate_hz());
     let comp = Component::Outliers { rate_hz, scale };
     let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
-    Ok(Some(Proposal {
+    Ok(Ok(Proposal {
         also: None,
         kind: "outliers".into(),
         params: params_json(&comp),
