@@ -35,8 +35,8 @@
 //! `farma prep`); `gap`: `spec` (a simulation spec, relative to the job file;
 //! required; the unit's channels that the spec has are diagnosed, and the log's first
 //! channel of the temperature role is offered when the spec names no
-//! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`
-//! (the defaults of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
+//! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`,
+//! `reestimate` (true: `farma gap --reestimate`) (the defaults of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
 use std::path::{Path, PathBuf};
@@ -176,6 +176,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "train_fraction",
             "seed",
             "max_effects",
+            "reestimate",
         ],
     }
 }

@@ -502,6 +502,7 @@ fn run_task(
                     n_blocks: opt_usize(task, "blocks")?.unwrap_or(d.n_blocks),
                     seed: opt_usize(task, "seed")?.map(|s| s as u64),
                     max_added: opt_usize(task, "max_effects")?.unwrap_or(d.max_added),
+                    reestimate: opt_bool(task, "reestimate")?.unwrap_or(d.reestimate),
                     ..d
                 },
             };

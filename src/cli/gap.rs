@@ -41,6 +41,11 @@ pub struct GapArgs {
     /// Most effects the greedy search adds.
     #[arg(long, default_value_t = 4, value_name = "N")]
     pub max_effects: usize,
+    /// Estimate the kept effects again after each addition, and let a round's rivals
+    /// compete with its best (each trial copies both folds' ensembles: about twice
+    /// the peak memory, and more time).
+    #[arg(long)]
+    pub reestimate: bool,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: Option<PathBuf>,
@@ -71,6 +76,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             n_blocks: a.blocks,
             seed: a.seed,
             max_added: a.max_effects,
+            reestimate: a.reestimate,
             ..GapParams::default()
         },
     };

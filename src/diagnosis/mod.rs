@@ -75,8 +75,10 @@ pub struct GapParams {
     /// Smallest relative shrink of the gap for an effect to be added.
     pub min_shrink: f64,
     /// Estimate the kept effects again after each addition and let a round's rivals
-    /// compete with its best (the module `reestimate`); false: plain forward and
-    /// backward steps.
+    /// compete with its best (the module `reestimate`); false (the default): plain
+    /// forward and backward steps. Off by default: on the independent bank it gained
+    /// one development case and no held-out one, at about twice the peak memory
+    /// (BENCHMARKS.md).
     pub reestimate: bool,
 }
 
@@ -89,7 +91,7 @@ impl Default for GapParams {
             seed: None,
             max_added: 4,
             min_shrink: 0.05,
-            reestimate: true,
+            reestimate: false,
         }
     }
 }
@@ -259,14 +261,22 @@ pub fn diagnose_with_progress(
     let n = real.x.len();
     // the ensemble holds every replica's component signals and other channels at once
     let n_comp = spec.channels[channel].components.len();
+    // re-estimation tries an addition on copies of both folds' sums: up to three more
+    // pairs alive at once (the search's, the best trial's, the one being tried)
+    let trial_signals = if prm.reestimate { 6 } else { 0 };
+    let n_signals = 2 * (n_comp + 1) + real.others.len() + trial_signals;
     crate::workflow::budget::check_memory(
         &format!("--replicas {}", prm.replicas),
         &format!(
-            "the ensemble of {} replicas x {} signals x {n} samples",
+            "the ensemble of {} replicas x {n_signals} signals x {n} samples{}",
             prm.replicas,
-            2 * (n_comp + 1) + real.others.len()
+            if prm.reestimate {
+                " (with re-estimation's copies; without --reestimate fewer)"
+            } else {
+                ""
+            }
         ),
-        8.0 * n as f64 * prm.replicas as f64 * (2 * (n_comp + 1) + real.others.len()) as f64,
+        8.0 * n as f64 * prm.replicas as f64 * n_signals as f64,
     )?;
     let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
     let max_rounds = 2 * prm.max_added + 2;
