@@ -677,21 +677,19 @@ pub fn diagnose_with_progress(
             [gap_now, gap_before].map(|g| g * (1.0 - prm.min_shrink)),
         );
         let floor_gap = gap_now * (1.0 - prm.min_shrink);
+        let gap_was = gap_now;
+        let mut search = reestimate::Search {
+            sts: &mut sts,
+            slots: &mut slots,
+            added: &mut added,
+            gap_now: &mut gap_now,
+            ens_now: &mut ens_now,
+            steps: &mut steps,
+        };
         if eff.gap_after > floor_gap {
             // a rival may still shrink it enough with the earlier effects re-estimated
-            let instead = refit.rival_instead(
-                &mut reestimate::Search {
-                    sts: &mut sts,
-                    slots: &mut slots,
-                    added: &mut added,
-                    gap_now: &mut gap_now,
-                    ens_now: &mut ens_now,
-                    steps: &mut steps,
-                },
-                &rivals,
-                (&eff.kind, eff.gap_after),
-                floor_gap,
-            )?;
+            let instead =
+                refit.rival_instead(&mut search, &rivals, (&eff.kind, eff.gap_after), floor_gap)?;
             let Some(note) = instead else {
                 notes.push(format!(
                     "the best remaining effect ({}) shrinks the gap by {:.1} %, less than {:.0} %: stopped",
@@ -725,25 +723,14 @@ pub fn diagnose_with_progress(
             let step = Step {
                 action: "add",
                 kind: eff.kind.clone(),
-                gap_before: gap_now,
+                gap_before: gap_was,
                 gap_after: eff.gap_after,
                 runner_up,
                 runner_up_gap_after,
                 difference_sd,
                 tie,
             };
-            if let Some(note) = refit.add_best_of(
-                &mut reestimate::Search {
-                    sts: &mut sts,
-                    slots: &mut slots,
-                    added: &mut added,
-                    gap_now: &mut gap_now,
-                    ens_now: &mut ens_now,
-                    steps: &mut steps,
-                },
-                (p, eff, e, step),
-                &rivals,
-            )? {
+            if let Some(note) = refit.add_best_of(&mut search, (p, eff, e, step), &rivals)? {
                 notes.push(note);
             }
         }

@@ -403,7 +403,6 @@ pub fn propose_folds(
     cxs: [&Context; 2],
     sinks: [&mut dyn FnMut(Proposal); 2],
 ) -> Result<[Vec<NotTried>; 2]> {
-    let trs = cxs.map(Training::new);
     let [s0, s1] = sinks;
     let mut outs = [
         Found {
@@ -415,20 +414,30 @@ pub fn propose_folds(
             skipped: Vec::new(),
         },
     ];
-    let n_comps = cxs
-        .iter()
-        .map(|cx| cx.spec.channels[cx.channel].components.len())
-        .max()
-        .unwrap_or(0);
-    let lacks = |cx: &Context, k: Kind| {
-        !cx.spec.channels[cx.channel]
-            .components
-            .iter()
-            .any(|c| c.kind() == k)
-    };
+    run_folds(cxs, None, &mut outs)?;
+    let [o0, o1] = outs;
+    Ok([o0.skipped, o1.skipped])
+}
+
+/// The steps of [`propose_folds`] for both states, each step for `cxs[0]` then
+/// `cxs[1]` (the Gauss-Markov grid simulated once for both); with `only`, just the
+/// steps that estimate an effect of that kind for either state ([`step_kind`]).
+fn run_folds(cxs: [&Context; 2], only: Option<&str>, outs: &mut [Found; 2]) -> Result<()> {
+    let trs = cxs.map(Training::new);
+    let comps = cxs.map(|cx| cx.spec.channels[cx.channel].components.as_slice());
+    let n_comps = comps.iter().map(|c| c.len()).max().unwrap_or(0);
+    let lacks = |c: &[Component], k: Kind| !c.iter().any(|c| c.kind() == k);
     for step in steps(n_comps) {
-        if matches!(step, Step::GaussMarkov) && cxs.iter().all(|cx| lacks(cx, Kind::GaussMarkov)) {
-            let [o0, o1] = &mut outs;
+        let skip = |kind: &str| {
+            comps
+                .iter()
+                .all(|c| step_kind(&step, c).as_deref() != Some(kind))
+        };
+        if only.is_some_and(skip) {
+            continue;
+        }
+        if matches!(step, Step::GaussMarkov) && comps.iter().all(|c| lacks(c, Kind::GaussMarkov)) {
+            let [o0, o1] = outs;
             noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
             continue;
         }
@@ -436,8 +445,7 @@ pub fn propose_folds(
             run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
         }
     }
-    let [o0, o1] = outs;
-    Ok([o0.skipped, o1.skipped])
+    Ok(())
 }
 
 /// The kind of effect `step` estimates for a target channel with components `comps`:
@@ -475,7 +483,6 @@ pub fn propose_kind_folds(
     kind: &str,
     sinks: [&mut dyn FnMut(Proposal); 2],
 ) -> Result<()> {
-    let trs = cxs.map(Training::new);
     let [s0, s1] = sinks;
     let mut f0 = |p: Proposal| {
         if p.kind == kind {
@@ -497,24 +504,7 @@ pub fn propose_kind_folds(
             skipped: Vec::new(),
         },
     ];
-    let comps = |cx: &Context| cx.spec.channels[cx.channel].components.clone();
-    let n_comps = cxs.iter().map(|cx| comps(cx).len()).max().unwrap_or(0);
-    let lacks = |cx: &Context, k: Kind| !comps(cx).iter().any(|c| c.kind() == k);
-    for step in steps(n_comps) {
-        let wanted = |f: usize| step_kind(&step, &comps(cxs[f])).as_deref() == Some(kind);
-        if !wanted(0) && !wanted(1) {
-            continue;
-        }
-        if matches!(step, Step::GaussMarkov) && cxs.iter().all(|cx| lacks(cx, Kind::GaussMarkov)) {
-            let [o0, o1] = &mut outs;
-            noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
-            continue;
-        }
-        for f in 0..2 {
-            run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
-        }
-    }
-    Ok(())
+    run_folds(cxs, Some(kind), &mut outs)
 }
 
 #[cfg(test)]
