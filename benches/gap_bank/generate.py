@@ -56,7 +56,7 @@ ACCEPT = {
 # kinds that are candidate kinds of contracts.md section 2 today (the rest: issue 27's)
 CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 
-PART_SEED = {"dev": 27_001, "heldout": 27_999_013}
+PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -473,10 +473,20 @@ PAIRS = {
                 [("output_filter", "2"), ("warmup", "long")],
                 [("thermal_rate", ""), ("rate_random_walk", "")],
                 [("bias_instability", ""), ("temperature_bias", "lin")]],
+    # a second development draw: pairs that neither other part has
+    "dev2": [[("temperature_bias", "quad"), ("gauss_markov", "")],
+             [("warmup", "short"), ("rate_random_walk", "")],
+             [("sinusoid", ""), ("constant_bias", "")],
+             [("heteroskedastic", ""), ("rate_ramp", "")],
+             [("quantization", "rate"), ("temperature_bias", "lin")],
+             [("output_filter", "1"), ("constant_bias", "")],
+             [("thermal_rate", ""), ("warmup", "long")],
+             [("bias_instability", ""), ("rate_random_walk", "")]],
 }
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
-           "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")]}
+           "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
+           "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")]}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -486,15 +496,21 @@ CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_ma
 GRID = {
     "dev": [(10, 1200), (10, 3600), (10, 7200), (100, 1200), (100, 2400)],
     "heldout": [(10, 4 * 3600), (10, 8 * 3600), (100, 1800), (10, 3 * 3600), (100, 1500)],
+    "dev2": [(10, 5400), (10, 6 * 3600), (100, 3600), (100, 900), (10, 2700)],
 }
-KHZ = {"dev": 0, "heldout": 2}      # cases at 1 kHz for 20 min (1.2e6 samples each)
-PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"]}
-TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)]}
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
+            "dev2": ["drift", "ramp", "steps"]}
+TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
+          "dev2": [(-25, 55), (5, 35), (-5, 60)]}
 
 
 def size_for(part, rng):
     if part == "dev":
         return float(rng.uniform(1.0, 2.0))
+    if part == "dev2":
+        # between dev's sizes and the held-out's: 0.85-1.0 or 2.0-2.5
+        return float(rng.uniform(0.85, 1.0)) if rng.random() < 0.5 else float(rng.uniform(2.0, 2.5))
     # held-out: smaller and larger than any dev case
     return float(rng.uniform(0.6, 0.85)) if rng.random() < 0.5 else float(rng.uniform(2.5, 4.0))
 
@@ -517,7 +533,7 @@ def make_part(part):
     for i, (cat, eff, name) in enumerate(plan):
         kinds = {k for k, _ in eff}
         if i in khz_pick:
-            fs, dur = 1000, 1200
+            fs, dur = (1000, 600) if part == "dev2" else (1000, 1200)
         else:
             fs, dur = GRID[part][int(rng.integers(len(GRID[part])))]
         need = bool(kinds & NEEDS_TEMP)
@@ -533,10 +549,10 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "heldout", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "heldout", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
-    parts = ["dev", "heldout"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "heldout"] if a.part == "all" else [a.part]
     for part in parts:
         cases = make_part(part)
         index = []

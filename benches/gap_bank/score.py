@@ -120,7 +120,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("farma")
     ap.add_argument("bank")
-    ap.add_argument("--part", choices=["dev", "heldout", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "heldout", "all"], default="all")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per case")
     ap.add_argument("--out", default=None)
@@ -134,7 +134,7 @@ def main():
     ap.add_argument("extra", nargs="*", help="extra arguments of farma gap (after --)")
     a = ap.parse_args()
     out = a.out or os.path.join(a.bank, "results")
-    parts = ["dev", "heldout"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "heldout"] if a.part == "all" else [a.part]
     todo = []
     for part in parts:
         pdir = os.path.join(a.bank, part)

@@ -662,7 +662,8 @@ pub fn diagnose_with_progress(
             )),
             _ => None,
         };
-        drop(second);
+        // the runner-up, for the parsimony rule of a tie
+        let second_eff = second.map(|s| s.0);
         let Some((eff, e, p, _)) = best else {
             notes.push("no candidate effect could be estimated".into());
             break;
@@ -709,29 +710,68 @@ pub fn diagnose_with_progress(
                 (Some(g), Some(sd)) => (g - eff.gap_after).abs() <= 2.0 * sd,
                 _ => false,
             };
+            // of two tied deterministic effects (biases: regressions on time and
+            // temperature, where the count of coefficients measures the freedom) the
+            // one with fewer free parameters is added: the withheld score shows no
+            // evidence for the other's extra ones. A stochastic process's freedom is
+            // not its parameter count (a random walk of one parameter follows any slow
+            // wander), so ties that involve one stay with the better gap.
+            let simpler = match &second_eff {
+                Some(r)
+                    if tie
+                        && r.gap_after <= floor_gap
+                        && free_params(r) < free_params(&eff)
+                        && ensemble::is_deterministic(&r.component)
+                        && ensemble::is_deterministic(&eff.component) =>
+                {
+                    refit
+                        .simpler(&search, r, (&eff.kind, eff.gap_after))?
+                        .filter(|a| a.1.gap_after <= floor_gap)
+                }
+                _ => None,
+            };
             if tie {
+                let (added_label, why) = match &simpler {
+                    Some(a) => (
+                        label(&a.1),
+                        format!(
+                            "the simpler explanation (free parameters: {} against {})",
+                            free_params(&a.1),
+                            free_params(&eff)
+                        ),
+                    ),
+                    None => (label(&eff), "the other is as good an explanation".into()),
+                };
                 notes.push(format!(
-                    "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, the other is as good an explanation",
+                    "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, {}",
                     label(&eff),
                     runner_up_label.as_deref().unwrap_or(""),
                     eff.gap_after,
                     runner_up_gap_after.unwrap_or(f64::NAN),
                     difference_sd.unwrap_or(f64::NAN),
-                    label(&eff)
+                    added_label,
+                    why
                 ));
             }
-            let step = Step {
-                action: "add",
-                kind: eff.kind.clone(),
-                gap_before: gap_was,
-                gap_after: eff.gap_after,
-                runner_up,
-                runner_up_gap_after,
-                difference_sd,
-                tie,
-            };
-            if let Some(note) = refit.add_best_of(&mut search, (p, eff, e, step), &rivals)? {
-                notes.push(note);
+            if let Some((props, r_eff, r_e, mut r_step)) = simpler {
+                r_step.gap_before = gap_was;
+                r_step.difference_sd = difference_sd;
+                r_step.tie = true;
+                refit.add_best_of(&mut search, (props, r_eff, r_e, r_step), &[])?;
+            } else {
+                let step = Step {
+                    action: "add",
+                    kind: eff.kind.clone(),
+                    gap_before: gap_was,
+                    gap_after: eff.gap_after,
+                    runner_up,
+                    runner_up_gap_after,
+                    difference_sd,
+                    tie,
+                };
+                if let Some(note) = refit.add_best_of(&mut search, (p, eff, e, step), &rivals)? {
+                    notes.push(note);
+                }
             }
         }
         lap(&format!("round {round_no}: re-estimation"));
@@ -863,6 +903,45 @@ pub fn diagnose_with_progress(
         seed,
         notes,
     })
+}
+
+/// The free parameters effect `e` estimates, for the parsimony rule of a tie between
+/// deterministic effects: its
+/// component's (a temperature bias its coefficients and its reference, which carries
+/// the constant; a Gauss-Markov process sigma and tau_s; a sinusoid amplitude,
+/// frequency and phase; ...), one for a recalibration's factor, plus one for a level it
+/// rescales beside it (`level_factor`, `white_noise_n`).
+fn free_params(e: &Effect) -> usize {
+    if e.kind.starts_with("recalibrate:") {
+        return 1;
+    }
+    let own = match &e.component {
+        Component::ConstantBias { .. }
+        | Component::WhiteNoise { .. }
+        | Component::Quantization { .. }
+        | Component::BiasInstability { .. }
+        | Component::RateRandomWalk { .. }
+        | Component::RateRamp { .. }
+        | Component::Heteroskedastic { .. }
+        | Component::CrossAxis { .. }
+        | Component::Saturation { .. }
+        | Component::OutputResolution { .. } => 1,
+        Component::GaussMarkov { .. }
+        | Component::Warmup { .. }
+        | Component::ThermalRate { .. }
+        | Component::Outliers { .. } => 2,
+        Component::Sinusoid { .. } => 3,
+        Component::TemperatureBias { coeffs, .. } => coeffs.len() + 1,
+        Component::Arma { ar, ma, .. } => ar.len() + ma.len() + 1,
+        Component::OutputFilter { damping, .. } => 1 + usize::from(damping.is_some()),
+        // a fitted FARMA model: more than any parametric kind
+        Component::Farma(_) => 16,
+    };
+    let extra = ["level_factor", "white_noise_n"]
+        .iter()
+        .filter(|k| e.params.get(**k).is_some())
+        .count();
+    own + extra
 }
 
 /// What an added effect brings to the final model, for [`verdict`].
@@ -1753,5 +1832,67 @@ mod tests {
             .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
             .collect();
         assert!(jackknife_sd(&reps, &other, &real, &reference, &defs) > 0.0);
+    }
+    fn effect(kind: &str, component: Component, params: Value) -> Effect {
+        Effect {
+            kind: kind.into(),
+            gap_after: 1.0,
+            shrink: 0.0,
+            params,
+            note: String::new(),
+            families: Vec::new(),
+            contribution: None,
+            step: None,
+            at_edge: Vec::new(),
+            component,
+            replaces: None,
+        }
+    }
+
+    #[test]
+    fn free_parameters_count_what_each_candidate_estimates() {
+        let n = |k: &str, c: Component, p: Value| free_params(&effect(k, c, p));
+        let none = serde_json::json!({});
+        assert_eq!(
+            n(
+                "constant_bias",
+                Component::ConstantBias { value: 1.0 },
+                none.clone()
+            ),
+            1
+        );
+        // a linear temperature bias estimated with its constant: slope and reference
+        let tb = |coeffs: Vec<f64>| Component::TemperatureBias {
+            coeffs,
+            reference_c: Some(20.0),
+        };
+        assert_eq!(n("temperature_bias", tb(vec![0.1]), none.clone()), 2);
+        assert_eq!(n("temperature_bias", tb(vec![0.1, 0.01]), none.clone()), 3);
+        let th = Component::ThermalRate {
+            coeff: 1.0,
+            smoothing_s: 60.0,
+        };
+        assert_eq!(n("thermal_rate", th, none.clone()), 2);
+        let gm = Component::GaussMarkov {
+            sigma: 1.0,
+            tau_s: 5.0,
+        };
+        assert_eq!(n("gauss_markov", gm, none.clone()), 2);
+        // a recalibration estimates one factor whatever its component
+        let wn = Component::WhiteNoise { n: 1.0 };
+        assert_eq!(n("recalibrate:white_noise", wn.clone(), none), 1);
+        // a level rescaled beside the effect counts
+        let het = Component::Heteroskedastic {
+            of: crate::simulator::spec::Kind::WhiteNoise,
+            slope: 0.01,
+        };
+        assert_eq!(
+            n(
+                "heteroskedastic",
+                het,
+                serde_json::json!({"level_factor": 1.1})
+            ),
+            2
+        );
     }
 }

@@ -257,11 +257,31 @@ impl Refit<'_> {
         best_kind: &str,
         best_gap: f64,
     ) -> Result<Option<Added>> {
+        self.estimate_on(&t.sts, t.gap_now, r, best_kind, best_gap)
+    }
+
+    /// The round's runner-up `r`, estimated again on the search's states and scored as
+    /// [`Refit::estimate`] does, to be added in place of the round's best (its kind and
+    /// gap, `best`) when the two tie and `r` is the simpler explanation. None when its
+    /// kind gives no proposal of that form now. Works with re-estimation off as well.
+    pub fn simpler(&self, s: &Search, r: &Effect, best: (&str, f64)) -> Result<Option<Added>> {
+        self.estimate_on(s.sts, *s.gap_now, r, best.0, best.1)
+    }
+
+    /// [`Refit::estimate`] on the states `sts` whose joint gap is `gap_now`.
+    fn estimate_on(
+        &self,
+        sts: &[State; 2],
+        gap_now: f64,
+        r: &Effect,
+        best_kind: &str,
+        best_gap: f64,
+    ) -> Result<Option<Added>> {
         let mut props: [Vec<Proposal>; 2] = Default::default();
         {
             let [p0, p1] = &mut props;
             candidates::propose_kind_folds(
-                [&self.cx(&t.sts[0], 0), &self.cx(&t.sts[1], 1)],
+                [&self.cx(&sts[0], 0), &self.cx(&sts[1], 1)],
                 &r.kind,
                 [&mut |p| p0.push(p), &mut |p| p1.push(p)],
             )?;
@@ -278,17 +298,17 @@ impl Refit<'_> {
         let q = ps1.swap_remove(j);
         let d0: Vec<&[f64]> = (0..self.replicas).map(|k| p.delta.get(k)).collect();
         let d1: Vec<&[f64]> = (0..self.replicas).map(|k| q.delta.get(k)).collect();
-        let f = (self.feats)(&t.sts, [Some(&d0), Some(&d1)]);
+        let f = (self.feats)(sts, [Some(&d0), Some(&d1)]);
         let scored = (self.score)(&f);
         let mut round = Round::default();
-        round.offer([p, q], f, scored, t.gap_now);
+        round.offer([p, q], f, scored, gap_now);
         let Some((eff, e, props, _)) = round.best else {
             return Ok(None);
         };
         let step = Step {
             action: "add",
             kind: eff.kind.clone(),
-            gap_before: t.gap_now,
+            gap_before: gap_now,
             gap_after: eff.gap_after,
             runner_up: Some(best_kind.to_string()),
             runner_up_gap_after: Some(best_gap),
