@@ -45,6 +45,7 @@ fn main() {
         temperature_c: temp.as_deref(),
         others: vec![],
         spec_dir: None,
+        scan: Vec::new(),
     };
     let prm = GapParams {
         replicas: 20,
@@ -108,6 +109,7 @@ fn main() {
                     temperature_c: temp.as_deref(),
                     others: vec![],
                     spec_dir: None,
+                    scan: Vec::new(),
                 };
                 let d = diagnose(
                     &real,

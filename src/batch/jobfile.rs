@@ -36,7 +36,8 @@
 //! required; the unit's channels that the spec has are diagnosed, and the log's first
 //! channel of the temperature role is offered when the spec names no
 //! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`,
-//! `reestimate` (true: `farma gap --reestimate`) (the defaults of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
+//! `reestimate` (true: `farma gap --reestimate`), `keep_events` (true: `farma gap
+//! --keep-events`) (the defaults of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
 use std::path::{Path, PathBuf};
@@ -177,6 +178,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "seed",
             "max_effects",
             "reestimate",
+            "keep_events",
         ],
     }
 }

@@ -46,6 +46,11 @@ pub struct GapArgs {
     /// the peak memory, and more time).
     #[arg(long)]
     pub reestimate: bool,
+    /// Keep test-stand events (shocks seen on the diagnosed channel and at least two
+    /// other channels at once) in the real log; by default each is replaced by the
+    /// stretch before it and listed in `events_excluded`.
+    #[arg(long)]
+    pub keep_events: bool,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: Option<PathBuf>,
@@ -77,6 +82,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             seed: a.seed,
             max_added: a.max_effects,
             reestimate: a.reestimate,
+            keep_events: a.keep_events,
             ..GapParams::default()
         },
     };
@@ -116,6 +122,17 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
         "channel {}: gap {:.3} before, {:.3} after (noise floor {:.3}, significant above {:.3})",
         d.channel, d.gap_before, d.gap_after, d.noise_floor, d.gap_threshold
     );
+    for e in &d.events_excluded {
+        let _ = writeln!(
+            s,
+            "test-stand event excluded: {:.2} .. {:.2} s, {:.0} sd on {}, seen on {}",
+            e.start_s,
+            e.end_s,
+            e.peak_sd,
+            d.channel,
+            e.channels.join(", ")
+        );
+    }
     let _ = writeln!(
         s,
         "\nwhere the real log leaves the simulations' band (withheld part):"

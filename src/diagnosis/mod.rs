@@ -3,6 +3,8 @@
 //! added, judged on withheld data (contracts.md section 3).
 //!
 //! The steps, one file each:
+//! - [`events`]: test-stand shocks that every channel sees at once, found and replaced
+//!   in the real log before anything else reads it (unless `keep_events`);
 //! - [`blocks`]: the log cut into interleaved training and withheld time blocks, in two
 //!   folds with swapped roles so that every sample is withheld once;
 //! - [`features`]: the statistics that localise a difference (Allan variance per tau,
@@ -33,6 +35,7 @@ pub mod blocks;
 pub mod candidates;
 pub mod distance;
 pub mod ensemble;
+pub mod events;
 pub mod features;
 pub mod path;
 mod reestimate;
@@ -80,6 +83,9 @@ pub struct GapParams {
     /// one development case and no held-out one, at about twice the peak memory
     /// (BENCHMARKS.md).
     pub reestimate: bool,
+    /// Keep the test-stand events ([`events`]) in the real log; false (the default):
+    /// each is found and replaced by the stretch before it.
+    pub keep_events: bool,
 }
 
 impl Default for GapParams {
@@ -92,6 +98,7 @@ impl Default for GapParams {
             max_added: 4,
             min_shrink: 0.05,
             reestimate: false,
+            keep_events: false,
         }
     }
 }
@@ -109,6 +116,10 @@ pub struct RealLog<'a> {
     pub others: Vec<(String, &'a [f64])>,
     /// Folder of the spec (relative model paths).
     pub spec_dir: Option<std::path::PathBuf>,
+    /// The log's other channels scanned for test-stand events ([`events`]): every
+    /// numeric column but the diagnosed, time and temperature ones (the cross-axis
+    /// channels among them). Empty: no event can be found.
+    pub scan: Vec<(String, &'a [f64])>,
 }
 
 /// One candidate effect, scored.
@@ -200,6 +211,9 @@ pub struct Diagnosis {
     pub replicas: usize,
     pub seed: u64,
     pub notes: Vec<String>,
+    /// The test-stand events found and replaced in the real log before the diagnosis
+    /// (empty with `keep_events`).
+    pub events_excluded: Vec<events::Event>,
 }
 
 /// One fold's state of the search: its spec (the effects added with that fold's
@@ -232,6 +246,51 @@ pub fn diagnose(real: &RealLog, spec: &Spec, prm: &GapParams) -> Result<Diagnosi
 /// position to the round, its message to the candidate being scored. With
 /// `FARMA_GAP_TIMING` set, the seconds each stage took are printed on stderr.
 pub fn diagnose_with_progress(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+) -> Result<Diagnosis> {
+    let found = if prm.keep_events {
+        Vec::new()
+    } else {
+        events::detect(&real.channel, real.x, &real.scan, real.rate_hz)
+    };
+    if found.is_empty() {
+        return diagnose_log(real, spec, prm, pb);
+    }
+    // the diagnosed and cross-axis channels with the spans replaced
+    let x = events::replaced(real.x, &found)?;
+    let others: Vec<(String, Vec<f64>)> = real
+        .others
+        .iter()
+        .map(|(s, v)| Ok((s.clone(), events::replaced(v, &found)?)))
+        .collect::<Result<_>>()?;
+    let clean = RealLog {
+        x: &x,
+        others: others
+            .iter()
+            .map(|(s, v)| (s.clone(), v.as_slice()))
+            .collect(),
+        ..real.clone()
+    };
+    let mut d = diagnose_log(&clean, spec, prm, pb)?;
+    let seconds: f64 = found.iter().map(|e| e.end_s - e.start_s).sum();
+    d.notes.insert(
+        0,
+        format!(
+            "{} test-stand event span(s) ({seconds:.1} s of {:.1} s) seen on {} and at least two other channels at once were replaced by the stretch before each (events_excluded; --keep-events keeps them)",
+            found.len(),
+            real.x.len() as f64 / real.rate_hz,
+            real.channel
+        ),
+    );
+    d.events_excluded = found;
+    Ok(d)
+}
+
+/// [`diagnose_with_progress`] of a real log already cleaned of its events.
+fn diagnose_log(
     real: &RealLog,
     spec: &Spec,
     prm: &GapParams,
@@ -902,6 +961,7 @@ pub fn diagnose_with_progress(
         replicas: prm.replicas,
         seed,
         notes,
+        events_excluded: Vec::new(),
     })
 }
 

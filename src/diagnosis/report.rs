@@ -75,6 +75,12 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "blocks": d.blocks.ranges.len(),
         "train_blocks": d.blocks.train.iter().filter(|t| **t).count(),
         "notes": d.notes,
+        "events_excluded": d.events_excluded.iter().map(|e| json!({
+            "start_s": e.start_s,
+            "end_s": e.end_s,
+            "channels": e.channels,
+            "peak_sd": finite(e.peak_sd),
+        })).collect::<Vec<_>>(),
     })
 }
 

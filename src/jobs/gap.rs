@@ -62,6 +62,15 @@ impl GapJob {
             .filter(|c| c.name != channel && log_names.contains(&c.name.as_str()))
             .map(|c| Ok((c.name.clone(), store.column(&c.name)?)))
             .collect::<Result<_>>()?;
+        // every other numeric channel is scanned for test-stand events, the
+        // accelerometers included; the temperature and a channel with gaps are not
+        let temp = self.temperature_channel(store);
+        let scan: Vec<(String, &[f64])> = log_names
+            .iter()
+            .filter(|n| **n != channel && Some(**n) != temp.as_deref())
+            .filter(|n| store.nonfinite(n).is_none())
+            .map(|n| Ok((n.to_string(), store.column(n)?)))
+            .collect::<Result<_>>()?;
         Ok(RealLog {
             channel: channel.to_string(),
             x,
@@ -69,6 +78,7 @@ impl GapJob {
             temperature_c,
             others,
             spec_dir: self.spec_path.parent().map(|p| p.to_path_buf()),
+            scan,
         })
     }
 

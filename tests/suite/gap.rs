@@ -15,6 +15,7 @@ fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
         temperature_c: temp.as_deref(),
         others: vec![],
         spec_dir: None,
+        scan: Vec::new(),
     };
     let prm = GapParams {
         replicas,
@@ -130,6 +131,7 @@ fn a_gauss_markov_that_took_a_sinusoids_variance_is_estimated_again_beside_it() 
         temperature_c: temp.as_deref(),
         others: vec![],
         spec_dir: None,
+        scan: Vec::new(),
     };
     let diagnose_with = |reestimate: bool| {
         let prm = GapParams {
@@ -280,6 +282,7 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         temperature_c: Some(&temp),
         others: vec![],
         spec_dir: None,
+        scan: Vec::new(),
     };
     let prm = GapParams {
         replicas: 12,
@@ -768,6 +771,7 @@ fn spikes_in_one_half_of_the_blocks_are_not_scored_and_the_reason_says_so() {
         temperature_c: None,
         others: vec![],
         spec_dir: None,
+        scan: Vec::new(),
     };
     let d = diagnose(&real, &case.spec, &prm).unwrap();
     let nt = d
@@ -783,4 +787,105 @@ fn spikes_in_one_half_of_the_blocks_are_not_scored_and_the_reason_says_so() {
         nt.reason
     );
     assert!(!d.added.iter().any(|e| e.kind == "outliers"));
+}
+
+/// A knock on the test stand, seen on the diagnosed channel and on two accelerometer
+/// channels the spec does not have: `farma gap` finds it, replaces it and lists it in
+/// `events_excluded`; with `--keep-events` the list is empty and the knock widens the
+/// gap.
+#[test]
+fn cli_excludes_a_knock_seen_on_every_channel_and_keep_events_keeps_it() {
+    use farma::simulator::{SimRequest, simulate};
+    let dir = tempfile::tempdir().unwrap();
+    let rate_hz = 10.0;
+    let n = 18_000;
+    let spec = bank::base_spec(rate_hz, false);
+    let spec_path = dir.path().join("spec.toml");
+    std::fs::write(&spec_path, spec.to_toml().unwrap()).unwrap();
+    let mut req = SimRequest::new(n, rate_hz);
+    req.seed = Some(77);
+    let mut rate = simulate(&spec, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let mut rng = <rand::rngs::StdRng as rand::SeedableRng>::seed_from_u64(78);
+    let mut accel = |_| -> Vec<f64> {
+        (0..n)
+            .map(|_| 0.001 * rand::Rng::sample::<f64, _>(&mut rng, rand_distr::StandardNormal))
+            .collect()
+    };
+    let (mut acc_x, mut acc_y) = (accel(0), accel(1));
+    // the knock at 900 s: a damped ringing on every channel, 0.5 s long
+    let at = 9000;
+    for k in 0..5 {
+        let ring = if k % 2 == 0 { 1.0 } else { -1.0 } * (-(k as f64) / 2.0).exp();
+        rate[at + k] += 2.0 * ring;
+        acc_x[at + k] += 0.3 * ring;
+        acc_y[at + k] += 0.2 * ring;
+    }
+    let mut csv = String::from("time_s,rate,acc_x,acc_y\n");
+    for t in 0..n {
+        csv.push_str(&format!(
+            "{},{},{},{}\n",
+            t as f64 / rate_hz,
+            rate[t],
+            acc_x[t],
+            acc_y[t]
+        ));
+    }
+    let log = dir.path().join("knock.csv");
+    std::fs::write(&log, csv).unwrap();
+    let cache = dir.path().join("cache");
+    let gap = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "gap",
+            "--real",
+            log.to_str().unwrap(),
+            "--sim",
+            spec_path.to_str().unwrap(),
+            "--channel",
+            CHANNEL,
+            "--replicas",
+            "8",
+            "--max-effects",
+            "1",
+            "--json",
+            "--cache-dir",
+            cache.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = farma(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let v = gap(&[]);
+    let ev = v["events_excluded"].as_array().unwrap();
+    assert_eq!(ev.len(), 1, "{v}");
+    let (start_s, end_s) = (
+        ev[0]["start_s"].as_f64().unwrap(),
+        ev[0]["end_s"].as_f64().unwrap(),
+    );
+    // the knock's samples 9000..9005 (900.0 to 900.4 s), 1 s of settling each side
+    assert!((898.5..=899.0).contains(&start_s), "{start_s}");
+    assert!((901.5..=902.5).contains(&end_s), "{end_s}");
+    assert_eq!(
+        ev[0]["channels"],
+        serde_json::json!(["rate", "acc_x", "acc_y"])
+    );
+    assert!(ev[0]["peak_sd"].as_f64().unwrap() > 8.0, "{v}");
+    let notes = v["notes"].to_string();
+    assert!(notes.contains("1 test-stand event span"), "{notes}");
+    let kept = gap(&["--keep-events"]);
+    assert_eq!(kept["events_excluded"], serde_json::json!([]), "{kept}");
+    assert!(
+        kept["gap_before"].as_f64().unwrap() > v["gap_before"].as_f64().unwrap(),
+        "the knock kept: {} against {} without it",
+        kept["gap_before"],
+        v["gap_before"]
+    );
 }
