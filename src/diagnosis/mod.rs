@@ -966,8 +966,8 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
 }
 
 /// The form that tells two output-path candidates of one kind apart: a filter's order
-/// and discretization, a resolution on the rate or on the angle; empty for the other
-/// kinds.
+/// and discretization (a FIR: its number of taps), a resolution on the rate or on the
+/// angle; empty for the other kinds.
 fn form(c: &Component) -> String {
     match c {
         Component::OutputFilter {
@@ -984,6 +984,7 @@ fn form(c: &Component) -> String {
                 ""
             }
         ),
+        Component::OutputFir { taps } => format!("fir {} taps", taps.len()),
         Component::OutputResolution { on_angle, .. } => if *on_angle {
             "on the angle"
         } else {
