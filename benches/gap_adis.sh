@@ -24,7 +24,11 @@ for r in [1, 2, 3, 4]:
     t = open(f"{o}/g{r}.err").read().strip().splitlines()[-1]
     def eff(a):
         p, k, x = a["params"], a["kind"], ""
-        if k == "output_filter":
+        if k == "output_filter" and p.get("form") == "fir":
+            x = f" fir theta {p['taps'][1] / p['taps'][0]:.3f}" if len(p["taps"]) == 2 else f" fir {len(p['taps'])} taps"
+            if "white_noise_n" in p:
+                x += f", white n {p['white_noise_n']:.4f}"
+        elif k == "output_filter":
             x = f" order {p.get('order')} {p.get('discretization', 'zoh')} {p.get('bandwidth_hz', 0):.3g} Hz"
             if "white_noise_n" in p:
                 x += f", white n {p['white_noise_n']:.4f}"

@@ -994,6 +994,8 @@ fn free_params(e: &Effect) -> usize {
         Component::TemperatureBias { coeffs, .. } => coeffs.len() + 1,
         Component::Arma { ar, ma, .. } => ar.len() + ma.len() + 1,
         Component::OutputFilter { damping, .. } => 1 + usize::from(damping.is_some()),
+        // taps of unit DC gain: one fewer free than taps
+        Component::OutputFir { taps } => taps.len().saturating_sub(1).max(1),
         // a fitted FARMA model: more than any parametric kind
         Component::Farma(_) => 16,
     };
@@ -1105,8 +1107,8 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
 }
 
 /// The form that tells two output-path candidates of one kind apart: a filter's order
-/// and discretization, a resolution on the rate or on the angle; empty for the other
-/// kinds.
+/// and discretization (a FIR: its number of taps), a resolution on the rate or on the
+/// angle; empty for the other kinds.
 fn form(c: &Component) -> String {
     match c {
         Component::OutputFilter {
@@ -1123,6 +1125,7 @@ fn form(c: &Component) -> String {
                 ""
             }
         ),
+        Component::OutputFir { taps } => format!("fir {} taps", taps.len()),
         Component::OutputResolution { on_angle, .. } => if *on_angle {
             "on the angle"
         } else {

@@ -713,6 +713,82 @@ fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
     assert_explained(&d);
 }
 
+#[test]
+fn a_log_through_an_ma1_fir_gets_the_fir_with_its_theta() {
+    // the base spec's sensor writing its rate through the MA(1) FIR (1, 0.5) / 1.5 (an
+    // averaging decimation filter seen at the output rate): once with the spec's white
+    // level (the filter alone), once with a white noise 25 % above it behind the filter
+    // (the joint candidate refits it); theta is read from the training part's lag-1
+    // autocorrelation, to within 0.05 (its sd at 18 000 training samples is about 0.01).
+    // At theta = 0.3 an order-2 low-pass near 3.7 Hz scores as well on an hour of
+    // 10 Hz samples (both within the floor): the test takes the larger theta
+    let theta = 0.5;
+    for (k, white_n) in [(0, 0.01), (1, 0.0125)] {
+        let spec = bank::base_spec(10.0, false);
+        let mut truth = spec.clone();
+        truth.channels[0].components[0] = Component::WhiteNoise { n: white_n };
+        truth.channels[0].components.push(Component::OutputFir {
+            taps: vec![1.0 / (1.0 + theta), theta / (1.0 + theta)],
+        });
+        let case = Case {
+            expect: "output_filter".into(),
+            spec,
+            truth,
+        };
+        let d = run(&case, 36_000, 21 + k, 12);
+        assert_first_step(&d, "output_filter");
+        let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+        assert_eq!(f.params["form"], "fir", "{}", f.params);
+        let taps: Vec<f64> = f.params["taps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert_eq!(taps.len(), 2, "{taps:?}");
+        assert!((taps[0] + taps[1] - 1.0).abs() < 1e-12, "{taps:?}");
+        let got = taps[1] / taps[0];
+        assert!((got - theta).abs() < 0.05, "theta {got} for {theta}");
+        if k == 1 {
+            let n = f.params["white_noise_n"]
+                .as_f64()
+                .expect("the joint candidate");
+            assert!((n / white_n - 1.0).abs() < 0.1, "{}", f.params);
+        }
+        assert_explained(&d);
+    }
+}
+
+#[test]
+fn a_low_pass_log_does_not_get_the_fir() {
+    // a first-order low-pass at 2 Hz (10 Hz samples) has lag-2 autocorrelation
+    // rho_1^2: the MA(1) candidate is not proposed, the low-pass is added
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::OutputFilter {
+        order: 1,
+        bandwidth_hz: 2.0,
+        damping: None,
+        discretization: Default::default(),
+    });
+    let case = Case {
+        expect: "output_filter".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 31, 12);
+    assert_first_step(&d, "output_filter");
+    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    assert!(f.params.get("order").is_some(), "{}", f.params);
+    assert!(
+        d.effects
+            .iter()
+            .all(|e| e.params.get("form").is_none_or(|v| v != "fir")),
+        "a FIR was scored: {:?}",
+        d.effects.iter().map(|e| &e.params).collect::<Vec<_>>()
+    );
+}
+
 /// The diagnosis ends within its threshold with every effect established.
 fn assert_explained(d: &farma::diagnosis::Diagnosis) {
     assert!(

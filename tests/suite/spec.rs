@@ -215,6 +215,37 @@ fn round_trip_every_component() {
 }
 
 #[test]
+fn round_trip_the_fir_output_filter() {
+    let text = format!(
+        "{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"output_filter\"\nform = \"fir\"\ntaps = [0.8333333333333334, 0.16666666666666669, -1e-300]\n"
+    );
+    let spec = parse_spec(&text, Path::new("fir.toml")).unwrap();
+    assert_eq!(
+        spec.channels[0].components[1],
+        Component::OutputFir {
+            taps: vec![0.8333333333333334, 0.16666666666666669, -1e-300]
+        }
+    );
+    let written = spec.to_toml().unwrap();
+    assert!(written.contains("form = \"fir\""), "{written}");
+    let back = parse_spec(&written, Path::new("written.toml")).unwrap();
+    assert_eq!(back, spec, "written spec:\n{written}");
+    assert_eq!(back.to_toml().unwrap(), written);
+    // the low-pass form named explicitly is the default form
+    let lp = parse_spec(
+        &behind_noise(
+            "kind = \"output_filter\"\nform = \"lowpass\"\norder = 1\nbandwidth_hz = 2.0",
+        ),
+        Path::new("lp.toml"),
+    )
+    .unwrap();
+    assert!(matches!(
+        lp.channels[0].components[1],
+        Component::OutputFilter { order: 1, .. }
+    ));
+}
+
+#[test]
 fn round_trip_awkward_values() {
     // Values whose decimal form is long, tiny, huge or negative zero, names that need
     // quoting, and no optional keys.
@@ -618,6 +649,41 @@ fn bad_specs_name_the_key_and_the_problem() {
                 "kind = \"output_filter\"\norder = 1\nbandwidth_hz = 60.0\ndiscretization = \"bilinear\"",
             ),
             vec!["'bandwidth_hz' = 60 must be below the Nyquist frequency"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"fir\"\ntaps = []"),
+            vec!["(output_filter): 'taps' must hold 1 to 64 numbers, found 0"],
+        ),
+        (
+            behind_noise(&format!(
+                "kind = \"output_filter\"\nform = \"fir\"\ntaps = [{}]",
+                vec!["0.1"; 65].join(", ")
+            )),
+            vec!["(output_filter): 'taps' must hold 1 to 64 numbers, found 65"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"fir\"\ntaps = [0.5, nan]"),
+            vec!["(output_filter): 'taps' must hold finite numbers, found NaN"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"fir\"\ntaps = [0.5, \"a\"]"),
+            vec!["(output_filter): 'taps' must be an array of numbers"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"fir\""),
+            vec!["(output_filter): missing parameter 'taps'"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"fir\"\ntaps = [1.0]\norder = 1"),
+            vec!["(output_filter): 'order' belongs to the low-pass form"],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\norder = 1\nbandwidth_hz = 1.0\ntaps = [1.0]"),
+            vec!["(output_filter): 'taps' belongs to form = \"fir\""],
+        ),
+        (
+            behind_noise("kind = \"output_filter\"\nform = \"iir\"\ntaps = [1.0]"),
+            vec!["(output_filter): 'form' must be \"lowpass\" or \"fir\""],
         ),
         (
             behind_noise("kind = \"saturation\"\nlimit = -3"),

@@ -850,6 +850,43 @@ pub fn proposals(
                 );
             }
         }
+        // absent (an Err): the low-pass candidates above speak for the filter
+        if let Ok(m) = ma1_filter(cx, white.map(|(k, _)| k)) {
+            let theta = m.theta;
+            let fir = Component::OutputFir {
+                taps: vec![1.0 / (1.0 + theta), theta / (1.0 + theta)],
+            };
+            let fitted = format!(
+                "MA(1) FIR (1, theta) / (1 + theta), theta = {}: the training rate's lag-1 autocorrelation (after a {}-sample moving mean) exceeds the simulations' by {} (lags 2, 3 by {}, {}; ensemble sd {})",
+                crate::fmt::num(theta),
+                2 * m.half + 1,
+                crate::fmt::num(m.excess[0]),
+                crate::fmt::num(m.excess[1]),
+                crate::fmt::num(m.excess[2]),
+                crate::fmt::num(m.sd_lag1),
+            );
+            if let (Some((k, n)), Some(s)) = (white, m.white_factor)
+                && s.is_finite()
+                && (s - 1.0).abs() > JOINT_MIN_CHANGE
+            {
+                let delta = Delta::Each(
+                    cx.parts
+                        .iter()
+                        .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
+                        .collect(),
+                );
+                offer_also(
+                    fir.clone(),
+                    format!(
+                        "{fitted}, with the white noise before it refitted to the training rate's short-term variance: n = {} (factor {})",
+                        crate::fmt::num(n * s),
+                        crate::fmt::num(s)
+                    ),
+                    Some((k, Component::WhiteNoise { n: n * s }, delta)),
+                );
+            }
+            offer_also(fir, fitted, None);
+        }
         if let (0, Some(bw)) = (found, at_edge) {
             skipped.push(NotTried {
                 kind: "output_filter".into(),
@@ -873,6 +910,186 @@ pub fn proposals(
         );
     }
     Ok(skipped)
+}
+
+/// The half width of the moving mean [`hp_lags`] removes (samples).
+pub const MA1_HALF_WINDOW: usize = 500;
+/// How many ensemble standard deviations the lag-1 excess must pass for the MA(1)
+/// filter to be proposed.
+pub const MA1_MIN_SDS: f64 = 4.0;
+
+/// The short-term autocorrelation of `x` on the blocks `ranges`: d_t = x_t minus the
+/// centred moving mean of 2 `half` + 1 samples (the slow drift removed), samples with
+/// |d_t| above 6 robust sd (1.4826 median |d|) left out (a knock or an outlier would
+/// otherwise dominate), then rho_k = sum d_t d_{t+k} / sum d_t^2 over the pairs within
+/// one block (k = 1, 2, 3), the variance sum d_t^2 / count and the count. None when
+/// no block is longer than 2 `half` + 4 samples.
+pub fn hp_lags(x: &[f64], ranges: &[std::ops::Range<usize>], half: usize) -> Option<HpLags> {
+    let w = 2 * half + 1;
+    let mut ds: Vec<Vec<f64>> = Vec::new();
+    for r in ranges {
+        let b = &x[r.clone()];
+        if b.len() < w + 4 {
+            continue;
+        }
+        let mut c = Vec::with_capacity(b.len() + 1);
+        c.push(0.0);
+        let mut acc = 0.0;
+        for v in b {
+            acc += v;
+            c.push(acc);
+        }
+        ds.push(
+            (half..b.len() - half)
+                .map(|t| b[t] - (c[t + half + 1] - c[t - half]) / w as f64)
+                .collect(),
+        );
+    }
+    let mut abs: Vec<f64> = ds.iter().flatten().map(|d| d.abs()).collect();
+    if abs.is_empty() {
+        return None;
+    }
+    let mid = abs.len() / 2;
+    let med = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let thr = 6.0 * 1.4826 * med;
+    let ok = |d: f64| d.abs() <= thr || thr == 0.0;
+    let (mut c0, mut c, mut n) = (0.0, [0.0; 3], 0usize);
+    for d in &ds {
+        for (t, &a) in d.iter().enumerate() {
+            if !ok(a) {
+                continue;
+            }
+            c0 += a * a;
+            n += 1;
+            for (k, ck) in c.iter_mut().enumerate() {
+                if let Some(&b) = d.get(t + k + 1)
+                    && ok(b)
+                {
+                    *ck += a * b;
+                }
+            }
+        }
+    }
+    if n == 0 || c0 <= 0.0 {
+        return None;
+    }
+    Some(HpLags {
+        rho: c.map(|ck| ck / c0),
+        var: c0 / n as f64,
+        count: n,
+    })
+}
+
+/// What [`hp_lags`] reads off a series.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HpLags {
+    /// Autocorrelation at lags 1, 2, 3.
+    pub rho: [f64; 3],
+    /// The variance of the high-passed samples kept.
+    pub var: f64,
+    /// The samples kept.
+    pub count: usize,
+}
+
+/// The MA(1) output filter read off the training part (see [`ma1_filter`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ma1 {
+    /// The MA coefficient: the filter is (1, theta) / (1 + theta), unit DC gain.
+    pub theta: f64,
+    /// The real log's lag-1, 2, 3 autocorrelation minus the ensemble mean's.
+    pub excess: [f64; 3],
+    /// The spread used for lag 1: the ensemble's sd, at least 1 / sqrt(count).
+    pub sd_lag1: f64,
+    /// The factor on the white noise's n that keeps the short-term variance with the
+    /// filter in (None without a white noise).
+    pub white_factor: Option<f64>,
+    /// The moving mean's half width used.
+    pub half: usize,
+}
+
+/// The MA(1) output filter (a sensor's averaging decimation filter seen at the output
+/// rate, whose autocorrelation is zero beyond lag 1) read off the training blocks of
+/// `cx`: [`hp_lags`] of the real log and of each replica of the ensemble; the
+/// excess e_k = rho_k(real) - mean rho_k(ensemble). Proposed only when e_1 is positive
+/// and above [`MA1_MIN_SDS`] times its spread s_1 (the ensemble's sd of rho_1, at
+/// least 1 / sqrt(count)) and e_2, e_3 are within [`MA1_MIN_SDS`] s_k or within a tenth
+/// of e_1 (a low-pass has rho_2 = rho_1^2 or more: it is left to the low-pass
+/// candidates), and e_1 < 0.5 (the largest lag-1 autocorrelation of an MA(1)). theta
+/// solves e_1 = theta / (1 + theta^2): theta = (1 - sqrt(1 - 4 e_1^2)) / (2 e_1), the
+/// invertible root. White noise added after the filter (the output rounding) dilutes
+/// e_1, so theta reads the share of the filtered part low.
+/// With the white noise (component `white`), the factor s on its n that keeps the
+/// high-passed variance: the filter multiplies the white part's variance v_w by
+/// g = (1 + theta^2) / (1 + theta)^2, and s^2 = (V_real - V_ens + v_w) / (g v_w), V the
+/// high-passed variances (the ensemble's a mean over replicas), v_w the white part's
+/// (mean over replicas).
+pub fn ma1_filter(cx: &Context, white: Option<usize>) -> std::result::Result<Ma1, String> {
+    let ranges = cx.ranges();
+    let longest = ranges.iter().map(|r| r.len()).max().unwrap_or(0);
+    let half = MA1_HALF_WINDOW.min(longest / 8).max(1);
+    let real = hp_lags(cx.real, ranges, half).ok_or("training blocks too short")?;
+    let ens: Vec<HpLags> = cx
+        .target
+        .iter()
+        .filter_map(|t| hp_lags(t, ranges, half))
+        .collect();
+    if ens.len() < 2 {
+        return Err("fewer than two replicas to compare with".into());
+    }
+    let m = ens.len() as f64;
+    let floor = 1.0 / (real.count as f64).sqrt();
+    let mut excess = [0.0; 3];
+    let mut sd = [0.0; 3];
+    for k in 0..3 {
+        let mean = ens.iter().map(|e| e.rho[k]).sum::<f64>() / m;
+        let var = ens.iter().map(|e| (e.rho[k] - mean).powi(2)).sum::<f64>() / (m - 1.0);
+        excess[k] = real.rho[k] - mean;
+        sd[k] = var.sqrt().max(floor);
+    }
+    let e1 = excess[0];
+    if e1 <= MA1_MIN_SDS * sd[0] {
+        return Err(format!(
+            "the lag-1 autocorrelation's excess {} is within {MA1_MIN_SDS} sd ({}) of the simulations'",
+            crate::fmt::num(e1),
+            crate::fmt::num(sd[0])
+        ));
+    }
+    if let Some(k) = (1..3).find(|&k| excess[k].abs() > (MA1_MIN_SDS * sd[k]).max(0.1 * e1)) {
+        return Err(format!(
+            "lags 2, 3 exceed the simulations' too (lag {}: {}): not an MA(1)",
+            k + 1,
+            crate::fmt::num(excess[k])
+        ));
+    }
+    if e1 >= 0.5 {
+        return Err(format!(
+            "the lag-1 excess {} is beyond any MA(1)'s (0.5)",
+            crate::fmt::num(e1)
+        ));
+    }
+    let theta = (1.0 - (1.0 - 4.0 * e1 * e1).sqrt()) / (2.0 * e1);
+    let white_factor = white.and_then(|k| {
+        let vw: Vec<f64> = cx
+            .parts
+            .iter()
+            .filter_map(|p| hp_lags(&p[k], ranges, half).map(|h| h.var))
+            .collect();
+        if vw.is_empty() {
+            return None;
+        }
+        let v_w = vw.iter().sum::<f64>() / vw.len() as f64;
+        let v_ens = ens.iter().map(|e| e.var).sum::<f64>() / m;
+        let g = (1.0 + theta * theta) / (1.0 + theta).powi(2);
+        let s2 = (real.var - v_ens + v_w) / (g * v_w);
+        (s2 > 0.0 && v_w > 0.0).then(|| s2.sqrt())
+    });
+    Ok(Ma1 {
+        theta,
+        excess,
+        sd_lag1: sd[0],
+        white_factor,
+        half,
+    })
 }
 
 #[cfg(test)]

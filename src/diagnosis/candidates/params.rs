@@ -69,6 +69,7 @@ pub fn scaled(c: &Component, s: f64) -> Option<Component> {
         C::Farma(_)
         | C::Heteroskedastic { .. }
         | C::OutputFilter { .. }
+        | C::OutputFir { .. }
         | C::Saturation { .. }
         | C::OutputResolution { .. } => return None,
     })
@@ -176,6 +177,7 @@ pub fn params_json(c: &Component) -> Value {
             "damping": damping,
             "discretization": discretization.as_str()
         }),
+        C::OutputFir { taps } => json!({ "form": "fir", "taps": taps }),
         C::Saturation { limit } => json!({ "limit": limit }),
         C::OutputResolution { quantum, on_angle } => {
             json!({ "quantum": quantum, "on_angle": on_angle })

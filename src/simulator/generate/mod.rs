@@ -579,6 +579,7 @@ impl<'a> Simulator<'a> {
                 Component::Heteroskedastic { .. }
                 | Component::CrossAxis { .. }
                 | Component::OutputFilter { .. }
+                | Component::OutputFir { .. }
                 | Component::Saturation { .. }
                 | Component::OutputResolution { .. },
                 _,

@@ -1,6 +1,7 @@
 //! The sensor's output path: what a gyro does to the sum of its error components
 //! before it writes a sample, in this order (a sensor's output chain):
-//! 1. `output_filter`: a first- or second-order low-pass ([`LowPass`]);
+//! 1. `output_filter`: a first- or second-order low-pass ([`LowPass`]), or a finite
+//!    impulse response ([`Fir`], `form = "fir"`);
 //! 2. `saturation`: each sample clamped to \[-limit, limit\] (the measurement range);
 //! 3. `output_resolution`: each sample rounded to a multiple of the quantum (the LSB),
 //!    or the integrated angle quantized and the rate its first difference ([`Quantizer`]).
@@ -40,6 +41,11 @@
 //! a1 = 2 (K^2 - 1), a2 = 1 - 2 z K + K^2. Unit gain at 0 Hz, a zero at the Nyquist
 //! frequency (the transform maps s = infinity to z = -1), run in transposed direct
 //! form II.
+//!
+//! The FIR form is y_t = sum_k h_k x_{t-k} (what scipy.signal.lfilter(h, \[1\], x)
+//! computes), the inputs before the first sample taken as zero, the last len(h) - 1
+//! inputs carried from block to block; its power response is |sum_k h_k e^(-i k w)|^2,
+//! its DC gain sum_k h_k.
 
 use std::f64::consts::PI;
 
@@ -231,6 +237,56 @@ impl LowPass {
     }
 }
 
+/// A finite-impulse-response output filter with its state (module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fir {
+    taps: Vec<f64>,
+    /// The last taps.len() - 1 inputs, the newest first; zeros before the first sample.
+    history: Vec<f64>,
+}
+
+impl Fir {
+    /// The filter y_t = sum_k taps\[k\] x_{t-k}, at rest (zero history).
+    pub fn new(taps: &[f64]) -> Self {
+        Fir {
+            taps: taps.to_vec(),
+            history: vec![0.0; taps.len().saturating_sub(1)],
+        }
+    }
+
+    /// Filters `x` in place, the history carried on from the previous call.
+    pub fn apply(&mut self, x: &mut [f64]) {
+        let m = self.history.len();
+        if self.taps.is_empty() {
+            return;
+        }
+        let h0 = self.taps[0];
+        for v in x.iter_mut() {
+            let u = *v;
+            let mut y = h0 * u;
+            for (h, p) in self.taps[1..].iter().zip(&self.history) {
+                y += h * p;
+            }
+            if m > 0 {
+                self.history.rotate_right(1);
+                self.history[0] = u;
+            }
+            *v = y;
+        }
+    }
+
+    /// |H(e^(i w))|^2 at frequency `f_hz` for samples at `rate_hz`, w = 2 pi f / rate.
+    pub fn power_response(&self, f_hz: f64, rate_hz: f64) -> f64 {
+        let w = 2.0 * PI * f_hz / rate_hz;
+        let (mut re, mut im) = (0.0, 0.0);
+        for (k, h) in self.taps.iter().enumerate() {
+            re += h * (k as f64 * w).cos();
+            im -= h * (k as f64 * w).sin();
+        }
+        re * re + im * im
+    }
+}
+
 /// The output resolution's rounding with its state.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Quantizer {
@@ -283,6 +339,7 @@ impl Quantizer {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Stage {
     Filter(LowPass),
+    Fir(Fir),
     Saturation(f64),
     Resolution(Quantizer),
 }
@@ -291,6 +348,7 @@ impl Stage {
     fn apply(&mut self, x: &mut [f64]) {
         match self {
             Stage::Filter(f) => f.apply(x),
+            Stage::Fir(f) => f.apply(x),
             Stage::Saturation(limit) => {
                 for v in x.iter_mut() {
                     *v = v.clamp(-*limit, *limit);
@@ -335,6 +393,7 @@ impl OutputPath {
                         *discretization,
                         rate_hz,
                     )),
+                    Component::OutputFir { taps } => Stage::Fir(Fir::new(taps)),
                     Component::Saturation { limit } => Stage::Saturation(*limit),
                     Component::OutputResolution { quantum, on_angle } => {
                         Stage::Resolution(Quantizer::new(*quantum, *on_angle))

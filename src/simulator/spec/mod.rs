@@ -174,6 +174,11 @@ pub enum Component {
         damping: Option<f64>,
         discretization: Discretization,
     },
+    /// The sensor's output filter as a finite impulse response (`form = "fir"`):
+    /// y_t = sum_k taps\[k\] x_{t-k}, `taps` unitless, 1 ..= [`MAX_FIR_TAPS`] finite
+    /// values, the history before the first sample zero. Its DC gain is the sum of the
+    /// taps (no normalization). Kind `output_filter`, first stage of the output path.
+    OutputFir { taps: Vec<f64> },
     /// Saturation at the measurement range: every sample clamped to \[-limit, limit\],
     /// `limit` \[u\] > 0. Between the filter and the output resolution.
     Saturation { limit: f64 },
@@ -204,6 +209,9 @@ impl Discretization {
         }
     }
 }
+
+/// The most taps of an `output_filter` of form "fir".
+pub const MAX_FIR_TAPS: usize = 64;
 
 /// The default damping ratio of a second-order output filter (Butterworth).
 pub const DEFAULT_DAMPING: f64 = std::f64::consts::FRAC_1_SQRT_2;
@@ -370,7 +378,14 @@ impl Kind {
             Kind::Outliers => &["rate_hz", "scale"],
             Kind::Heteroskedastic => &["of", "slope"],
             Kind::CrossAxis => &["from", "gain"],
-            Kind::OutputFilter => &["order", "bandwidth_hz", "damping", "discretization"],
+            Kind::OutputFilter => &[
+                "form",
+                "order",
+                "bandwidth_hz",
+                "damping",
+                "discretization",
+                "taps",
+            ],
             Kind::Saturation => &["limit"],
             Kind::OutputResolution => &["quantum", "on_angle"],
         }
@@ -403,7 +418,7 @@ impl Component {
             Component::Outliers { .. } => Kind::Outliers,
             Component::Heteroskedastic { .. } => Kind::Heteroskedastic,
             Component::CrossAxis { .. } => Kind::CrossAxis,
-            Component::OutputFilter { .. } => Kind::OutputFilter,
+            Component::OutputFilter { .. } | Component::OutputFir { .. } => Kind::OutputFilter,
             Component::Saturation { .. } => Kind::Saturation,
             Component::OutputResolution { .. } => Kind::OutputResolution,
         }

@@ -394,6 +394,34 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
             gain: p.f64("gain")?,
         },
         Kind::OutputFilter => {
+            match p.opt_string("form")?.as_deref() {
+                None | Some("lowpass") => {
+                    if p.has("taps") {
+                        return Err(format!(
+                            "{}: 'taps' belongs to form = \"fir\"; a low-pass (form = \"lowpass\", the default) takes order, bandwidth_hz, damping, discretization",
+                            p.place
+                        ));
+                    }
+                }
+                Some("fir") => {
+                    if let Some(k) = ["order", "bandwidth_hz", "damping", "discretization"]
+                        .into_iter()
+                        .find(|k| p.has(k))
+                    {
+                        return Err(format!(
+                            "{}: '{k}' belongs to the low-pass form; form = \"fir\" takes only 'taps'",
+                            p.place
+                        ));
+                    }
+                    return Ok(Component::OutputFir {
+                        taps: p.list("taps")?,
+                    });
+                }
+                Some(_) => {
+                    let v = p.get("form")?;
+                    return Err(p.wrong("form", "\"lowpass\" or \"fir\"", v));
+                }
+            }
             let v = p.get("order")?;
             let order = match v.as_integer() {
                 Some(o @ (1 | 2)) => o as usize,

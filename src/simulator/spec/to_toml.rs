@@ -165,6 +165,10 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
                 line(out, "discretization", string(discretization.as_str()));
             }
         }
+        Component::OutputFir { taps } => {
+            line(out, "form", string("fir"));
+            line(out, "taps", floats(taps));
+        }
         Component::Saturation { limit } => line(out, "limit", float(*limit)),
         Component::OutputResolution { quantum, on_angle } => {
             line(out, "quantum", float(*quantum));

@@ -5,7 +5,9 @@
 
 use std::collections::HashSet;
 
-use super::{ChannelSpec, Component, Discretization, FarmaModel, Kind, Spec, noise_kinds};
+use super::{
+    ChannelSpec, Component, Discretization, FarmaModel, Kind, MAX_FIR_TAPS, Spec, noise_kinds,
+};
 use crate::fmt::num;
 
 /// The highest sample rate a simulation may run at, Hz (no gyro log comes near; above
@@ -88,6 +90,7 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
             v.push(("bandwidth_hz", *bandwidth_hz));
             v.extend(damping.map(|z| ("damping", z)));
         }
+        Component::OutputFir { taps } => v.extend(taps.iter().map(|x| ("taps", *x))),
         Component::Saturation { limit } => v.push(("limit", *limit)),
         Component::OutputResolution { quantum, .. } => v.push(("quantum", *quantum)),
     }
@@ -423,6 +426,15 @@ impl Spec {
                             ));
                         }
                     }
+                }
+                Component::OutputFir { taps } => {
+                    if taps.is_empty() || taps.len() > MAX_FIR_TAPS {
+                        return Err(format!(
+                            "{place}: 'taps' must hold 1 to {MAX_FIR_TAPS} numbers, found {}",
+                            taps.len()
+                        ));
+                    }
+                    check.all_finite("taps", taps)?;
                 }
                 Component::Saturation { limit } => check.positive("limit", *limit)?,
                 Component::OutputResolution { quantum, .. } => {
