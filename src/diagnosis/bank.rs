@@ -168,6 +168,7 @@ pub fn cases(rate_hz: f64, duration_s: f64) -> Vec<Case> {
         Some(C::Heteroskedastic {
             of: Kind::WhiteNoise,
             slope: 0.12,
+            floor: 0.0,
         }),
         true,
         None,

@@ -262,6 +262,7 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         .push(Component::Heteroskedastic {
             of: Kind::WhiteNoise,
             slope: k,
+            floor: 0.0,
         });
     let mut spec = bank::base_spec(rate_hz, true);
     spec.channels[0].components[0] = Component::WhiteNoise {

@@ -563,6 +563,38 @@ fn heteroskedastic_scales_its_noise_exactly() {
     }
 }
 
+/// With a floor the scale is max(floor, 1 + slope (T - mean T)), exactly, and the floor
+/// acts: the temperature's range takes 1 + slope (T - mean T) below it.
+#[test]
+fn heteroskedastic_scale_levels_off_at_its_floor() {
+    let n = 70_000;
+    let temp = temperature(n);
+    let tmean = mean(&temp);
+    assert_eq!(
+        thermal::scale(0.2, 0.3, 20.0, &[10.0, 16.0, 20.0, 30.0]),
+        vec![0.3, 0.3, 1.0, 3.0]
+    );
+    let s = one(
+        "[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.2\nfloor = 0.3\n\
+         [[channel.component]]\nkind = \"white_noise\"\nn = 0.01\n",
+    );
+    let mut req = SimRequest::new(n, FS);
+    req.temperature_c = Some(&temp);
+    let sim = Simulator::new(&s, req.clone()).unwrap();
+    let white = sim.component_signal(0, 1).unwrap();
+    let out = simulate(&s, &req).unwrap().channels[0].1.clone();
+    let mut at_floor = 0;
+    for k in 0..n {
+        let line = 1.0 + 0.2 * (temp[k] - tmean);
+        at_floor += usize::from(line < 0.3);
+        assert_eq!(out[k], line.max(0.3) * white[k], "sample {k}");
+    }
+    assert!(
+        at_floor > n / 20 && at_floor < n - n / 20,
+        "{at_floor} of {n}"
+    );
+}
+
 const TWO_AXES: &str = r#"
 sample_rate_hz = 10.0
 seed = 5

@@ -61,6 +61,7 @@ fn every_component() -> Spec {
                     Component::Heteroskedastic {
                         of: Kind::WhiteNoise,
                         slope: 0.01,
+                        floor: 0.0,
                     },
                     Component::CrossAxis {
                         from: "gyro_y".into(),
@@ -212,6 +213,45 @@ fn round_trip_every_component() {
     assert_eq!(back, spec, "written spec:\n{text}");
     // Writing is stable.
     assert_eq!(back.to_toml().unwrap(), text);
+}
+
+/// heteroskedastic's floor is written when above 0 and read back; a floor of 0 (the
+/// default) writes no `floor` line, so specs without one round-trip unchanged.
+#[test]
+fn round_trip_heteroskedastic_floor() {
+    let with = |floor: f64| Spec {
+        sample_rate_hz: 10.0,
+        temperature_channel: Some("t".into()),
+        seed: None,
+        channels: vec![ChannelSpec {
+            name: "rate".into(),
+            components: vec![
+                Component::WhiteNoise { n: 0.5 },
+                Component::Heteroskedastic {
+                    of: Kind::WhiteNoise,
+                    slope: -0.07,
+                    floor,
+                },
+            ],
+        }],
+    };
+    for floor in [0.0, 0.25, 1e-9] {
+        let spec = with(floor);
+        let text = spec.to_toml().unwrap();
+        assert_eq!(text.contains("floor"), floor > 0.0, "{text}");
+        let back = parse_spec(&text, Path::new("written.toml")).unwrap();
+        assert_eq!(back, spec, "written spec:\n{text}");
+        assert_eq!(back.to_toml().unwrap(), text);
+    }
+    let text = format!(
+        "temperature_channel = \"t\"\n{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.1\n"
+    );
+    let spec = parse_spec(&text, Path::new("spec.toml")).unwrap();
+    assert!(!spec.to_toml().unwrap().contains("floor"));
+    assert!(matches!(
+        spec.channels[0].components[1],
+        Component::Heteroskedastic { floor: 0.0, .. }
+    ));
 }
 
 #[test]
@@ -592,6 +632,14 @@ fn bad_specs_name_the_key_and_the_problem() {
         (
             format!("temperature_channel = \"t\"\n{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.1\n[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.2\n"),
             vec!["component 3 (heteroskedastic): a second heteroskedastic component for 'white_noise'"],
+        ),
+        (
+            format!("temperature_channel = \"t\"\n{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.1\nfloor = -0.1\n"),
+            vec!["component 2 (heteroskedastic): 'floor' must be >= 0, found -0.1"],
+        ),
+        (
+            format!("temperature_channel = \"t\"\n{HEAD}[[channel.component]]\nkind = \"white_noise\"\nn = 1\n[[channel.component]]\nkind = \"heteroskedastic\"\nof = \"white_noise\"\nslope = 0.1\nfloor = 1\n"),
+            vec!["component 2 (heteroskedastic): 'floor' must be < 1", "found 1"],
         ),
         (
             component("kind = \"temperature_bias\"\ncoeffs = [0.1]"),

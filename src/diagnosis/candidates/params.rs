@@ -164,7 +164,13 @@ pub fn params_json(c: &Component) -> Value {
         }
         C::Warmup { amplitude, tau_s } => json!({ "amplitude": amplitude, "tau_s": tau_s }),
         C::Outliers { rate_hz, scale } => json!({ "rate_hz": rate_hz, "scale": scale }),
-        C::Heteroskedastic { of, slope } => json!({ "of": of.as_str(), "slope": slope }),
+        C::Heteroskedastic { of, slope, floor } => {
+            let mut p = json!({ "of": of.as_str(), "slope": slope });
+            if *floor > 0.0 {
+                p["floor"] = json!(floor);
+            }
+            p
+        }
         C::CrossAxis { from, gain } => json!({ "from": from, "gain": gain }),
         C::OutputFilter {
             order,

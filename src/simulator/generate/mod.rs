@@ -366,7 +366,7 @@ impl<'a> Simulator<'a> {
             )));
         }
         match comp {
-            Component::Heteroskedastic { of, slope } => {
+            Component::Heteroskedastic { of, slope, floor } => {
                 let mut base = vec![0.0; out.len()];
                 for (k, c) in ch.components.iter().enumerate() {
                     if c.kind() == *of {
@@ -374,7 +374,7 @@ impl<'a> Simulator<'a> {
                     }
                 }
                 let (t, tref) = self.temperature()?;
-                let s = thermal::scale(*slope, tref, t);
+                let s = thermal::scale(*slope, *floor, tref, t);
                 for ((o, b), s) in out.iter_mut().zip(&base).zip(&s) {
                     *o += (s - 1.0) * b;
                 }
@@ -651,9 +651,9 @@ impl<'a> Simulator<'a> {
             }
         }
         for (k, comp) in ch.components.iter().enumerate() {
-            if let Component::Heteroskedastic { of, slope } = comp {
+            if let Component::Heteroskedastic { of, slope, floor } = comp {
                 let (t, tref) = self.temperature()?;
-                let s = thermal::scale(*slope, tref, &t[start..start + len]);
+                let s = thermal::scale(*slope, *floor, tref, &t[start..start + len]);
                 let base = &bases[of];
                 for ((o, b), s) in out.iter_mut().zip(base).zip(&s) {
                     *o += s * b;

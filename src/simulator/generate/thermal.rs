@@ -87,11 +87,12 @@ pub fn thermal_rate_from(out: &mut [f64], coeff: f64, rate_hz: f64, s: &[f64], s
     }
 }
 
-/// heteroskedastic scale at each sample: max(0, 1 + slope (T_k - reference_c)), the
-/// reference being the mean temperature. Clamped at 0: a noise scale is not negative.
-pub fn scale(slope: f64, reference_c: f64, temp_c: &[f64]) -> Vec<f64> {
+/// heteroskedastic scale at each sample: max(floor, 1 + slope (T_k - reference_c)),
+/// the reference being the mean temperature, `floor` in [0, 1) (0: a noise scale is
+/// not negative; above 0: a sensor's noise levels off rather than vanishing).
+pub fn scale(slope: f64, floor: f64, reference_c: f64, temp_c: &[f64]) -> Vec<f64> {
     temp_c
         .iter()
-        .map(|t| (1.0 + slope * (t - reference_c)).max(0.0))
+        .map(|t| (1.0 + slope * (t - reference_c)).max(floor))
         .collect()
 }

@@ -152,8 +152,9 @@ pub enum Component {
     /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` \[u\] >= 0.
     Outliers { rate_hz: f64, scale: f64 },
     /// The scale of the channel's `of` noise component varies with temperature:
-    /// scale = 1 + slope (T - T_ref); `slope` [1/degC].
-    Heteroskedastic { of: Kind, slope: f64 },
+    /// scale = max(floor, 1 + slope (T - T_ref)); `slope` [1/degC], `floor` (unitless,
+    /// 0 <= floor < 1, default 0) the level the scale does not fall below.
+    Heteroskedastic { of: Kind, slope: f64, floor: f64 },
     /// Cross-axis coupling: `gain` (any sign) times the signal of channel `from`.
     CrossAxis { from: String, gain: f64 },
     /// Output resolution: every output sample rounded to a multiple of `quantum` \[u\]
@@ -376,7 +377,7 @@ impl Kind {
             Kind::ThermalRate => &["coeff", "smoothing_s"],
             Kind::Warmup => &["amplitude", "tau_s"],
             Kind::Outliers => &["rate_hz", "scale"],
-            Kind::Heteroskedastic => &["of", "slope"],
+            Kind::Heteroskedastic => &["of", "slope", "floor"],
             Kind::CrossAxis => &["from", "gain"],
             Kind::OutputFilter => &[
                 "form",

@@ -387,6 +387,7 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
             Component::Heteroskedastic {
                 of,
                 slope: p.f64("slope")?,
+                floor: p.opt_f64("floor")?.unwrap_or(0.0),
             }
         }
         Kind::CrossAxis => Component::CrossAxis {

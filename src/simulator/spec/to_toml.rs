@@ -142,9 +142,12 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
             line(out, "rate_hz", float(*rate_hz));
             line(out, "scale", float(*scale));
         }
-        Component::Heteroskedastic { of, slope } => {
+        Component::Heteroskedastic { of, slope, floor } => {
             line(out, "of", string(of.as_str()));
             line(out, "slope", float(*slope));
+            if *floor > 0.0 {
+                line(out, "floor", float(*floor));
+            }
         }
         Component::CrossAxis { from, gain } => {
             line(out, "from", string(from));

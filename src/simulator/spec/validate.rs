@@ -80,7 +80,9 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
         Component::Outliers { rate_hz, scale } => {
             v.extend([("rate_hz", *rate_hz), ("scale", *scale)]);
         }
-        Component::Heteroskedastic { slope, .. } => v.push(("slope", *slope)),
+        Component::Heteroskedastic { slope, floor, .. } => {
+            v.extend([("slope", *slope), ("floor", *floor)]);
+        }
         Component::CrossAxis { gain, .. } => v.push(("gain", *gain)),
         Component::OutputFilter {
             bandwidth_hz,
@@ -374,8 +376,15 @@ impl Spec {
                         ));
                     }
                 }
-                Component::Heteroskedastic { of, slope } => {
+                Component::Heteroskedastic { of, slope, floor } => {
                     check.finite("slope", *slope)?;
+                    check.non_negative("floor", *floor)?;
+                    if *floor >= 1.0 {
+                        return Err(format!(
+                            "{place}: 'floor' must be < 1 (the scale at the reference temperature is 1), found {}",
+                            num(*floor)
+                        ));
+                    }
                     if !of.is_noise() {
                         return Err(format!(
                             "{place}: 'of' = '{of}' is not a noise kind (expected one of: {})",
