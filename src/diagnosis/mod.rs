@@ -982,7 +982,6 @@ fn free_params(e: &Effect) -> usize {
         | Component::BiasInstability { .. }
         | Component::RateRandomWalk { .. }
         | Component::RateRamp { .. }
-        | Component::Heteroskedastic { .. }
         | Component::CrossAxis { .. }
         | Component::Saturation { .. }
         | Component::OutputResolution { .. } => 1,
@@ -991,6 +990,8 @@ fn free_params(e: &Effect) -> usize {
         | Component::ThermalRate { .. }
         | Component::Outliers { .. } => 2,
         Component::Sinusoid { .. } => 3,
+        // the slope, and the floor when one was fitted
+        Component::Heteroskedastic { floor, .. } => 1 + usize::from(*floor > 0.0),
         Component::TemperatureBias { coeffs, .. } => coeffs.len() + 1,
         Component::Arma { ar, ma, .. } => ar.len() + ma.len() + 1,
         Component::OutputFilter { damping, .. } => 1 + usize::from(damping.is_some()),
@@ -1948,6 +1949,7 @@ mod tests {
         let het = Component::Heteroskedastic {
             of: crate::simulator::spec::Kind::WhiteNoise,
             slope: 0.01,
+            floor: 0.0,
         };
         assert_eq!(
             n(
