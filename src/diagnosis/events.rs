@@ -122,9 +122,9 @@ pub fn detect(name: &str, x: &[f64], scan: &[(String, &[f64])], rate_hz: f64) ->
     let z0 = robust_z(x);
     // each channel's crossings of the confirmation level, sorted: the diagnosed
     // channel's first
-    let hits: Vec<Vec<usize>> = std::iter::once(z0.clone())
-        .chain(scan.iter().map(|(_, v)| robust_z(v)))
-        .map(|z| (0..n).filter(|&t| z[t] > K_CONFIRM_SD).collect())
+    let crossings = |z: &[f64]| -> Vec<usize> { (0..n).filter(|&t| z[t] > K_CONFIRM_SD).collect() };
+    let hits: Vec<Vec<usize>> = std::iter::once(crossings(&z0))
+        .chain(scan.iter().map(|(_, v)| crossings(&robust_z(v))))
         .collect();
     let triggers = (0..n).filter(|&t| z0[t] > K_SD);
     let n_ch = hits.len();

@@ -816,7 +816,7 @@ fn diagnose_log(
                 r_step.gap_before = gap_was;
                 r_step.difference_sd = difference_sd;
                 r_step.tie = true;
-                refit.add_best_of(&mut search, (props, r_eff, r_e, r_step), &[])?;
+                refit.add(&mut search, (props, r_eff, r_e, r_step))?;
             } else {
                 let step = Step {
                     action: "add",

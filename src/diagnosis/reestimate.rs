@@ -155,7 +155,7 @@ pub(super) type Added = ([Proposal; 2], Effect, EnsembleStats, Step);
 impl Refit<'_> {
     /// Adds `a` to the search: its proposals applied to both folds' states, its step
     /// recorded, then the earlier effects re-estimated ([`Refit::after_addition`]).
-    fn add(&self, s: &mut Search, a: Added) -> Result<()> {
+    pub fn add(&self, s: &mut Search, a: Added) -> Result<()> {
         let ([p0, p1], mut eff, e, step) = a;
         s.slots.push([
             apply(&mut s.sts[0], self.channel, p0),

@@ -712,6 +712,23 @@ fn joined_without_steps(cx: &Context) -> Vec<f64> {
     out
 }
 
+/// The joint candidate's second change: the spec's white noise component `k` (level
+/// `n` [u sqrt(s)]) rescaled by `s`, as its new component and each replica's change
+/// (s - 1) times its signal; None when `s` is not finite or moves n by no more than
+/// JOINT_MIN_CHANGE.
+fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<(usize, Component, Delta)> {
+    if !s.is_finite() || (s - 1.0).abs() <= JOINT_MIN_CHANGE {
+        return None;
+    }
+    let delta = Delta::Each(
+        cx.parts
+            .iter()
+            .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
+            .collect(),
+    );
+    Some((k, Component::WhiteNoise { n: n * s }, delta))
+}
+
 /// The output-path candidates for the state `cx` (module doc), each handed to `sink`
 /// with an empty delta (an output-path component changes the path, not the sum);
 /// `grid_seen`: the withheld statistics show a value grid the simulations lack.
@@ -822,13 +839,7 @@ pub fn proposals(
                 // so the filter alone would lower the output's level
                 if let Some((k, n)) = white {
                     let s = (f.white_psd / 2.0).sqrt() / n;
-                    if s.is_finite() && (s - 1.0).abs() > JOINT_MIN_CHANGE {
-                        let delta = Delta::Each(
-                            cx.parts
-                                .iter()
-                                .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
-                                .collect(),
-                        );
+                    if let Some(also) = white_refit(cx, k, n, s) {
                         offer_also(
                             filter.clone(),
                             format!(
@@ -836,7 +847,7 @@ pub fn proposals(
                                 crate::fmt::num(n * s),
                                 crate::fmt::num(s)
                             ),
-                            Some((k, Component::WhiteNoise { n: n * s }, delta)),
+                            Some(also),
                         );
                     }
                 }
@@ -866,15 +877,8 @@ pub fn proposals(
                 crate::fmt::num(m.sd_lag1),
             );
             if let (Some((k, n)), Some(s)) = (white, m.white_factor)
-                && s.is_finite()
-                && (s - 1.0).abs() > JOINT_MIN_CHANGE
+                && let Some(also) = white_refit(cx, k, n, s)
             {
-                let delta = Delta::Each(
-                    cx.parts
-                        .iter()
-                        .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
-                        .collect(),
-                );
                 offer_also(
                     fir.clone(),
                     format!(
@@ -882,7 +886,7 @@ pub fn proposals(
                         crate::fmt::num(n * s),
                         crate::fmt::num(s)
                     ),
-                    Some((k, Component::WhiteNoise { n: n * s }, delta)),
+                    Some(also),
                 );
             }
             offer_also(fir, fitted, None);
