@@ -114,6 +114,7 @@ pub fn cases(rate_hz: f64, duration_s: f64) -> Vec<Case> {
         Some(C::Outliers {
             rate_hz: 0.01,
             scale: 0.3,
+            dof: None,
         }),
         false,
         None,

@@ -607,19 +607,14 @@ fn diagnose_log(
         let held: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
         let mut hold = |p: Proposal| held.borrow_mut().push(p);
         let mut round = Round::default();
-        let mut unpaired: Vec<(String, String)> = Vec::new();
-        // fold 1's estimate meets fold 2's of the same kind and form; an output-path
-        // candidate changes the path every sum goes through, any other adds its signal
-        // to the sums
-        let mut pair = |p: Proposal| {
-            let q = {
-                let mut h = held.borrow_mut();
-                let Some(i) = h.iter().position(|q| pair_key(q) == pair_key(&p)) else {
-                    unpaired.push((p.kind, p.note));
-                    return;
-                };
-                h.remove(i)
-            };
+        // fold 1's output-path estimates that met no fold-2 estimate of the same form
+        // (paired by kind afterwards, [`loose_key`]), and the other kinds' unpaired ones
+        let left: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
+        let lone: RefCell<Vec<(String, String)>> = RefCell::new(Vec::new());
+        // fold 1's estimate p and fold 2's q of one candidate, scored on the withheld
+        // parts: an output-path candidate changes the path every sum goes through, any
+        // other adds its signal to the sums
+        let mut score_pair = |p: Proposal, q: Proposal| {
             pb.set_message(p.kind.clone());
             let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
@@ -652,6 +647,22 @@ fn diagnose_log(
             let scored = score(&f);
             round.offer([p, q], f, scored, gap_now);
         };
+        // fold 1's estimate meets fold 2's of the same kind and form
+        let mut pair = |p: Proposal| {
+            let q = {
+                let mut h = held.borrow_mut();
+                let Some(i) = h.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+                    if form(&p.component).is_empty() {
+                        lone.borrow_mut().push((p.kind, p.note));
+                    } else {
+                        left.borrow_mut().push(p);
+                    }
+                    return;
+                };
+                h.remove(i)
+            };
+            score_pair(p, q);
+        };
         let [mut skipped, mut skipped1] =
             candidates::propose_folds([&cx(1), &cx(0)], [&mut hold, &mut pair])?;
         skipped.extend(candidates::output_path::proposals(
@@ -670,7 +681,21 @@ fn diagnose_log(
                 skipped.push(nt);
             }
         }
-        unpaired.extend(held.into_inner().into_iter().map(|q| (q.kind, q.note)));
+        // the two halves chose different forms of one candidate (a filter's order, its
+        // discretization): the cross-fit scores the estimation with its choice of form,
+        // each fold's own on its withheld part
+        let mut held = held.into_inner();
+        let mut unpaired = lone.into_inner();
+        for p in left.into_inner() {
+            match held.iter().position(|q| loose_key(q) == loose_key(&p)) {
+                Some(i) => {
+                    let q = held.remove(i);
+                    score_pair(p, q);
+                }
+                None => unpaired.push((p.kind, p.note)),
+            }
+        }
+        unpaired.extend(held.into_iter().map(|q| (q.kind, q.note)));
         for (kind, note) in unpaired {
             match skipped.iter_mut().find(|s| s.kind == kind) {
                 // the other fold's estimate, told once: the two halves disagree
@@ -1105,6 +1130,12 @@ type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
 fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
     let joint = if p.also.is_some() { " joint" } else { "" };
     (p.kind.clone(), p.replaces, form(&p.component) + joint)
+}
+
+/// [`pair_key`] without the form: what pairs the folds' estimates of one candidate
+/// when the two halves chose different forms of it.
+fn loose_key(p: &Proposal) -> (String, Option<usize>, bool) {
+    (p.kind.clone(), p.replaces, p.also.is_some())
 }
 
 /// The form that tells two output-path candidates of one kind apart: a filter's order

@@ -475,6 +475,31 @@ fn outlier_rate_and_size() {
     );
 }
 
+#[test]
+fn outliers_with_dof_have_student_t_amplitudes() {
+    let (rate_hz, scale, dof) = (0.5, 2.0, 6.0);
+    let n = 400_000;
+    let y = run1(
+        &one(&format!(
+            "[[channel.component]]\nkind = \"outliers\"\nrate_hz = {rate_hz}\nscale = {scale}\ndof = {dof}\n"
+        )),
+        n,
+    );
+    let hits: Vec<f64> = y.iter().copied().filter(|v| *v != 0.0).collect();
+    let k = hits.len() as f64;
+    // scale * T_6: variance scale^2 dof / (dof - 2) = 1.5 scale^2 (kurtosis 6, so the
+    // relative SE of the mean square is sqrt((6 - 1) / count))
+    let v = hits.iter().map(|h| h * h).sum::<f64>() / k;
+    let want = scale * scale * dof / (dof - 2.0);
+    assert!(rel(v, want) < 4.0 * (5.0 / k).sqrt(), "var {v} vs {want}");
+    // the tail: P(|T_6| > 3.143) = 0.02 (t table), far above the normal's 0.0017
+    let beyond = hits.iter().filter(|h| h.abs() > 3.143 * scale).count() as f64 / k;
+    assert!(
+        (beyond - 0.02).abs() < 5.0 * (0.02 * 0.98 / k).sqrt(),
+        "share {beyond}"
+    );
+}
+
 fn temperature(n: usize) -> Vec<f64> {
     (0..n)
         .map(|k| {

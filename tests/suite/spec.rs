@@ -57,6 +57,7 @@ fn every_component() -> Spec {
                     Component::Outliers {
                         rate_hz: 0.001,
                         scale: 0.2,
+                        dof: None,
                     },
                     Component::Heteroskedastic {
                         of: Kind::WhiteNoise,
@@ -362,6 +363,26 @@ fn ar_stationarity_boundary() {
     assert!(ar_is_stationary(&[0.999]));
     assert!(!ar_is_stationary(&[1.0]));
     assert!(!ar_is_stationary(&[0.5, 0.5])); // unit root: 1 - 0.5 z - 0.5 z^2 at z = 1
+}
+
+#[test]
+fn outliers_with_dof_round_trip_and_a_dof_below_one_is_refused() {
+    let text = component("kind = \"outliers\"\nrate_hz = 0.01\nscale = 0.3\ndof = 2.5");
+    let spec = parse_spec(&text, Path::new("spec.toml")).unwrap();
+    assert_eq!(
+        spec.channels[0].components[0],
+        Component::Outliers {
+            rate_hz: 0.01,
+            scale: 0.3,
+            dof: Some(2.5),
+        }
+    );
+    let again = parse_spec(&spec.to_toml().unwrap(), Path::new("again.toml")).unwrap();
+    assert_eq!(again, spec);
+    let msg = reject(&component(
+        "kind = \"outliers\"\nrate_hz = 0.01\nscale = 0.3\ndof = 0.5",
+    ));
+    assert_has(&msg, &["component 1 (outliers)", "'dof'", ">= 1"]);
 }
 
 /// A valid one-channel header the bad specs below extend.

@@ -420,13 +420,12 @@ pub fn propose_folds(
 }
 
 /// The steps of [`propose_folds`] for both states, each step for `cxs[0]` then
-/// `cxs[1]` (the Gauss-Markov grid simulated once for both); with `only`, just the
+/// `cxs[1]`; with `only`, just the
 /// steps that estimate an effect of that kind for either state ([`step_kind`]).
 fn run_folds(cxs: [&Context; 2], only: Option<&str>, outs: &mut [Found; 2]) -> Result<()> {
     let trs = cxs.map(Training::new);
     let comps = cxs.map(|cx| cx.spec.channels[cx.channel].components.as_slice());
     let n_comps = comps.iter().map(|c| c.len()).max().unwrap_or(0);
-    let lacks = |c: &[Component], k: Kind| !c.iter().any(|c| c.kind() == k);
     for step in steps(n_comps) {
         let skip = |kind: &str| {
             comps
@@ -434,11 +433,6 @@ fn run_folds(cxs: [&Context; 2], only: Option<&str>, outs: &mut [Found; 2]) -> R
                 .all(|c| step_kind(&step, c).as_deref() != Some(kind))
         };
         if only.is_some_and(skip) {
-            continue;
-        }
-        if matches!(step, Step::GaussMarkov) && comps.iter().all(|c| lacks(c, Kind::GaussMarkov)) {
-            let [o0, o1] = outs;
-            noise::gauss_markov_folds(cxs, [&trs[0], &trs[1]], [o0, o1])?;
             continue;
         }
         for f in 0..2 {
@@ -732,5 +726,127 @@ mod tests {
                 assert_eq!(one[f], want, "fold {f}, kind {kind}");
             }
         }
+    }
+
+    /// A state of `spec`'s ensemble (M replicas on n samples at 100 Hz) against the
+    /// real log `real`, trained on the first half of 8 blocks.
+    fn gm_state(
+        spec: &Spec,
+        real: &[f64],
+        m: usize,
+    ) -> (
+        SimBase<'static>,
+        Layout,
+        Vec<Vec<f64>>,
+        Vec<Vec<Arc<Vec<f64>>>>,
+    ) {
+        let n = real.len();
+        let sim = SimBase {
+            n_samples: n,
+            rate_hz: 100.0,
+            temperature_c: None,
+            seed: 11,
+            replicas: m,
+            base_dir: None,
+        };
+        let train = Layout::new(
+            &Blocks::interleaved(n, 8, 0.5).unwrap(),
+            true,
+            100.0,
+            None,
+            &[],
+        );
+        let k: Vec<usize> = (0..spec.channels[0].components.len()).collect();
+        let sig = sim.component_signals(spec, 0, &k).unwrap();
+        let target = sig
+            .iter()
+            .map(|p| (0..n).map(|t| p.iter().map(|v| v[t]).sum()).collect())
+            .collect();
+        let parts = sig
+            .into_iter()
+            .map(|p| p.into_iter().map(Arc::new).collect())
+            .collect();
+        (sim, train, target, parts)
+    }
+
+    #[test]
+    fn the_closed_form_gauss_markov_avar_is_the_simulated_mean_and_finds_tau() {
+        let n = 40_000;
+        let base = spec(vec![Component::WhiteNoise { n: 0.02 }]);
+        let mut truth = base.clone();
+        truth.channels[0].components.push(Component::GaussMarkov {
+            sigma: 0.05,
+            tau_s: 3.0,
+        });
+        let real = SimBase {
+            n_samples: n,
+            rate_hz: 100.0,
+            temperature_c: None,
+            seed: 3,
+            replicas: 1,
+            base_dir: None,
+        }
+        .channels(&truth, &["x".to_string()])
+        .unwrap()
+        .pop()
+        .unwrap()
+        .pop()
+        .unwrap();
+        let m = 40;
+        let (sim, train, target, parts) = gm_state(&base, &real, m);
+        let cx = Context {
+            spec: &base,
+            channel: 0,
+            sim: &sim,
+            train: &train,
+            real: &real,
+            temperature: None,
+            others: &[],
+            sim_others: &[],
+            target: &target,
+            parts: &parts,
+        };
+        let tr = Training::new(&cx);
+        // the slow twin: the mean over 40 replicas of the simulated unit signal's
+        // training AVAR, within its sampling error where a block holds 20 clusters or
+        // more (relative sd about sqrt(m / n_block / M) there)
+        let block = cx.ranges().iter().map(|r| r.len()).min().unwrap();
+        for tau in [0.05, 0.8, 3.0, 20.0] {
+            let closed = noise::gm_unit_avar(&tr.ms, 100.0, tau);
+            let simulated = noise::unit_mean_avar_for_tests(&cx, tau);
+            for (i, &mm) in tr.ms.iter().enumerate() {
+                if 20 * mm > block {
+                    continue;
+                }
+                let rel = simulated[i] / closed[i] - 1.0;
+                let sd = (mm as f64 / block as f64 / m as f64).sqrt();
+                assert!(rel.abs() < 0.05 + 4.0 * sd, "tau {tau}, m {mm}: {rel}");
+            }
+        }
+        // the estimate: tau and sigma near the truth, inside the range, not flagged
+        let mut got = Vec::new();
+        let mut out = Found {
+            sink: &mut |p: Proposal| got.push(p),
+            skipped: Vec::new(),
+        };
+        noise::gauss_markov(&cx, &tr, &mut out).unwrap();
+        drop(out);
+        let Some(Component::GaussMarkov { sigma, tau_s }) = got.first().map(|p| &p.component)
+        else {
+            panic!("no gauss_markov proposal");
+        };
+        assert!((tau_s / 3.0).ln().abs() < 0.4, "tau_s {tau_s}");
+        assert!((sigma / 0.05).ln().abs() < 0.2, "sigma {sigma}");
+        assert!(got[0].params.get("at_search_edge").is_none());
+        // the grid's best of the slow twin lies within a grid step or two of it
+        let grid = lsq::log_grid(0.02, 50.0, 12);
+        let (_, tau_sim, _) = noise::gauss_markov_by_simulation(&cx, &tr, &grid)
+            .unwrap()
+            .unwrap();
+        let step = (50.0f64 / 0.02).ln() / 11.0;
+        assert!(
+            (tau_sim / tau_s).ln().abs() <= 2.0 * step,
+            "{tau_sim} vs {tau_s}"
+        );
     }
 }

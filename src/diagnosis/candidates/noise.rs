@@ -3,14 +3,15 @@
 //! candidate simulated with a unit coefficient (mean over replicas),
 //! c^2 = argmin sum_m w_m (A - E - c^2 U)^2, w_m = 1 / (m A(m)^2) (the relative variance
 //! of an AVAR estimate grows like m / N), c^2 >= 0: white_noise, quantization,
-//! bias_instability, rate_random_walk, and gauss_markov (tau_s by the best fit over a
-//! log grid).
+//! bias_instability, rate_random_walk, and gauss_markov (U in closed form, tau_s by the
+//! best fit over a log grid refined by golden section).
 
-use super::lsq::{fit_nonneg, log_grid};
+use super::lsq::{fit_nonneg, golden_argmin, log_grid};
 use super::params::{flag_edge, params_json, scaled};
-use super::{Context, Delta, Found, Proposal, Training, mean_in_order};
+use super::{Context, Delta, Found, Proposal, Training};
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
+use crate::stats::noise_terms::gauss_markov_g;
 
 /// The power-law noise kinds, each with its component of unit coefficient, in the order
 /// they are tried.
@@ -39,11 +40,12 @@ fn allan_fit(tr: &Training, g: &[f64]) -> (f64, f64) {
 
 /// The mean training AVAR of `unit_c` over the replicas, its signals simulated and
 /// dropped one by one (none is kept).
+#[cfg(test)]
 fn unit_mean_avar(cx: &Context, unit_c: &Component) -> Result<Vec<f64>> {
     let avars = cx
         .sim
         .extra_map(cx.spec, cx.channel, unit_c, |u| cx.avar(u))?;
-    Ok(mean_in_order(avars))
+    Ok(super::mean_in_order(avars))
 }
 
 /// The signal of `unit_c` in every replica, times `c` (in place).
@@ -92,12 +94,15 @@ pub(super) fn power_law(
     Ok(())
 }
 
-/// The tau_s grid of gauss_markov for the state `cx`: 8 log-spaced values from 2
-/// samples to the longest Allan cluster of its training part.
-fn gm_grid(cx: &Context, tr: &Training) -> Vec<f64> {
+/// Points of the log grid of tau_s that [`gauss_markov`] scans before refining.
+pub(super) const GM_GRID: usize = 48;
+
+/// The tau_s range of gauss_markov for the state `cx`: from 2 samples to the longest
+/// Allan cluster of its training part.
+fn gm_range(cx: &Context, tr: &Training) -> (f64, f64) {
     let fs = tr.fs;
     let max_tau = cx.train.adev_factors().last().copied().unwrap_or(1) as f64 / fs;
-    log_grid(2.0 / fs, max_tau.max(4.0 / fs), 8)
+    (2.0 / fs, max_tau.max(4.0 / fs))
 }
 
 /// The unit gauss_markov component of correlation time `tau`.
@@ -108,105 +113,108 @@ fn gm_unit(tau: f64) -> Component {
     }
 }
 
-/// gauss_markov: sigma from the excess training Allan variance for each tau_s of a log
-/// grid of 8 (from 2 samples to the longest Allan cluster), the best by weighted RSS.
+/// U(m) of the unit Gauss-Markov process of correlation time `tau_s` at the cluster
+/// sizes `ms` (rate `fs`): g(m / (fs tau_s)), the IEEE Std 952 Allan variance per
+/// sigma^2 ([`gauss_markov_g`]). It is exact, not an approximation, for what the
+/// simulator draws (each sample the interval average of the continuous process, see
+/// [`crate::simulator::generate`]'s `markov.rs`), and the pooled overlapping estimator
+/// is unbiased for it on every block: the mean over the ensemble's replicas of their
+/// simulated unit signals' training AVAR ([`gauss_markov_by_simulation`], its slow
+/// twin) converges to it.
+pub(super) fn gm_unit_avar(ms: &[usize], fs: f64, tau_s: f64) -> Vec<f64> {
+    ms.iter()
+        .map(|&m| gauss_markov_g(m as f64 / (fs * tau_s)))
+        .collect()
+}
+
+/// gauss_markov: sigma from the excess training Allan variance for each tau_s of a
+/// log grid of [`GM_GRID`] over [`gm_range`] with the unit AVAR in closed form
+/// ([`gm_unit_avar`]), the best by weighted RSS refined by a golden-section search of
+/// ln tau_s between its grid neighbours; a tau_s at an end of the range is flagged
+/// (`at_search_edge`), a bound rather than an estimate.
 pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
-    let grid = gm_grid(cx, tr);
-    let g = grid
-        .iter()
-        .map(|&tau| unit_mean_avar(cx, &gm_unit(tau)))
-        .collect::<Result<Vec<_>>>()?;
-    gm_propose(cx, tr, &grid, &g, out)
+    let (lo, hi) = gm_range(cx, tr);
+    let fit = |tau: f64| allan_fit(tr, &gm_unit_avar(&tr.ms, tr.fs, tau));
+    // the weighted RSS of a fit with a positive coefficient (none: infinite)
+    let wrss = |tau: f64| match fit(tau) {
+        (c, w) if c > 0.0 => w,
+        _ => f64::INFINITY,
+    };
+    let grid = log_grid(lo, hi, GM_GRID);
+    let best = (0..grid.len())
+        .map(|i| (i, wrss(grid[i])))
+        .filter(|(_, w)| w.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let Some((i, w_grid)) = best else {
+        out.skip(
+            "gauss_markov",
+            "no excess Allan variance where this term shows",
+        );
+        return Ok(());
+    };
+    let (a, b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(grid.len() - 1)]);
+    let (u, w_ref) = golden_argmin(a.ln(), b.ln(), 40, |u| wrss(u.exp()));
+    // the refinement keeps the grid point unless it improves on it; an end of the
+    // grid that the refinement does not leave is the end of the range
+    let mut tau = if w_ref < w_grid { u.exp() } else { grid[i] };
+    for end in [lo, hi] {
+        if (tau / end).ln().abs() <= 1e-3 {
+            tau = end;
+        }
+    }
+    let (c, _) = fit(tau);
+    gm_propose(cx, tau, c, (lo, hi), out)
 }
 
-/// [`gauss_markov`] for two states whose unit signals are the same: each unit signal
-/// of the grid simulated once and read by both states' training parts. The signal of
-/// a component appended to the target channel depends on the seed, the replica, the
-/// channel, the component's index and its own parameters only (its random streams are
-/// keyed by these), so two states on one ensemble base whose target channels have as
-/// many components, with the same grid, get the same unit signals; otherwise each state
-/// simulates its own. [`gauss_markov`] on each state is its slow twin.
-pub(super) fn gauss_markov_folds(
-    cxs: [&Context; 2],
-    trs: [&Training; 2],
-    outs: [&mut Found; 2],
-) -> Result<()> {
-    let grids = [gm_grid(cxs[0], trs[0]), gm_grid(cxs[1], trs[1])];
-    let n_comps = |cx: &Context| cx.spec.channels[cx.channel].components.len();
-    let same_signals = std::ptr::eq(cxs[0].sim, cxs[1].sim)
-        && cxs[0].channel == cxs[1].channel
-        && n_comps(cxs[0]) == n_comps(cxs[1])
-        && grids[0] == grids[1];
-    let [o0, o1] = outs;
-    if !same_signals {
-        gauss_markov(cxs[0], trs[0], o0)?;
-        return gauss_markov(cxs[1], trs[1], o1);
-    }
-    let mut g: [Vec<Vec<f64>>; 2] = Default::default();
-    for &tau in &grids[0] {
-        let (a0, a1): (Vec<_>, Vec<_>) = cxs[0]
-            .sim
-            .extra_map(cxs[0].spec, cxs[0].channel, &gm_unit(tau), |u| {
-                (cxs[0].avar(u), cxs[1].avar(u))
-            })?
-            .into_iter()
-            .unzip();
-        g[0].push(mean_in_order(a0));
-        g[1].push(mean_in_order(a1));
-    }
-    gm_propose(cxs[0], trs[0], &grids[0], &g[0], o0)?;
-    gm_propose(cxs[1], trs[1], &grids[1], &g[1], o1)
+/// The mean simulated training AVAR of the unit Gauss-Markov component of `tau`.
+#[cfg(test)]
+pub(super) fn unit_mean_avar_for_tests(cx: &Context, tau: f64) -> Vec<f64> {
+    unit_mean_avar(cx, &gm_unit(tau)).unwrap()
 }
 
-/// The gauss_markov proposal of the state `cx` from `g[i]`, the mean training AVAR of
-/// the unit component of tau_s `grid[i]`: the tau of the best fit, its unit signals
-/// simulated again (the same streams) and scaled.
-fn gm_propose(
+/// [`gauss_markov`] with U(m) the mean over the ensemble's replicas of the simulated
+/// unit signal's training AVAR, on the grid alone (no refinement): the slow twin of
+/// [`gm_unit_avar`], what the tests compare it with. (sigma, tau_s, weighted RSS) of
+/// the best grid point.
+#[cfg(test)]
+pub(super) fn gauss_markov_by_simulation(
     cx: &Context,
     tr: &Training,
     grid: &[f64],
-    g: &[Vec<f64>],
-    out: &mut Found,
-) -> Result<()> {
+) -> Result<Option<(f64, f64, f64)>> {
     let mut best: Option<(f64, f64, f64)> = None;
-    for (&tau, g) in grid.iter().zip(g) {
-        let (c, wrss) = allan_fit(tr, g);
+    for &tau in grid {
+        let g = unit_mean_avar(cx, &gm_unit(tau))?;
+        let (c, wrss) = allan_fit(tr, &g);
         if c > 0.0 && best.as_ref().is_none_or(|b| wrss < b.2) {
             best = Some((c, tau, wrss));
         }
     }
-    match best {
-        Some((c, tau, _)) => {
-            let u = scaled_signals(cx, &gm_unit(tau), c)?;
-            let comp = Component::GaussMarkov {
-                sigma: c,
-                tau_s: tau,
-            };
-            let mut params = params_json(&comp);
-            let mut note = "excess training Allan variance, tau_s over a log grid of 8".to_string();
-            flag_edge(
-                &mut params,
-                &mut note,
-                "tau_s",
-                tau,
-                grid[0],
-                grid[grid.len() - 1],
-            );
-            out.push(Proposal {
-                also: None,
-                kind: "gauss_markov".into(),
-                params,
-                component: comp,
-                replaces: None,
-                rescales: None,
-                delta: Delta::Each(u),
-                note,
-            });
-        }
-        None => out.skip(
-            "gauss_markov",
-            "no excess Allan variance where this term shows",
-        ),
-    }
+    Ok(best)
+}
+
+/// The gauss_markov proposal of the state `cx`: sigma `c` at correlation time `tau`
+/// (searched over `range`), its unit signals simulated and scaled.
+fn gm_propose(cx: &Context, tau: f64, c: f64, range: (f64, f64), out: &mut Found) -> Result<()> {
+    let u = scaled_signals(cx, &gm_unit(tau), c)?;
+    let comp = Component::GaussMarkov {
+        sigma: c,
+        tau_s: tau,
+    };
+    let mut params = params_json(&comp);
+    let mut note = format!(
+        "excess training Allan variance against the closed-form unit AVAR, tau_s over a log grid of {GM_GRID} refined by golden section"
+    );
+    flag_edge(&mut params, &mut note, "tau_s", tau, range.0, range.1);
+    out.push(Proposal {
+        also: None,
+        kind: "gauss_markov".into(),
+        params,
+        component: comp,
+        replaces: None,
+        rescales: None,
+        delta: Delta::Each(u),
+        note,
+    });
     Ok(())
 }

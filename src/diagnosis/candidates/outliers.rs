@@ -1,16 +1,30 @@
 //! Outliers from spikes: the local second difference s_t = x_t - (x_{t-1} + x_{t+1})/2,
 //! spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD) and is a local
-//! maximum; the excess count over the ensemble's gives the rate, and the mean square of
-//! the spikes, read as a normal sample truncated at the threshold
-//! (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale and the share detected.
+//! maximum; the excess count over the ensemble's gives the rate, and the spikes' sizes
+//! give the amplitude distribution and the share detected:
+//! - normal amplitudes: the mean square of the spikes, read as a normal sample truncated
+//!   at the threshold (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale;
+//! - heavy-tailed amplitudes (a Student-t of `dof` degrees of freedom, what spikes of a
+//!   test stand mostly are): scale and dof by maximum likelihood of the spikes' sizes
+//!   as a sample of |scale T_dof| truncated at the threshold,
+//!   sum_i [ln f_dof(a_i / scale) - ln scale] - n ln P(|T_dof| > thr / scale),
+//!   profiled over ln dof in [1, 50] and ln scale in [thr / 6, 10 max a_i] by golden
+//!   section. The t is kept when its likelihood beats the truncated normal's (the same
+//!   likelihood at the moment scale) by the 1 % point of chi2(1), 6.63 in -2 ln L.
 
 use std::ops::Range;
 
-use super::params::params_json;
+use super::lsq::golden_argmin;
+use super::params::{flag_edge, params_json};
 use super::{Context, Delta, Found, Proposal};
 use crate::error::Result;
 use crate::simulator::Component;
-use crate::stats::special::normal_cdf;
+use crate::stats::special::{normal_cdf, student_t_ln_pdf, student_t_two_sided_tail};
+
+/// How far (in -2 ln L) the Student-t fit of the spikes' sizes must beat the truncated
+/// normal's to be kept: the 1 % point of chi2 with one degree of freedom (the t's one
+/// extra parameter).
+pub const HEAVY_TAIL_MIN_DEVIANCE: f64 = 6.63;
 
 /// outliers: [`estimate_outliers`]; not tried when the training part has fewer than 3
 /// spikes more than the simulations (the reason gives both counts).
@@ -22,8 +36,8 @@ pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     Ok(())
 }
 
-/// The spikes of `x` on `ranges`: (count, sum of their squares, threshold).
-fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (usize, f64, f64) {
+/// The spikes of `x` on `ranges`: (their sizes |s_t|, threshold).
+fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, f64) {
     let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let mut all: Vec<f64> = ranges
         .iter()
@@ -32,23 +46,64 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (usize, f64, f64) {
         })
         .collect();
     if all.is_empty() {
-        return (0, 0.0, 0.0);
+        return (Vec::new(), 0.0);
     }
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
     let sd = 1.4826 * all[mid];
     let thr = 6.0 * sd;
-    let (mut count, mut sum_sq) = (0usize, 0.0);
+    let mut sizes = Vec::new();
     for r in ranges {
         for t in r.start + 2..r.end.saturating_sub(2) {
             let s = s_at(t).abs();
             if s > thr && s >= s_at(t - 1).abs() && s >= s_at(t + 1).abs() {
-                count += 1;
-                sum_sq += s * s;
+                sizes.push(s);
             }
         }
     }
-    (count, sum_sq, thr)
+    (sizes, thr)
+}
+
+/// The number of spikes of `x` on `ranges` ([`spikes`]).
+fn spike_count(x: &[f64], ranges: &[Range<usize>]) -> usize {
+    spikes(x, ranges).0.len()
+}
+
+/// ln L of the sizes `a` (all above `thr`) as |scale W| truncated at `thr`, W a
+/// Student-t of `dof` degrees of freedom (None: standard normal).
+fn truncated_ln_l(a: &[f64], thr: f64, scale: f64, dof: Option<f64>) -> f64 {
+    let c = thr / scale;
+    let (ln_tail, ln_f): (f64, Box<dyn Fn(f64) -> f64>) = match dof {
+        Some(nu) => (
+            student_t_two_sided_tail(c, nu).max(1e-300).ln(),
+            Box::new(move |z| student_t_ln_pdf(z, nu)),
+        ),
+        None => (
+            (2.0 * normal_tail(c)).max(1e-300).ln(),
+            Box::new(|z: f64| -0.5 * z * z - 0.5 * (2.0 * std::f64::consts::PI).ln()),
+        ),
+    };
+    // |W| has twice W's density on a > 0
+    a.iter()
+        .map(|&v| std::f64::consts::LN_2 + ln_f(v / scale) - scale.ln())
+        .sum::<f64>()
+        - a.len() as f64 * ln_tail
+}
+
+/// The Student-t fit of the sizes `a` above `thr` (module doc): (scale, dof, ln L,
+/// whether the scale stopped at the lower end of its range).
+fn student_fit(a: &[f64], thr: f64) -> (f64, f64, f64, bool) {
+    let a_max = a.iter().copied().fold(thr, f64::max);
+    let (s_lo, s_hi) = ((thr / 6.0).ln(), (10.0 * a_max).ln());
+    let best_scale = |nu: f64| {
+        golden_argmin(s_lo, s_hi, 60, |u| {
+            -truncated_ln_l(a, thr, u.exp(), Some(nu))
+        })
+    };
+    let (v, _) = golden_argmin(0.0, 50f64.ln(), 40, |v| best_scale(v.exp()).1);
+    let nu = v.exp();
+    let (u, neg) = best_scale(nu);
+    (u.exp(), nu, -neg, u - s_lo < 1e-3)
 }
 
 /// Upper tail of the standard normal, Q(c) = 1 - Phi(c) = Phi(-c).
@@ -60,11 +115,12 @@ fn normal_tail(c: f64) -> f64 {
 /// simulations': the two counts).
 fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, String>> {
     let ranges = cx.ranges();
-    let (c_real, ss_real, thr) = spikes(cx.real, ranges);
+    let (sizes, thr) = spikes(cx.real, ranges);
+    let c_real = sizes.len();
     let c_ens = cx
         .target
         .iter()
-        .map(|t| spikes(t, ranges).0 as f64)
+        .map(|t| spike_count(t, ranges) as f64)
         .sum::<f64>()
         / cx.target.len() as f64;
     let excess = c_real as f64 - c_ens;
@@ -74,7 +130,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
              robust sd against {c_ens:.1})"
         )));
     }
-    let m2 = ss_real / c_real as f64;
+    let m2 = sizes.iter().map(|s| s * s).sum::<f64>() / c_real as f64;
     // solve m2 = scale^2 (1 + c phi(c) / Q(c)), c = thr / scale, by bisection on ln scale
     let f = |scale: f64| {
         let c = thr / scale;
@@ -91,22 +147,123 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
             lo = mid;
         }
     }
-    let scale = (0.5 * (lo + hi)).exp();
-    let p_detect = (2.0 * normal_tail(thr / scale)).max(1e-6);
+    let scale_normal = (0.5 * (lo + hi)).exp();
+    let ln_l_normal = truncated_ln_l(&sizes, thr, scale_normal, None);
+    let (scale_t, dof_t, ln_l_t, t_at_edge) = student_fit(&sizes, thr);
+    let heavy = 2.0 * (ln_l_t - ln_l_normal) > HEAVY_TAIL_MIN_DEVIANCE;
+    let (scale, dof, p_detect) = if heavy {
+        (
+            scale_t,
+            Some(dof_t),
+            student_t_two_sided_tail(thr / scale_t, dof_t).max(1e-6),
+        )
+    } else {
+        (
+            scale_normal,
+            None,
+            (2.0 * normal_tail(thr / scale_normal)).max(1e-6),
+        )
+    };
     let t_train = cx.n_train() as f64 / cx.rate_hz();
     let rate_hz = (excess / (t_train * p_detect)).min(cx.rate_hz());
-    let comp = Component::Outliers { rate_hz, scale };
+    let comp = Component::Outliers {
+        rate_hz,
+        scale,
+        dof,
+    };
     let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
+    let mut params = params_json(&comp);
+    let mut note = format!(
+        "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations; {}",
+        if heavy {
+            format!(
+                "their sizes are heavy-tailed: Student-t of {} degrees of freedom (-2 ln L {} below the truncated normal's)",
+                crate::fmt::num(dof_t),
+                crate::fmt::num(2.0 * (ln_l_t - ln_l_normal))
+            )
+        } else {
+            "their sizes fit a truncated normal".to_string()
+        }
+    );
+    if heavy && t_at_edge {
+        flag_edge(&mut params, &mut note, "scale", 1.0, 1.0, 2.0);
+    }
+    if heavy {
+        flag_edge(&mut params, &mut note, "dof", dof_t, 1.0, 50.0);
+    }
     Ok(Ok(Proposal {
         also: None,
         kind: "outliers".into(),
-        params: params_json(&comp),
+        params,
         component: comp,
         replaces: None,
         rescales: None,
         delta: Delta::Each(u),
-        note: format!(
-            "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations"
-        ),
+        note,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, StandardNormal, StudentT};
+
+    use super::*;
+
+    /// The sizes above `thr` of `n` draws of |scale W|.
+    fn sizes(n: usize, scale: f64, thr: f64, w: impl Fn(&mut ChaCha8Rng) -> f64) -> Vec<f64> {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        (0..n)
+            .map(|_| (scale * w(&mut rng)).abs())
+            .filter(|a| *a > thr)
+            .collect()
+    }
+
+    #[test]
+    fn heavy_tailed_spike_sizes_are_told_from_normal_ones_and_their_dof_found() {
+        let thr = 1.0;
+        // Student-t of 2 degrees of freedom, scale 1.5: about 600 of 1000 above thr
+        let t2 = StudentT::new(2.0).unwrap();
+        let a = sizes(1000, 1.5, thr, |r| t2.sample(r));
+        let (scale, dof, ln_l_t, edge) = student_fit(&a, thr);
+        assert!(!edge);
+        assert!((dof / 2.0).ln().abs() < 0.35, "dof {dof}");
+        assert!((scale / 1.5).ln().abs() < 0.25, "scale {scale}");
+        // the truncated normal at its best scale (a grid fine enough for the test) is far worse
+        let ln_l_n = (1..400)
+            .map(|i| truncated_ln_l(&a, thr, 0.05 * i as f64, None))
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(2.0 * (ln_l_t - ln_l_n) > HEAVY_TAIL_MIN_DEVIANCE);
+        // normal sizes: the t adds almost nothing (its dof runs to the top of the range)
+        let b = sizes(2000, 1.5, thr, |r| StandardNormal.sample(r));
+        let (_, dof_b, ln_l_tb, _) = student_fit(&b, thr);
+        let ln_l_nb = (1..400)
+            .map(|i| truncated_ln_l(&b, thr, 0.05 * i as f64, None))
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(
+            2.0 * (ln_l_tb - ln_l_nb) < HEAVY_TAIL_MIN_DEVIANCE,
+            "dof {dof_b}"
+        );
+        assert!(dof_b > 10.0, "dof {dof_b}");
+    }
+
+    #[test]
+    fn the_truncated_likelihood_is_a_density_on_the_sizes_above_the_threshold() {
+        // integral over a > thr of exp(ln L({a})) = 1, for the normal and a t
+        for dof in [None, Some(3.0)] {
+            let (thr, scale, h) = (0.8, 1.3, 1e-3);
+            let area: f64 = (0..200_000)
+                .map(|i| {
+                    let a = thr + (i as f64 + 0.5) * h;
+                    h * truncated_ln_l(&[a], thr, scale, dof).exp()
+                })
+                .sum();
+            let rest = dof.map_or(0.0, |nu| {
+                student_t_two_sided_tail((thr + 200.0) / scale, nu)
+                    / student_t_two_sided_tail(thr / scale, nu)
+            });
+            assert!((area + rest - 1.0).abs() < 1e-4, "{dof:?}: {area} + {rest}");
+        }
+    }
 }

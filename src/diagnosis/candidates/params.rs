@@ -58,9 +58,14 @@ pub fn scaled(c: &Component, s: f64) -> Option<Component> {
             amplitude: amplitude * s,
             tau_s: *tau_s,
         },
-        C::Outliers { rate_hz, scale } => C::Outliers {
+        C::Outliers {
+            rate_hz,
+            scale,
+            dof,
+        } => C::Outliers {
             rate_hz: *rate_hz,
             scale: scale * s_pos,
+            dof: *dof,
         },
         C::CrossAxis { from, gain } => C::CrossAxis {
             from: from.clone(),
@@ -163,7 +168,17 @@ pub fn params_json(c: &Component) -> Value {
             json!({ "coeff": coeff, "smoothing_s": smoothing_s })
         }
         C::Warmup { amplitude, tau_s } => json!({ "amplitude": amplitude, "tau_s": tau_s }),
-        C::Outliers { rate_hz, scale } => json!({ "rate_hz": rate_hz, "scale": scale }),
+        C::Outliers {
+            rate_hz,
+            scale,
+            dof,
+        } => {
+            let mut p = json!({ "rate_hz": rate_hz, "scale": scale });
+            if let Some(d) = dof {
+                p["dof"] = json!(d);
+            }
+            p
+        }
         C::Heteroskedastic { of, slope, floor } => {
             let mut p = json!({ "of": of.as_str(), "slope": slope });
             if *floor > 0.0 {

@@ -572,9 +572,14 @@ impl<'a> Simulator<'a> {
             (Component::Warmup { amplitude, tau_s }, _) => {
                 deterministic::warmup(out, *amplitude, *tau_s, fs, start)
             }
-            (Component::Outliers { rate_hz, scale }, _) => {
-                noise::outliers_from(out, *rate_hz, *scale, fs, &key, c0)
-            }
+            (
+                Component::Outliers {
+                    rate_hz,
+                    scale,
+                    dof,
+                },
+                _,
+            ) => noise::outliers_from(out, *rate_hz, *scale, *dof, fs, &key, c0),
             (
                 Component::Heteroskedastic { .. }
                 | Component::CrossAxis { .. }

@@ -3,7 +3,7 @@
 //! [`super::streams`]), so the output does not depend on the thread count.
 
 use rand::Rng;
-use rand_distr::{Distribution, Geometric, StandardNormal};
+use rand_distr::{Distribution, Geometric, StandardNormal, StudentT};
 use rayon::prelude::*;
 
 use super::streams::{CHUNK, StreamKey, for_chunks_from};
@@ -84,10 +84,19 @@ pub fn quantization_from(
 
 /// outliers: at each sample, with probability rate_hz / sample_rate_hz independently
 /// (a Bernoulli process, `rate_hz` outliers per second on average), a spike
-/// scale * N(0, 1) \[u\] is added. Positions come from geometric gaps drawn per chunk
-/// (memoryless, so restarting at each chunk start is exact).
-pub fn outliers(out: &mut [f64], rate_hz: f64, scale: f64, sample_rate_hz: f64, key: &StreamKey) {
-    outliers_from(out, rate_hz, scale, sample_rate_hz, key, 0)
+/// scale * N(0, 1) \[u\] is added, or with `dof` scale * T_dof, T_dof a Student-t draw
+/// of `dof` degrees of freedom (rand_distr's `StudentT`: N(0, 1) / sqrt(chi2_dof / dof)).
+/// Positions come from geometric gaps drawn per chunk (memoryless, so restarting at
+/// each chunk start is exact).
+pub fn outliers(
+    out: &mut [f64],
+    rate_hz: f64,
+    scale: f64,
+    dof: Option<f64>,
+    sample_rate_hz: f64,
+    key: &StreamKey,
+) {
+    outliers_from(out, rate_hz, scale, dof, sample_rate_hz, key, 0)
 }
 
 /// [`outliers`] for a block starting at sample `c0 * CHUNK` of the series.
@@ -95,6 +104,7 @@ pub fn outliers_from(
     out: &mut [f64],
     rate_hz: f64,
     scale: f64,
+    dof: Option<f64>,
     sample_rate_hz: f64,
     key: &StreamKey,
     c0: u64,
@@ -106,11 +116,16 @@ pub fn outliers_from(
     let Ok(gaps) = Geometric::new(p) else {
         return; // p is in (0, 1] for every valid spec
     };
+    // None: normal amplitudes (dof >= 1 for every valid spec)
+    let t = dof.and_then(|d| StudentT::new(d).ok());
     for_chunks_from(out, c0, |c, s| {
         let mut rng = key.rng(0, c);
         let mut pos = gaps.sample(&mut rng);
         while (pos as usize) < s.len() {
-            let w: f64 = StandardNormal.sample(&mut rng);
+            let w: f64 = match &t {
+                Some(t) => t.sample(&mut rng),
+                None => StandardNormal.sample(&mut rng),
+            };
             s[pos as usize] += scale * w;
             pos = pos.saturating_add(1).saturating_add(gaps.sample(&mut rng));
         }

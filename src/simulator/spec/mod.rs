@@ -149,8 +149,15 @@ pub enum Component {
     ThermalRate { coeff: f64, smoothing_s: f64 },
     /// Warm-up bias amplitude exp(-t / tau_s): `amplitude` \[u\] (any sign), `tau_s` \[s\] > 0.
     Warmup { amplitude: f64, tau_s: f64 },
-    /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` \[u\] >= 0.
-    Outliers { rate_hz: f64, scale: f64 },
+    /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` \[u\] >= 0:
+    /// each amplitude `scale` times a standard normal draw, or with `dof` (>= 1) a
+    /// Student-t draw of `dof` degrees of freedom (heavy-tailed spikes; `scale` is then
+    /// the t's scale, not its standard deviation).
+    Outliers {
+        rate_hz: f64,
+        scale: f64,
+        dof: Option<f64>,
+    },
     /// The scale of the channel's `of` noise component varies with temperature:
     /// scale = max(floor, 1 + slope (T - T_ref)); `slope` [1/degC], `floor` (unitless,
     /// 0 <= floor < 1, default 0) the level the scale does not fall below.
@@ -376,7 +383,7 @@ impl Kind {
             Kind::TemperatureBias => &["coeffs", "reference_c"],
             Kind::ThermalRate => &["coeff", "smoothing_s"],
             Kind::Warmup => &["amplitude", "tau_s"],
-            Kind::Outliers => &["rate_hz", "scale"],
+            Kind::Outliers => &["rate_hz", "scale", "dof"],
             Kind::Heteroskedastic => &["of", "slope", "floor"],
             Kind::CrossAxis => &["from", "gain"],
             Kind::OutputFilter => &[

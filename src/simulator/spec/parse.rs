@@ -374,6 +374,7 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
         Kind::Outliers => Component::Outliers {
             rate_hz: p.f64("rate_hz")?,
             scale: p.f64("scale")?,
+            dof: p.opt_f64("dof")?,
         },
         Kind::Heteroskedastic => {
             let of = p.string("of")?;

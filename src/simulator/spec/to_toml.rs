@@ -138,9 +138,16 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
             line(out, "amplitude", float(*amplitude));
             line(out, "tau_s", float(*tau_s));
         }
-        Component::Outliers { rate_hz, scale } => {
+        Component::Outliers {
+            rate_hz,
+            scale,
+            dof,
+        } => {
             line(out, "rate_hz", float(*rate_hz));
             line(out, "scale", float(*scale));
+            if let Some(d) = dof {
+                line(out, "dof", float(*d));
+            }
         }
         Component::Heteroskedastic { of, slope, floor } => {
             line(out, "of", string(of.as_str()));

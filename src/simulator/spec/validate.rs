@@ -77,8 +77,13 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
         Component::Warmup { amplitude, tau_s } => {
             v.extend([("amplitude", *amplitude), ("tau_s", *tau_s)]);
         }
-        Component::Outliers { rate_hz, scale } => {
+        Component::Outliers {
+            rate_hz,
+            scale,
+            dof,
+        } => {
             v.extend([("rate_hz", *rate_hz), ("scale", *scale)]);
+            v.extend(dof.map(|d| ("dof", d)));
         }
         Component::Heteroskedastic { slope, floor, .. } => {
             v.extend([("slope", *slope), ("floor", *floor)]);
@@ -365,9 +370,21 @@ impl Spec {
                     check.finite("amplitude", *amplitude)?;
                     check.positive("tau_s", *tau_s)?;
                 }
-                Component::Outliers { rate_hz, scale } => {
+                Component::Outliers {
+                    rate_hz,
+                    scale,
+                    dof,
+                } => {
                     check.non_negative("rate_hz", *rate_hz)?;
                     check.non_negative("scale", *scale)?;
+                    if let Some(d) = dof
+                        && !(d.is_finite() && *d >= 1.0)
+                    {
+                        return Err(format!(
+                            "{place}: 'dof' = {} must be a finite number >= 1 (the Student-t's degrees of freedom; leave it out for normal amplitudes)",
+                            num(*d)
+                        ));
+                    }
                     if *rate_hz > self.sample_rate_hz {
                         return Err(format!(
                             "{place}: 'rate_hz' = {} exceeds sample_rate_hz = {} (at most one outlier per sample)",
