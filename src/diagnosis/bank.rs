@@ -160,6 +160,7 @@ pub fn cases(rate_hz: f64, duration_s: f64) -> Vec<Case> {
         Some(C::ThermalRate {
             coeff: 6.0,
             smoothing_s: 30.0,
+            lag_s: 0.0,
         }),
         true,
         None,

@@ -1966,6 +1966,7 @@ mod tests {
         let th = Component::ThermalRate {
             coeff: 1.0,
             smoothing_s: 60.0,
+            lag_s: 0.0,
         };
         assert_eq!(n("thermal_rate", th, none.clone()), 2);
         let gm = Component::GaussMarkov {

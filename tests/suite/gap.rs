@@ -235,6 +235,33 @@ fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
     assert!((windows.last().unwrap().1 - n as f64 / 10.0).abs() < 1e-9);
 }
 
+/// The Shupe bias of a coil whose temperature lags the logged one by a first-order lag
+/// of 200 s: the thermal_rate candidate finds the lag (the contract's `lag_s`) and the
+/// gap closes.
+#[test]
+fn a_thermal_rate_behind_a_lagged_temperature_is_found_with_its_lag() {
+    let spec = bank::base_spec(10.0, true);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::ThermalRate {
+        coeff: 6.0,
+        smoothing_s: 0.0,
+        lag_s: 200.0,
+    });
+    let case = Case {
+        expect: "thermal_rate".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 72_000, 77, 12);
+    assert!(d.gap_before > d.gap_threshold, "not significant");
+    assert_first_step(&d, "thermal_rate");
+    assert_explained(&d);
+    let th = d.added.iter().find(|e| e.kind == "thermal_rate").unwrap();
+    let lag_s = th.params["lag_s"].as_f64().unwrap();
+    assert!((100.0..400.0).contains(&lag_s), "lag_s {lag_s}");
+    assert!(th.params.get("at_search_edge").is_none(), "{}", th.params);
+}
+
 /// A heteroskedastic white noise whose spec gives its RMS level over the log: the
 /// simulator's scale 1 + k (T - Tm) has a mean of 1 but a mean square of
 /// 1 + k^2 var(T) (1.32 here, +-10 degC and k = 0.08), so the scale added at the spec's

@@ -49,6 +49,7 @@ fn every_component() -> Spec {
                     Component::ThermalRate {
                         coeff: 0.3,
                         smoothing_s: 30.0,
+                        lag_s: 0.0,
                     },
                     Component::Warmup {
                         amplitude: 0.05,

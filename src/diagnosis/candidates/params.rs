@@ -50,9 +50,14 @@ pub fn scaled(c: &Component, s: f64) -> Option<Component> {
             coeffs: coeffs.iter().map(|v| v * s).collect(),
             reference_c: *reference_c,
         },
-        C::ThermalRate { coeff, smoothing_s } => C::ThermalRate {
+        C::ThermalRate {
+            coeff,
+            smoothing_s,
+            lag_s,
+        } => C::ThermalRate {
             coeff: coeff * s,
             smoothing_s: *smoothing_s,
+            lag_s: *lag_s,
         },
         C::Warmup { amplitude, tau_s } => C::Warmup {
             amplitude: amplitude * s,
@@ -164,8 +169,16 @@ pub fn params_json(c: &Component) -> Value {
             coeffs,
             reference_c,
         } => json!({ "coeffs": coeffs, "reference_c": reference_c }),
-        C::ThermalRate { coeff, smoothing_s } => {
-            json!({ "coeff": coeff, "smoothing_s": smoothing_s })
+        C::ThermalRate {
+            coeff,
+            smoothing_s,
+            lag_s,
+        } => {
+            let mut p = json!({ "coeff": coeff, "smoothing_s": smoothing_s });
+            if *lag_s > 0.0 {
+                p["lag_s"] = json!(lag_s);
+            }
+            p
         }
         C::Warmup { amplitude, tau_s } => json!({ "amplitude": amplitude, "tau_s": tau_s }),
         C::Outliers {

@@ -2,8 +2,8 @@
 //! when the log has the spec's temperature channel; Tm is the log's mean temperature.
 //! - temperature_bias: least squares of the training residual on T - Tm and (T - Tm)^2
 //!   with an intercept, which sets the reference temperature;
-//! - thermal_rate: least squares on dT/dt for each smoothing of a grid, the best by
-//!   residual sum of squares;
+//! - thermal_rate: least squares on dT/dt for each smoothing and first-order lag of a
+//!   grid, the best by residual sum of squares, its lag refined;
 //! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm and
 //!   (T - Tm)^2 gives E[d^2] = v_other + v_mod (1 + k (T - Tm))^2 exactly for the
 //!   simulator's scale 1 + k (T - Tm), v_other being the other components' variance
@@ -13,7 +13,7 @@
 //!   temperature of the clamp's kink ([`heteroskedastic_floor_form`]).
 
 use super::lsq::{golden_argmin, ls, ls_full, shrink_ranges};
-use super::params::{params_json, scaled};
+use super::params::{flag_edge, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
 use crate::error::Result;
@@ -93,34 +93,101 @@ fn with_reference(c0: f64, b1: f64, b2: f64) -> Option<(Vec<f64>, f64)> {
     Some((coeffs, delta))
 }
 
-/// thermal_rate: the coefficient for each smoothing of 0, 10, 30, 100, 300 s, the best
-/// by residual sum of squares.
+/// The smoothings (s) [`thermal_rate`] tries, up to a quarter of the log.
+const THERMAL_SMOOTHINGS_S: [f64; 6] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
+
+/// The lags (s) [`thermal_rate`] tries before refining: none, then a log grid of 7 from
+/// 10 s to the largest of its range.
+const THERMAL_LAGS: usize = 7;
+
+/// thermal_rate: the coefficient by least squares of the training residual on the unit
+/// signal (with an intercept) for each smoothing of [`THERMAL_SMOOTHINGS_S`] and each
+/// lag of none and a log grid of [`THERMAL_LAGS`] from 10 s to min(3000 s, a quarter of
+/// the log), the best by residual sum of squares; a lag found on the grid is refined by
+/// a golden-section search of ln lag_s between its grid neighbours. A lag or a
+/// smoothing at the top of its range is flagged (`at_search_edge`).
 pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
-    let mut best: Option<(f64, f64, f64, Vec<f64>)> = None;
-    for sm in [0.0, 10.0, 30.0, 100.0, 300.0] {
-        let u = cx.unit(Component::ThermalRate {
+    let top_s = (0.25 * tr.duration_s).min(3000.0);
+    let smoothings: Vec<f64> = THERMAL_SMOOTHINGS_S
+        .iter()
+        .copied()
+        .filter(|&s| s <= top_s)
+        .collect();
+    let lag_top = top_s.max(20.0);
+    let lags: Vec<f64> = std::iter::once(0.0)
+        .chain(super::lsq::log_grid(10.0, lag_top, THERMAL_LAGS))
+        .collect();
+    let unit = |sm: f64, lag: f64| {
+        cx.unit(Component::ThermalRate {
             coeff: 1.0,
             smoothing_s: sm,
-        })?;
-        if let Some((b, rss)) = ls(res, &[&u], true, ranges)
-            && best.as_ref().is_none_or(|x| rss < x.2)
-        {
-            best = Some((b[0], sm, rss, u));
+            lag_s: lag,
+        })
+    };
+    // (coefficient, rss, unit signal) of one (smoothing, lag)
+    let fit = |sm: f64, lag: f64| -> Result<Option<(f64, f64, Vec<f64>)>> {
+        let u = unit(sm, lag)?;
+        Ok(ls(res, &[&u], true, ranges).map(|(b, rss)| (b[0], rss, u)))
+    };
+    let mut best: Option<(f64, f64, f64, f64, Vec<f64>)> = None;
+    for &sm in &smoothings {
+        for &lag in &lags {
+            if let Some((b, rss, u)) = fit(sm, lag)?
+                && best.as_ref().is_none_or(|x| rss < x.3)
+            {
+                best = Some((b, sm, lag, rss, u));
+            }
         }
     }
-    if let Some((cf, sm, _, u)) = best {
-        let sig: Vec<f64> = u.iter().map(|v| v * cf).collect();
-        out.same(
-            "thermal_rate",
-            Component::ThermalRate {
-                coeff: cf,
-                smoothing_s: sm,
-            },
-            sig,
-            "least squares on dT/dt, smoothing chosen over 0, 10, 30, 100, 300 s".into(),
-        );
+    let Some((mut cf, sm, mut lag, rss, mut u)) = best else {
+        return Ok(());
+    };
+    if lag > 0.0 {
+        let i = lags.iter().position(|&l| l == lag).unwrap_or(1);
+        let (a, b) = (lags[(i - 1).max(1)], lags[(i + 1).min(lags.len() - 1)]);
+        let rss_at = |v: f64| match fit(sm, v.exp()) {
+            Ok(Some((_, r, _))) => r,
+            _ => f64::INFINITY,
+        };
+        let (v, r) = golden_argmin(a.ln(), b.ln(), 30, rss_at);
+        if r < rss
+            && let Some((b2, _, u2)) = fit(sm, v.exp())?
+        {
+            (cf, lag, u) = (b2, v.exp(), u2);
+        }
+        if (lag / lag_top).ln().abs() <= 1e-3 {
+            lag = lag_top;
+        }
     }
+    let comp = Component::ThermalRate {
+        coeff: cf,
+        smoothing_s: sm,
+        lag_s: lag,
+    };
+    let sig: Vec<f64> = u.iter().map(|v| v * cf).collect();
+    let mut params = params_json(&comp);
+    let mut note = format!(
+        "least squares on dT/dt, smoothing chosen over {:?} s, lag over 0 and 10 .. {} s (golden section)",
+        smoothings,
+        crate::fmt::num(lag_top)
+    );
+    if lag > 0.0 {
+        flag_edge(&mut params, &mut note, "lag_s", lag, 10.0, lag_top);
+    }
+    if smoothings.len() > 1 && sm == smoothings[smoothings.len() - 1] {
+        flag_edge(&mut params, &mut note, "smoothing_s", sm, 0.0, sm);
+    }
+    out.push(Proposal {
+        also: None,
+        kind: "thermal_rate".into(),
+        params,
+        component: comp,
+        replaces: None,
+        rescales: None,
+        delta: Delta::Same(sig),
+        note,
+    });
     Ok(())
 }
 

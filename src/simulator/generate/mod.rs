@@ -461,9 +461,11 @@ impl<'a> Simulator<'a> {
             Component::Arma { .. } | Component::Farma(_) => {
                 CompState::Recursion(RecState::default())
             }
-            Component::ThermalRate { smoothing_s, .. } => match self.req.temperature_c {
+            Component::ThermalRate {
+                smoothing_s, lag_s, ..
+            } => match self.req.temperature_c {
                 Some(t) => CompState::Thermal(thermal::smooth(
-                    t,
+                    &thermal::lagged(t, *lag_s, fs),
                     thermal::smoothing_half_width(*smoothing_s, fs),
                 )),
                 None => CompState::Stateless,

@@ -57,6 +57,27 @@ pub fn smooth(temp_c: &[f64], h: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The temperature through a first-order lag of time constant `lag_s` (the exact
+/// discretization of a lag driven by a signal held over each sample interval):
+/// y_0 = T_0, y_k = a y_{k-1} + (1 - a) T_k with a = exp(-1 / (rate_hz lag_s)); the
+/// series itself for lag_s = 0.
+pub fn lagged(temp_c: &[f64], lag_s: f64, rate_hz: f64) -> std::borrow::Cow<'_, [f64]> {
+    if lag_s <= 0.0 || temp_c.is_empty() {
+        return std::borrow::Cow::Borrowed(temp_c);
+    }
+    let a = (-1.0 / (rate_hz * lag_s)).exp();
+    let mut y = temp_c[0];
+    std::borrow::Cow::Owned(
+        temp_c
+            .iter()
+            .map(|&t| {
+                y = a * y + (1.0 - a) * t;
+                y
+            })
+            .collect(),
+    )
+}
+
 /// thermal_rate: coeff * dS/dt \[u\], S the temperature smoothed over `smoothing_s`
 /// ([`smooth`], half-width [`smoothing_half_width`]), dS/dt by the central difference
 /// (S_{k+1} - S_{k-1}) rate_hz / 2, one-sided at the two ends (0 for one sample). The
@@ -95,4 +116,22 @@ pub fn scale(slope: f64, floor: f64, reference_c: f64, temp_c: &[f64]) -> Vec<f6
         .iter()
         .map(|t| (1.0 + slope * (t - reference_c)).max(floor))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lag_gives_the_first_order_step_response() {
+        // a unit step at sample 1: y_k = 1 - a^k, a = exp(-dt / lag_s)
+        let (fs, lag_s) = (10.0, 3.0);
+        let t: Vec<f64> = (0..100).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
+        let y = lagged(&t, lag_s, fs);
+        let a = (-1.0 / (fs * lag_s)).exp();
+        for (k, v) in y.iter().enumerate() {
+            assert!((v - (1.0 - a.powi(k as i32))).abs() < 1e-14, "{k}: {v}");
+        }
+        assert_eq!(&*lagged(&t, 0.0, fs), &t[..]);
+    }
 }

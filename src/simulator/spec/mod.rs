@@ -145,8 +145,14 @@ pub enum Component {
         reference_c: Option<f64>,
     },
     /// Bias proportional to dT/dt (the Shupe effect): `coeff` [u per degC/s], the
-    /// temperature smoothed over `smoothing_s` \[s\] >= 0 before differencing.
-    ThermalRate { coeff: f64, smoothing_s: f64 },
+    /// temperature passed through a first-order lag of `lag_s` \[s\] >= 0 (the sensing
+    /// element's temperature behind the logged one; 0: none), then smoothed over
+    /// `smoothing_s` \[s\] >= 0 before differencing.
+    ThermalRate {
+        coeff: f64,
+        smoothing_s: f64,
+        lag_s: f64,
+    },
     /// Warm-up bias amplitude exp(-t / tau_s): `amplitude` \[u\] (any sign), `tau_s` \[s\] > 0.
     Warmup { amplitude: f64, tau_s: f64 },
     /// Outliers at `rate_hz` [1/s] (0 ..= sample_rate_hz) with size `scale` \[u\] >= 0:
@@ -381,7 +387,7 @@ impl Kind {
             Kind::Arma => &["ar", "ma", "sigma"],
             Kind::Farma => &["model", "channel", "p", "q", "d", "f", "ma", "sigma"],
             Kind::TemperatureBias => &["coeffs", "reference_c"],
-            Kind::ThermalRate => &["coeff", "smoothing_s"],
+            Kind::ThermalRate => &["coeff", "smoothing_s", "lag_s"],
             Kind::Warmup => &["amplitude", "tau_s"],
             Kind::Outliers => &["rate_hz", "scale", "dof"],
             Kind::Heteroskedastic => &["of", "slope", "floor"],

@@ -366,6 +366,7 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
         Kind::ThermalRate => Component::ThermalRate {
             coeff: p.f64("coeff")?,
             smoothing_s: p.f64("smoothing_s")?,
+            lag_s: p.opt_f64("lag_s")?.unwrap_or(0.0),
         },
         Kind::Warmup => Component::Warmup {
             amplitude: p.f64("amplitude")?,

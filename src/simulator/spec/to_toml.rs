@@ -130,9 +130,16 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
                 line(out, "reference_c", float(*t));
             }
         }
-        Component::ThermalRate { coeff, smoothing_s } => {
+        Component::ThermalRate {
+            coeff,
+            smoothing_s,
+            lag_s,
+        } => {
             line(out, "coeff", float(*coeff));
             line(out, "smoothing_s", float(*smoothing_s));
+            if *lag_s > 0.0 {
+                line(out, "lag_s", float(*lag_s));
+            }
         }
         Component::Warmup { amplitude, tau_s } => {
             line(out, "amplitude", float(*amplitude));

@@ -71,8 +71,16 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
             v.extend(coeffs.iter().map(|x| ("coeffs", *x)));
             v.extend(reference_c.map(|t| ("reference_c", t)));
         }
-        Component::ThermalRate { coeff, smoothing_s } => {
-            v.extend([("coeff", *coeff), ("smoothing_s", *smoothing_s)]);
+        Component::ThermalRate {
+            coeff,
+            smoothing_s,
+            lag_s,
+        } => {
+            v.extend([
+                ("coeff", *coeff),
+                ("smoothing_s", *smoothing_s),
+                ("lag_s", *lag_s),
+            ]);
         }
         Component::Warmup { amplitude, tau_s } => {
             v.extend([("amplitude", *amplitude), ("tau_s", *tau_s)]);
@@ -362,9 +370,14 @@ impl Spec {
                         check.finite("reference_c", *t)?;
                     }
                 }
-                Component::ThermalRate { coeff, smoothing_s } => {
+                Component::ThermalRate {
+                    coeff,
+                    smoothing_s,
+                    lag_s,
+                } => {
                     check.finite("coeff", *coeff)?;
                     check.non_negative("smoothing_s", *smoothing_s)?;
+                    check.non_negative("lag_s", *lag_s)?;
                 }
                 Component::Warmup { amplitude, tau_s } => {
                     check.finite("amplitude", *amplitude)?;
