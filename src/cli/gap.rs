@@ -141,14 +141,17 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
         let _ = writeln!(s, "  nowhere");
     }
     for r in d.where_before.iter().take(12) {
+        // a statistic of the whole withheld part (the distribution's) has no range
+        let range = if r.lo.is_finite() && r.hi.is_finite() {
+            format!("{:>12.4e} .. {:<12.4e} {:<8}", r.lo, r.hi, r.unit)
+        } else {
+            format!("{:^39}", "(whole withheld part)")
+        };
         let _ = writeln!(
             s,
-            "  {:<13} {:<30} {:>12.4e} .. {:<12.4e} {:<8} excess {:>7.1} sd",
+            "  {:<13} {:<30} {range} excess {:>7.1} sd",
             r.statistic.as_str(),
             r.feature,
-            r.lo,
-            r.hi,
-            r.unit,
             r.excess
         );
     }

@@ -283,6 +283,21 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
     for d in done {
         p.h2(&format!("channel {}", d.channel));
         p.plot(&gap_svg(d)?);
+        if !d.events_excluded.is_empty() {
+            p.h3("test-stand events excluded (replaced by the stretch before each)");
+            let rows: Vec<Vec<String>> = d
+                .events_excluded
+                .iter()
+                .map(|e| {
+                    vec![
+                        format!("{:.2} .. {:.2}", e.start_s, e.end_s),
+                        format!("{:.1}", e.peak_sd),
+                        e.channels.join(", "),
+                    ]
+                })
+                .collect();
+            p.table(&["span [s]", "peak [robust sd]", "seen on"], &rows);
+        }
         p.h3("where the real log is out of the simulations' band (before)");
         let rows: Vec<Vec<String>> = d
             .where_before
@@ -291,7 +306,11 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
                 vec![
                     r.statistic.as_str().to_string(),
                     r.feature.clone(),
-                    format!("{} .. {} {}", tick(&r.lo), tick(&r.hi), r.unit),
+                    if r.lo.is_finite() && r.hi.is_finite() {
+                        format!("{} .. {} {}", tick(&r.lo), tick(&r.hi), r.unit)
+                    } else {
+                        "whole withheld part".to_string()
+                    },
                     format!("{:.2}", r.excess),
                     tick(&r.ratio_or_delta),
                 ]

@@ -984,6 +984,18 @@ fn cli_excludes_a_knock_seen_on_every_channel_and_keep_events_keeps_it() {
     assert!(ev[0]["peak_sd"].as_f64().unwrap() > 8.0, "{v}");
     let notes = v["notes"].to_string();
     assert!(notes.contains("1 test-stand event span"), "{notes}");
+    // the report lists the span too
+    let out_dir = dir.path().join("out");
+    gap(&["-o", out_dir.to_str().unwrap()]);
+    let html = std::fs::read_to_string(out_dir.join("report.html")).unwrap();
+    assert!(
+        html.contains("test-stand events excluded"),
+        "report.html lacks the event"
+    );
+    assert!(
+        html.contains("rate, acc_x, acc_y"),
+        "report.html lacks its channels"
+    );
     let kept = gap(&["--keep-events"]);
     assert_eq!(kept["events_excluded"], serde_json::json!([]), "{kept}");
     assert!(
