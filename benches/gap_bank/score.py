@@ -131,8 +131,13 @@ def main():
                          "spec_only_<kind>.toml (the truth minus that member alone) and "
                          "report whether its gap is significant (runs only those not saved "
                          "yet: --rescore --oracle runs just them)")
-    ap.add_argument("extra", nargs="*", help="extra arguments of farma gap (after --)")
-    a = ap.parse_args()
+    # the extra arguments of farma gap follow "--" (split off here: argparse gives a
+    # trailing nargs="*" positional nothing once the two before it are matched)
+    argv = sys.argv[1:]
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    argv = argv[:argv.index("--")] if "--" in argv else argv
+    a = ap.parse_args(argv)
+    a.extra = extra
     out = a.out or os.path.join(a.bank, "results")
     parts = ["dev", "dev2", "heldout"] if a.part == "all" else [a.part]
     todo = []
@@ -246,6 +251,11 @@ def main():
                 k = sum(r["right"] for r in cc)
                 if cc:
                     print(f"{'  of contract kinds':<28}{k:>6}{len(cc):>6}{k / len(cc):>8.0%}")
+                # the singles a diagnosis can see at all: the gap before significant
+                sc = [r for r in cr if r["significant"] in (True, "True")]
+                k = sum(r["right"] for r in sc)
+                if sc:
+                    print(f"{'  gap before significant':<28}{k:>6}{len(sc):>6}{k / len(sc):>8.0%}")
         times = [r["elapsed_s"] for r in pr if r["elapsed_s"] != ""]
         rss = [r["peak_rss_mib"] for r in pr if r["peak_rss_mib"] != ""]
         if times:
