@@ -14,20 +14,24 @@
 //!   the largest peak of the training-masked periodogram of r, refined by a
 //!   golden-section search of the least-squares power; amplitude and phase by least
 //!   squares), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
-//!   (coefficient for each smoothing of a grid, the best by residual sum of squares);
+//!   (coefficient for each smoothing and first-order lag of a grid, the best by
+//!   residual sum of squares, its lag refined by golden section);
 //! - noise effects from the Allan variance, which adds over independent processes:
 //!   with A(m) the pooled training AVAR of the real log, E(m) the ensemble's mean and
-//!   U(m) the candidate simulated with a unit coefficient (mean over replicas),
+//!   U(m) the candidate simulated with a unit coefficient (mean over replicas; for
+//!   gauss_markov its exact closed form),
 //!   c^2 = argmin sum_m w_m (A - E - c^2 U)^2, w_m = 1 / (m A(m)^2) (the relative
 //!   variance of an AVAR estimate grows like m / N), c^2 >= 0: white_noise,
 //!   quantization, bias_instability, rate_random_walk, gauss_markov (tau_s by the best
-//!   fit over a log grid), and recalibration of a noise component (A - E + V_k
-//!   against V_k, its own AVAR, giving the factor s^2 on its size);
+//!   fit over a log grid, refined by golden section), and recalibration of a noise
+//!   component (A - E + V_k against V_k, its own AVAR, giving the factor s^2 on its
+//!   size);
 //! - outliers from spikes: the local second difference s_t = x_t - (x_{t-1} + x_{t+1})/2,
 //!   spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD) and is a local
-//!   maximum; the excess count over the ensemble's gives the rate, and the mean square
-//!   of the spikes, read as a normal sample truncated at the threshold
-//!   (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale and the share detected;
+//!   maximum; the excess count over the ensemble's gives the rate, and the spikes' sizes,
+//!   read as a normal (by their mean square, E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)) or
+//!   a Student-t sample (by maximum likelihood, when the sizes say so) truncated at the
+//!   threshold, give the amplitude distribution and the share detected;
 //! - heteroskedastic: the regression of d_t^2 (d the first difference) on T - Tm and
 //!   (T - Tm)^2 gives E[d^2] = v_other + v_mod (1 + slope (T - Tm))^2, v_other being
 //!   the other components' variance of d (from the ensemble): the slope and the
