@@ -102,19 +102,21 @@ const THERMAL_LAGS: usize = 7;
 
 /// thermal_rate: the coefficient by least squares of the training residual on the unit
 /// signal (with an intercept) for each smoothing of [`THERMAL_SMOOTHINGS_S`] and each
-/// lag of none and a log grid of [`THERMAL_LAGS`] from 10 s to min(3000 s, a quarter of
-/// the log), the best by residual sum of squares; a lag found on the grid is refined by
+/// lag of none and a log grid of [`THERMAL_LAGS`] from 10 s to min(3000 s, an eighth of
+/// the log: a lag near the log's length turns dT/dt into a high-passed T, a stand-in
+/// for a temperature bias), the best by residual sum of squares; a lag found on the grid is refined by
 /// a golden-section search of ln lag_s between its grid neighbours. A lag or a
 /// smoothing at the top of its range is flagged (`at_search_edge`).
 pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
     let top_s = (0.25 * tr.duration_s).min(3000.0);
+    let lag_top_s = (0.125 * tr.duration_s).min(3000.0);
     let smoothings: Vec<f64> = THERMAL_SMOOTHINGS_S
         .iter()
         .copied()
         .filter(|&s| s <= top_s)
         .collect();
-    let lag_top = top_s.max(20.0);
+    let lag_top = lag_top_s.max(20.0);
     let lags: Vec<f64> = std::iter::once(0.0)
         .chain(super::lsq::log_grid(10.0, lag_top, THERMAL_LAGS))
         .collect();
