@@ -604,8 +604,15 @@ fn diagnose_log(
         // folds estimate step by step, so only one step's are held at once); each pair
         // is scored as it is complete, and only the best (with its signals) and the
         // runner-up's features are kept
+        // a held proposal sheds what its fold's state rebuilds (Proposal::shed): fold
+        // 2's output-path candidates are all held before fold 1's are estimated, and
+        // a step may give several (cross_axis: one per other channel); the round's
+        // best is held shed too, and restored once the round is over
         let held: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
-        let mut hold = |p: Proposal| held.borrow_mut().push(p);
+        let mut hold = |mut p: Proposal| {
+            p.shed(&cx(1));
+            held.borrow_mut().push(p)
+        };
         let mut round = Round::default();
         // fold 1's output-path estimates that met no fold-2 estimate of the same form
         // (paired by kind afterwards, [`loose_key`]), and the other kinds' unpaired ones
@@ -614,7 +621,8 @@ fn diagnose_log(
         // fold 1's estimate p and fold 2's q of one candidate, scored on the withheld
         // parts: an output-path candidate changes the path every sum goes through, any
         // other adds its signal to the sums
-        let mut score_pair = |p: Proposal, q: Proposal| {
+        let mut score_pair = |p: Proposal, mut q: Proposal| {
+            q.restore(&cx(1));
             pb.set_message(p.kind.clone());
             let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
@@ -624,7 +632,7 @@ fn diagnose_log(
                 ];
                 // a joint candidate also changes a component's signal
                 fn also(pr: &Proposal, m: usize) -> Option<Vec<&[f64]>> {
-                    let (_, _, d) = pr.also.as_ref()?;
+                    let d = &pr.also.as_ref()?.delta;
                     Some((0..m).map(|r| d.get(r)).collect())
                 }
                 match (also(&p, prm.replicas), also(&q, prm.replicas)) {
@@ -645,7 +653,10 @@ fn diagnose_log(
                 )
             };
             let scored = score(&f);
-            round.offer([p, q], f, scored, gap_now);
+            let mut pq = [p, q];
+            pq[0].shed(&cx(0));
+            pq[1].shed(&cx(1));
+            round.offer(pq, f, scored, gap_now);
         };
         // fold 1's estimate meets fold 2's of the same kind and form
         let mut pair = |p: Proposal| {
@@ -723,9 +734,13 @@ fn diagnose_log(
         }
         let Round {
             mut all,
-            best,
+            mut best,
             second,
         } = round;
+        if let Some((_, _, p, _)) = best.as_mut() {
+            p[0].restore(&cx(0));
+            p[1].restore(&cx(1));
+        }
         all.sort_by(|a, b| a.gap_after.total_cmp(&b.gap_after));
         if first.is_none() {
             first = Some(all.clone());
@@ -1326,17 +1341,17 @@ fn removable_comp(comps: &[usize], i: usize) -> bool {
 /// appended (or put in place of the one it replaces); returns where it sits.
 fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
     // a joint candidate: its second change first, as a replacement of its own
-    let also = p.also.take().map(|(k, component, delta)| {
+    let also = p.also.take().map(|a| {
         Box::new(apply(
             st,
             channel,
             Proposal {
                 also: None,
                 kind: String::new(),
-                component,
-                replaces: Some(k),
+                component: a.component,
+                replaces: Some(a.comp),
                 params: serde_json::Value::Null,
-                delta,
+                delta: a.delta,
                 note: String::new(),
                 rescales: None,
             },

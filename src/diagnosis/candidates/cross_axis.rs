@@ -54,21 +54,49 @@ pub(super) fn cached_signal(
     name: &str,
     gain: f64,
 ) -> Option<Vec<Vec<f64>>> {
-    let src = cx.spec.channels.iter().find(|c| c.name == name)?;
+    cacheable(cx, j, name).then(|| {
+        cx.sim_others
+            .iter()
+            .map(|chs| chs[j].iter().map(|v| 0.0 + gain * v).collect())
+            .collect()
+    })
+}
+
+/// Whether [`cached_signal`] reads other channel `j` (named `name`) from the
+/// ensemble's simulations: the source has no cross-axis coupling and no output-path
+/// stage of its own, and every replica holds its whole simulation.
+fn cacheable(cx: &Context, j: usize, name: &str) -> bool {
+    let Some(src) = cx.spec.channels.iter().find(|c| c.name == name) else {
+        return false;
+    };
     let plain = src
         .components
         .iter()
         .all(|c| !matches!(c, Component::CrossAxis { .. }) && !c.kind().is_output_path());
-    if !plain || cx.sim_others.len() != cx.sim.replicas {
+    plain
+        && cx.sim_others.len() == cx.sim.replicas
+        && cx
+            .sim_others
+            .iter()
+            .all(|chs| chs.get(j).is_some_and(|v| v.len() == cx.sim.n_samples))
+}
+
+/// For a cross_axis proposal of the state `cx` whose delta [`cross_axis`] took from
+/// the ensemble's simulations ([`cached_signal`]): that delta built again, bit for
+/// bit, when `build`; None for any other proposal (and, without `build`, Some of an
+/// empty vector for one).
+pub(super) fn rebuilt(cx: &Context, p: &Proposal, build: bool) -> Option<Vec<Vec<f64>>> {
+    let Component::CrossAxis { from, gain } = &p.component else {
+        return None;
+    };
+    if p.kind != "cross_axis" || p.replaces.is_some() {
         return None;
     }
-    cx.sim_others
-        .iter()
-        .map(|chs| {
-            let v = chs.get(j)?;
-            (v.len() == cx.sim.n_samples).then(|| v.iter().map(|v| 0.0 + gain * v).collect())
-        })
-        .collect()
+    let j = cx.others.iter().position(|(name, _)| name == from)?;
+    if !build {
+        return cacheable(cx, j, from).then(Vec::new);
+    }
+    cached_signal(cx, j, from, *gain)
 }
 
 #[cfg(test)]

@@ -117,10 +117,100 @@ pub struct Proposal {
     pub delta: Delta,
     /// How the parameters were estimated.
     pub note: String,
-    /// A second change made with this one, as one candidate: component `.0` of the
-    /// channel replaced by `.1`, its signal changed by `.2` (the output filter with the
-    /// white noise refitted before it, see `output_path::proposals`).
-    pub also: Option<(usize, Component, Delta)>,
+    /// A second change made with this one, as one candidate (the output filter with
+    /// the white noise refitted before it, see `output_path::proposals`).
+    pub also: Option<Also>,
+}
+
+impl Proposal {
+    /// Drops the full-length signals that [`Proposal::restore`] rebuilds bit for bit
+    /// from `cx`, the state the proposal was estimated on: a joint candidate's second
+    /// change (a rescale of one of the parts, [`Also::build`]) and a cross_axis delta
+    /// taken from the ensemble's simulations of the other channel
+    /// (`cross_axis::cached_signal`). Any other delta is kept. A shed delta is an
+    /// `Each` of no replica, which no estimate gives (an ensemble has at least one).
+    pub fn shed(&mut self, cx: &Context) {
+        if let Some(a) = self.also.as_mut() {
+            a.shed();
+        }
+        if cross_axis::rebuilt(cx, self, false).is_some() {
+            self.delta = Delta::Each(Vec::new());
+        }
+    }
+
+    /// Rebuilds what [`Proposal::shed`] dropped, from the same state `cx`.
+    pub fn restore(&mut self, cx: &Context) {
+        if let Some(a) = self.also.as_mut()
+            && a.delta.is_shed()
+        {
+            a.build(cx.parts);
+        }
+        if self.delta.is_shed()
+            && let Some(u) = cross_axis::rebuilt(cx, self, true)
+        {
+            self.delta = Delta::Each(u);
+        }
+    }
+}
+
+impl Delta {
+    /// A delta dropped by [`Proposal::shed`] (an `Each` of no replica).
+    pub fn is_shed(&self) -> bool {
+        matches!(self, Delta::Each(v) if v.is_empty())
+    }
+}
+
+/// The second change of a joint candidate: component `comp` of the channel replaced by
+/// `component`, the same component rescaled, so that each replica's signal of it
+/// changes by `factor` times itself.
+#[derive(Clone, Debug)]
+pub struct Also {
+    pub comp: usize,
+    pub component: Component,
+    /// The rescale's factor minus one: s - 1 for the component's size times s.
+    pub factor: f64,
+    /// Each replica's change, d_r[t] = factor * x_r[t] with x_r replica r's signal of
+    /// `comp` ([`Also::build`]); empty while shed ([`Also::shed`]).
+    pub delta: Delta,
+}
+
+impl Also {
+    /// The rescale of component `comp` by 1 + `factor` in the state whose per-replica
+    /// component signals are `parts`, with its change built.
+    pub fn new(
+        comp: usize,
+        component: Component,
+        factor: f64,
+        parts: &[Vec<std::sync::Arc<Vec<f64>>>],
+    ) -> Also {
+        let mut a = Also {
+            comp,
+            component,
+            factor,
+            delta: Delta::Each(Vec::new()),
+        };
+        a.build(parts);
+        a
+    }
+
+    /// Drops the change's signals (a proposal waiting to be paired holds none); the
+    /// same `parts` rebuild them bit for bit ([`Also::build`]).
+    pub fn shed(&mut self) {
+        self.delta = Delta::Each(Vec::new());
+    }
+
+    /// Builds the change from `parts`, the per-replica component signals of the state
+    /// the candidate was estimated on: d_r[t] = factor * parts[r][comp][t] (every
+    /// replica holds its own signal of a rescaled noise component).
+    pub fn build(&mut self, parts: &[Vec<std::sync::Arc<Vec<f64>>>]) {
+        let f = self.factor;
+        self.delta = Delta::Each(
+            parts
+                .iter()
+                .map(|p| p[self.comp].iter().map(|v| v * f).collect())
+                .collect(),
+        );
+    }
 }
 
 /// A candidate that could not be tried, and why.
@@ -546,6 +636,51 @@ mod tests {
         )
     }
 
+    /// [`record`] with a joint candidate's second change, bit for bit.
+    fn record_all(p: &Proposal, m: usize) -> String {
+        let also = p.also.as_ref().map(|a| {
+            let d: Vec<Vec<u64>> = (0..m)
+                .map(|r| a.delta.get(r).iter().map(|x| x.to_bits()).collect())
+                .collect();
+            format!("{} {:?} {} {d:?}", a.comp, a.component, a.factor)
+        });
+        format!("{} {also:?}", record(p, m))
+    }
+
+    /// Every proposal of each state, and a joint rescale of its first component,
+    /// shed and restored: the proposal as estimated, bit for bit; the cross_axis
+    /// ones (taken from the ensemble's other channels) and the joint one shed.
+    fn shed_and_restored_case(cxs: &[Context], m: usize) {
+        for cx in cxs {
+            let mut got = Vec::new();
+            propose(cx, &mut |p| got.push(p)).unwrap();
+            let mut joint = got[0].clone();
+            joint.also = Some(Also::new(
+                0,
+                Component::WhiteNoise { n: 0.07 },
+                0.4,
+                cx.parts,
+            ));
+            got.push(joint);
+            let mut n_shed = 0;
+            for p in &got {
+                let mut q = p.clone();
+                q.shed(cx);
+                let shed = q.delta.is_shed() || q.also.as_ref().is_some_and(|a| a.delta.is_shed());
+                n_shed += usize::from(shed);
+                assert_eq!(
+                    shed,
+                    p.kind == "cross_axis" || p.also.is_some(),
+                    "{}",
+                    p.kind
+                );
+                q.restore(cx);
+                assert_eq!(record_all(&q, m), record_all(p, m), "{}", p.kind);
+            }
+            assert!(n_shed >= 2, "{n_shed}");
+        }
+    }
+
     #[test]
     fn two_folds_step_by_step_propose_what_each_proposes_alone() {
         let n = 20_000;
@@ -661,6 +796,7 @@ mod tests {
                 parts: &ens[f].1,
             })
             .collect();
+        shed_and_restored_case(&cxs, m);
         // each state alone
         let alone: Vec<(Vec<String>, Vec<String>)> = cxs
             .iter()

@@ -57,7 +57,7 @@
 //!   clipped limit, only when the log piles at an extreme.
 
 use super::lsq::golden_argmin;
-use super::{Context, Delta, NotTried, Proposal, params_json};
+use super::{Also, Context, Delta, NotTried, Proposal, params_json};
 use crate::error::Result;
 use crate::simulator::generate::output::LowPass;
 use crate::simulator::{Component, Discretization, Kind};
@@ -716,17 +716,16 @@ fn joined_without_steps(cx: &Context) -> Vec<f64> {
 /// `n` [u sqrt(s)]) rescaled by `s`, as its new component and each replica's change
 /// (s - 1) times its signal; None when `s` is not finite or moves n by no more than
 /// JOINT_MIN_CHANGE.
-fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<(usize, Component, Delta)> {
+fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<Also> {
     if !s.is_finite() || (s - 1.0).abs() <= JOINT_MIN_CHANGE {
         return None;
     }
-    let delta = Delta::Each(
-        cx.parts
-            .iter()
-            .map(|p| p[k].iter().map(|v| v * (s - 1.0)).collect())
-            .collect(),
-    );
-    Some((k, Component::WhiteNoise { n: n * s }, delta))
+    Some(Also::new(
+        k,
+        Component::WhiteNoise { n: n * s },
+        s - 1.0,
+        cx.parts,
+    ))
 }
 
 /// The output-path candidates for the state `cx` (module doc), each handed to `sink`
@@ -756,10 +755,16 @@ pub fn proposals(
         Component::WhiteNoise { n } if *n > 0.0 => Some((k, *n)),
         _ => None,
     });
-    let mut offer_also = |c: Component, note: String, also: Option<(usize, Component, Delta)>| {
+    let mut offer_also = |c: Component, note: String, also: Option<Also>| {
         let mut params = params_json(&c);
-        if let (Some((k, Component::WhiteNoise { n }, _)), serde_json::Value::Object(m)) =
-            (&also, &mut params)
+        if let (
+            Some(Also {
+                comp: k,
+                component: Component::WhiteNoise { n },
+                ..
+            }),
+            serde_json::Value::Object(m),
+        ) = (&also, &mut params)
         {
             m.insert("white_noise_n".into(), serde_json::json!(n));
             m.insert("white_noise_component".into(), serde_json::json!(k + 1));
