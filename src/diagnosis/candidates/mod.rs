@@ -868,18 +868,18 @@ mod tests {
         }
     }
 
-    /// A state of `spec`'s ensemble (M replicas on n samples at 100 Hz) against the
-    /// real log `real`, trained on the first half of 8 blocks.
-    fn gm_state(
-        spec: &Spec,
-        real: &[f64],
-        m: usize,
-    ) -> (
+    /// What [`gm_state`] builds: the ensemble's base, the training layout, the
+    /// replicas' sums and their component signals.
+    type GmState = (
         SimBase<'static>,
         Layout,
         Vec<Vec<f64>>,
         Vec<Vec<Arc<Vec<f64>>>>,
-    ) {
+    );
+
+    /// A state of `spec`'s ensemble (M replicas on n samples at 100 Hz) against the
+    /// real log `real`, trained on the first half of 8 blocks.
+    fn gm_state(spec: &Spec, real: &[f64], m: usize) -> GmState {
         let n = real.len();
         let sim = SimBase {
             n_samples: n,
