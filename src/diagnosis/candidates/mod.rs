@@ -169,7 +169,7 @@ pub struct Also {
     pub component: Component,
     /// The rescale's factor minus one: s - 1 for the component's size times s.
     pub factor: f64,
-    /// Each replica's change, d_r[t] = factor * x_r[t] with x_r replica r's signal of
+    /// Each replica's change, `d_r[t] = factor * x_r[t]` with x_r replica r's signal of
     /// `comp` ([`Also::build`]); empty while shed ([`Also::shed`]).
     pub delta: Delta,
 }
@@ -200,7 +200,7 @@ impl Also {
     }
 
     /// Builds the change from `parts`, the per-replica component signals of the state
-    /// the candidate was estimated on: d_r[t] = factor * parts[r][comp][t] (every
+    /// the candidate was estimated on: `d_r[t] = factor * parts[r][comp][t]` (every
     /// replica holds its own signal of a rescaled noise component).
     pub fn build(&mut self, parts: &[Vec<std::sync::Arc<Vec<f64>>>]) {
         let f = self.factor;
