@@ -173,20 +173,80 @@ pub fn ar1_bank_from(out: &mut [f64], bank: &[Ar1], key: &StreamKey, c0: u64, x:
                 .filter(|(_, x)| **x != 0.0)
                 .map(|(ar, x)| (ar.phi, ar.prev, *x))
                 .collect();
-            if live.is_empty() {
-                return;
-            }
-            let mut h: Vec<f64> = live.iter().map(|l| l.2).collect();
-            for v in s.iter_mut() {
-                let mut acc = *v;
-                for (hi, l) in h.iter_mut().zip(&live) {
-                    let before = *hi;
-                    *hi *= l.0;
-                    acc += *hi + l.1 * before;
-                }
-                *v = acc;
-            }
+            homogeneous(s, live);
         });
+}
+
+/// Samples between two looks for recursions of [`homogeneous`] that have settled.
+const DROP_CHECK: usize = 256;
+
+/// 2^-960: a sample of at least this magnitude is left exactly as it is by adding a
+/// term below f64::MIN_POSITIVE = 2^-1022 (its half-ulp is at least 2^-1013).
+const SETTLED_SAFE: f64 = f64::from_bits((1023 - 960) << 52);
+
+/// Phase 3 of [`ar1_bank_from`] on one chunk `s`: adds to its j-th sample the terms
+/// h_i(j) + prev_i h_i(j - 1), summed in bank order after the sample's value, where
+/// h_i(-1) = x_i, h_i(j) = phi_i h_i(j - 1), and `live` holds (phi_i, prev_i, x_i) of
+/// the recursions whose start x_i is not 0, in bank order.
+///
+/// A decaying recursion ends at a fixed point below f64::MIN_POSITIVE: 0, or, for
+/// phi > 1/2, the smallest subnormals, which phi h rounds back to (arithmetic on them
+/// is slow). From there it adds the same term z = h + prev h to every sample. Every
+/// `DROP_CHECK` samples, the recursions that lead the bank order and have settled
+/// with |z| < f64::MIN_POSITIVE are taken out of the loop: a sample v with
+/// |v| >= 2^-960 ([`SETTLED_SAFE`]) is left exactly as it is by each of them (v + z = v, as |z| is below
+/// half of v's ulp), so only the remaining ones are added; any other sample (zero,
+/// tiny, NaN) gets the settled terms added first, in order, as constants. The result
+/// is the sum over every term bit for bit; [`homogeneous_every_term`] is its slow twin.
+/// Returns how many recursions settled.
+fn homogeneous(s: &mut [f64], live: Vec<(f64, f64, f64)>) -> usize {
+    let mut h: Vec<f64> = live.iter().map(|l| l.2).collect();
+    // the terms of the settled recursions, in bank order
+    let mut settled: Vec<f64> = Vec::new();
+    let mut first = 0;
+    for block in s.chunks_mut(DROP_CHECK) {
+        let (hl, ll) = (&mut h[first..], &live[first..]);
+        for v in block.iter_mut() {
+            let mut acc = *v;
+            if acc.is_nan() || acc.abs() < SETTLED_SAFE {
+                for z in &settled {
+                    acc += z;
+                }
+            }
+            for (hi, l) in hl.iter_mut().zip(ll) {
+                let before = *hi;
+                *hi *= l.0;
+                acc += *hi + l.1 * before;
+            }
+            *v = acc;
+        }
+        // the leading recursions at a fixed point with a term below MIN_POSITIVE
+        while let (Some(&hi), Some(&(phi, prev, _))) = (h.get(first), live.get(first)) {
+            let z = hi + prev * hi;
+            let fixed = (hi * phi).to_bits() == hi.to_bits();
+            if !(fixed && hi.abs() < f64::MIN_POSITIVE && z.abs() < f64::MIN_POSITIVE) {
+                break;
+            }
+            settled.push(z);
+            first += 1;
+        }
+    }
+    settled.len()
+}
+
+/// The slow twin of [`homogeneous`]: every recursion's term added to every sample.
+#[cfg(test)]
+fn homogeneous_every_term(s: &mut [f64], live: &[(f64, f64, f64)]) {
+    let mut h: Vec<f64> = live.iter().map(|l| l.2).collect();
+    for v in s.iter_mut() {
+        let mut acc = *v;
+        for (hi, l) in h.iter_mut().zip(live) {
+            let before = *hi;
+            *hi *= l.0;
+            acc += *hi + l.1 * before;
+        }
+        *v = acc;
+    }
 }
 
 /// `n` standard normal draws from `rng` (burn-ins and initial states).
@@ -266,6 +326,83 @@ mod tests {
                 (a - b).abs() <= 1e-11 * (1.0 + b.abs()),
                 "sample {t}: {a} vs {b}"
             );
+        }
+    }
+
+    #[test]
+    fn settled_recursions_taken_out_keep_every_bit() {
+        let key = StreamKey {
+            seed: 4,
+            replica: 2,
+            channel: 0,
+            component: 1,
+        };
+        // decays that settle within a chunk (at 0, -0 or the smallest subnormals, at
+        // different samples), ones that do not, prev 0 and 1; the 1e-5 one settles but
+        // does not lead the bank order
+        let live: Vec<(f64, f64, f64)> = [
+            (1e-30, 1.0, 0.7),
+            (0.5, 0.0, -1.3),
+            (0.9, 1.0, 2.1),
+            (0.98, 1.0, -0.4),
+            (0.9999, 0.0, 1.1),
+            (1e-5, 0.3, -2e-300),
+            (1.0, 1.0, 0.2),
+        ]
+        .to_vec();
+        let mut rng = key.rng(0, 0);
+        let base: Vec<f64> = (0..CHUNK)
+            .map(|_| {
+                let w: f64 = StandardNormal.sample(&mut rng);
+                1e-3 * w
+            })
+            .collect();
+        // samples about the threshold below which the settled terms are added
+        let tiny = [
+            1e-300,
+            -1e-310,
+            5e-324,
+            SETTLED_SAFE,
+            -SETTLED_SAFE / 2.0,
+            f64::NAN,
+            1.0,
+        ];
+        for (case, start) in [
+            base.clone(),
+            vec![0.0; CHUNK],
+            // zero sums whose sign only the settled zeros decide
+            vec![-0.0; CHUNK],
+            (0..CHUNK).map(|t| tiny[t % tiny.len()]).collect(),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for bank in [live.clone(), live[..2].to_vec(), live[5..].to_vec()] {
+                let mut fast = start.clone();
+                let n_settled = homogeneous(&mut fast, bank.clone());
+                if bank.len() == live.len() {
+                    // 1e-30, 0.5 (to 0), 0.9 and 0.98 (to the smallest subnormal)
+                    assert_eq!(n_settled, 4, "case {case}");
+                }
+                let mut slow = start.clone();
+                homogeneous_every_term(&mut slow, &bank);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert!(bits(&fast) == bits(&slow), "case {case}, bank {bank:?}");
+            }
+        }
+        // -0 samples: the +0 terms of a settled recursion make them +0, as the full sum
+        // does, its -0 terms leave them -0
+        for (x, want) in [(1e-20, 0.0f64), (-1e-20, -0.0)] {
+            let mut fast = vec![-0.0; 1000];
+            homogeneous(&mut fast, vec![(1e-300, 1.0, x)]);
+            let mut slow = vec![-0.0; 1000];
+            homogeneous_every_term(&mut slow, &[(1e-300, 1.0, x)]);
+            assert!(
+                fast.iter()
+                    .zip(&slow)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
+            assert_eq!(fast[500].to_bits(), want.to_bits());
         }
     }
 
