@@ -306,12 +306,12 @@ fn beta_i_xy(a: f64, b: f64, x: f64, y: f64) -> f64 {
 ///
 /// # Formula
 ///
-/// P(|T| > c) = I_x(nu / 2, 1 / 2) with x = nu / (nu + c^2) ([`beta_i`]).
+/// T^2 is F(1, nu): P(|T| > c) = P(F > c^2) ([`f_sf`]), I_x(nu / 2, 1 / 2) with
+/// x = nu / (nu + c^2).
 ///
-/// Source: Abramowitz & Stegun 26.7.1 and 26.5.27.
+/// Source: Abramowitz & Stegun 26.7.1 and 26.6.2.
 pub fn student_t_two_sided_tail(c: f64, nu: f64) -> f64 {
-    let c2 = c * c;
-    beta_i_xy(0.5 * nu, 0.5, nu / (nu + c2), c2 / (nu + c2))
+    f_sf(c * c, 1.0, nu)
 }
 
 /// ln of the density of Student's t distribution with `nu` > 0 degrees of freedom at

@@ -136,6 +136,30 @@ pub(super) fn golden_argmin(lo: f64, hi: f64, iters: usize, f: impl Fn(f64) -> f
     if fa <= fb { (a, fa) } else { (b, fb) }
 }
 
+/// The best point `grid[i]` of a log grid (`f_i` = f there) refined by a golden-section
+/// search of ln x between its grid neighbours (`iters` steps, [`golden_argmin`]): the
+/// refined point when it improves on the grid's, else the grid point; a point within
+/// 1e-3 in ln of an end of the search range `ends` is put on that end (a bound, which
+/// `flag_edge` then reports as such).
+pub(super) fn refine_on_log_grid(
+    grid: &[f64],
+    i: usize,
+    f_i: f64,
+    iters: usize,
+    ends: [f64; 2],
+    f: impl Fn(f64) -> f64,
+) -> f64 {
+    let (a, b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(grid.len() - 1)]);
+    let (u, f_u) = golden_argmin(a.ln(), b.ln(), iters, |u| f(u.exp()));
+    let mut x = if f_u < f_i { u.exp() } else { grid[i] };
+    for end in ends {
+        if (x / end).ln().abs() <= 1e-3 {
+            x = end;
+        }
+    }
+    x
+}
+
 /// First differences x_t - x_{t-1}, 0 at t = 0.
 pub(super) fn diff(x: &[f64]) -> Vec<f64> {
     let mut d = vec![0.0; x.len()];

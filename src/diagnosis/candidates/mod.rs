@@ -366,6 +366,11 @@ impl Found<'_> {
 
 /// A deterministic addition: component `c`, the same signal `sig` in every replica.
 fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
+    added(kind, c, Delta::Same(sig), note)
+}
+
+/// An addition of component `c` (nothing replaced or rescaled) whose signal is `delta`.
+fn added(kind: &str, c: Component, delta: Delta, note: String) -> Proposal {
     Proposal {
         also: None,
         kind: kind.into(),
@@ -373,7 +378,7 @@ fn same(kind: &str, c: Component, sig: Vec<f64>, note: String) -> Proposal {
         component: c,
         replaces: None,
         rescales: None,
-        delta: Delta::Same(sig),
+        delta,
         note,
     }
 }
@@ -953,7 +958,7 @@ mod tests {
         let block = cx.ranges().iter().map(|r| r.len()).min().unwrap();
         for tau in [0.05, 0.8, 3.0, 20.0] {
             let closed = noise::gm_unit_avar(&tr.ms, 100.0, tau);
-            let simulated = noise::unit_mean_avar_for_tests(&cx, tau);
+            let simulated = noise::unit_mean_avar(&cx, &noise::gm_unit(tau)).unwrap();
             for (i, &mm) in tr.ms.iter().enumerate() {
                 if 20 * mm > block {
                     continue;

@@ -6,9 +6,9 @@
 //! bias_instability, rate_random_walk, and gauss_markov (U in closed form, tau_s by the
 //! best fit over a log grid refined by golden section).
 
-use super::lsq::{fit_nonneg, golden_argmin, log_grid};
+use super::lsq::{fit_nonneg, log_grid, refine_on_log_grid};
 use super::params::{flag_edge, params_json, scaled};
-use super::{Context, Delta, Found, Proposal, Training};
+use super::{Context, Delta, Found, Proposal, Training, added};
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
 use crate::stats::noise_terms::gauss_markov_g;
@@ -41,7 +41,7 @@ fn allan_fit(tr: &Training, g: &[f64]) -> (f64, f64) {
 /// The mean training AVAR of `unit_c` over the replicas, its signals simulated and
 /// dropped one by one (none is kept).
 #[cfg(test)]
-fn unit_mean_avar(cx: &Context, unit_c: &Component) -> Result<Vec<f64>> {
+pub(super) fn unit_mean_avar(cx: &Context, unit_c: &Component) -> Result<Vec<f64>> {
     let avars = cx
         .sim
         .extra_map(cx.spec, cx.channel, unit_c, |u| cx.avar(u))?;
@@ -106,7 +106,7 @@ fn gm_range(cx: &Context, tr: &Training) -> (f64, f64) {
 }
 
 /// The unit gauss_markov component of correlation time `tau`.
-fn gm_unit(tau: f64) -> Component {
+pub(super) fn gm_unit(tau: f64) -> Component {
     Component::GaussMarkov {
         sigma: 1.0,
         tau_s: tau,
@@ -152,24 +152,9 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
         );
         return Ok(());
     };
-    let (a, b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(grid.len() - 1)]);
-    let (u, w_ref) = golden_argmin(a.ln(), b.ln(), 40, |u| wrss(u.exp()));
-    // the refinement keeps the grid point unless it improves on it; an end of the
-    // grid that the refinement does not leave is the end of the range
-    let mut tau = if w_ref < w_grid { u.exp() } else { grid[i] };
-    for end in [lo, hi] {
-        if (tau / end).ln().abs() <= 1e-3 {
-            tau = end;
-        }
-    }
+    let tau = refine_on_log_grid(&grid, i, w_grid, 40, [lo, hi], wrss);
     let (c, _) = fit(tau);
     gm_propose(cx, tau, c, (lo, hi), out)
-}
-
-/// The mean simulated training AVAR of the unit Gauss-Markov component of `tau`.
-#[cfg(test)]
-pub(super) fn unit_mean_avar_for_tests(cx: &Context, tau: f64) -> Vec<f64> {
-    unit_mean_avar(cx, &gm_unit(tau)).unwrap()
 }
 
 /// [`gauss_markov`] with U(m) the mean over the ensemble's replicas of the simulated
@@ -197,24 +182,18 @@ pub(super) fn gauss_markov_by_simulation(
 /// (searched over `range`), its unit signals simulated and scaled.
 fn gm_propose(cx: &Context, tau: f64, c: f64, range: (f64, f64), out: &mut Found) -> Result<()> {
     let u = scaled_signals(cx, &gm_unit(tau), c)?;
-    let comp = Component::GaussMarkov {
-        sigma: c,
-        tau_s: tau,
-    };
-    let mut params = params_json(&comp);
-    let mut note = format!(
-        "excess training Allan variance against the closed-form unit AVAR, tau_s over a log grid of {GM_GRID} refined by golden section"
+    let mut p = added(
+        "gauss_markov",
+        Component::GaussMarkov {
+            sigma: c,
+            tau_s: tau,
+        },
+        Delta::Each(u),
+        format!(
+            "excess training Allan variance against the closed-form unit AVAR, tau_s over a log grid of {GM_GRID} refined by golden section"
+        ),
     );
-    flag_edge(&mut params, &mut note, "tau_s", tau, range.0, range.1);
-    out.push(Proposal {
-        also: None,
-        kind: "gauss_markov".into(),
-        params,
-        component: comp,
-        replaces: None,
-        rescales: None,
-        delta: Delta::Each(u),
-        note,
-    });
+    flag_edge(&mut p.params, &mut p.note, "tau_s", tau, range.0, range.1);
+    out.push(p);
     Ok(())
 }

@@ -15,8 +15,8 @@
 use std::ops::Range;
 
 use super::lsq::golden_argmin;
-use super::params::{flag_edge, params_json};
-use super::{Context, Delta, Found, Proposal};
+use super::params::flag_edge;
+use super::{Context, Delta, Found, Proposal, added};
 use crate::error::Result;
 use crate::simulator::Component;
 use crate::stats::special::{normal_cdf, student_t_ln_pdf, student_t_two_sided_tail};
@@ -73,26 +73,33 @@ fn spike_count(x: &[f64], ranges: &[Range<usize>]) -> usize {
 /// Student-t of `dof` degrees of freedom (None: standard normal).
 fn truncated_ln_l(a: &[f64], thr: f64, scale: f64, dof: Option<f64>) -> f64 {
     let c = thr / scale;
-    let (ln_tail, ln_f): (f64, Box<dyn Fn(f64) -> f64>) = match dof {
+    let n = a.len() as f64;
+    // ln W's density at each a_i / scale, less its value at 0 (the normalising
+    // constant, taken once), and P(|W| > c)
+    let (sum_shape, ln_f0, tail) = match dof {
         Some(nu) => (
-            student_t_two_sided_tail(c, nu).max(1e-300).ln(),
-            Box::new(move |z| student_t_ln_pdf(z, nu)),
+            a.iter()
+                .map(|&v| -0.5 * (nu + 1.0) * ((v / scale).powi(2) / nu).ln_1p())
+                .sum::<f64>(),
+            student_t_ln_pdf(0.0, nu),
+            student_t_two_sided_tail(c, nu),
         ),
         None => (
-            (2.0 * normal_tail(c)).max(1e-300).ln(),
-            Box::new(|z: f64| -0.5 * z * z - 0.5 * (2.0 * std::f64::consts::PI).ln()),
+            a.iter().map(|&v| -0.5 * (v / scale).powi(2)).sum::<f64>(),
+            -0.5 * (2.0 * std::f64::consts::PI).ln(),
+            2.0 * normal_tail(c),
         ),
     };
     // |W| has twice W's density on a > 0
-    a.iter()
-        .map(|&v| std::f64::consts::LN_2 + ln_f(v / scale) - scale.ln())
-        .sum::<f64>()
-        - a.len() as f64 * ln_tail
+    n * (std::f64::consts::LN_2 + ln_f0 - scale.ln()) + sum_shape - n * tail.max(1e-300).ln()
 }
 
+/// The ends of the search range of [`student_fit`]'s dof.
+const DOF_RANGE: [f64; 2] = [1.0, 50.0];
+
 /// The Student-t fit of the sizes `a` above `thr` (module doc): (scale, dof, ln L,
-/// whether the scale stopped at the lower end of its range).
-fn student_fit(a: &[f64], thr: f64) -> (f64, f64, f64, bool) {
+/// the scale's search range).
+fn student_fit(a: &[f64], thr: f64) -> (f64, f64, f64, [f64; 2]) {
     let a_max = a.iter().copied().fold(thr, f64::max);
     let (s_lo, s_hi) = ((thr / 6.0).ln(), (10.0 * a_max).ln());
     let best_scale = |nu: f64| {
@@ -100,10 +107,12 @@ fn student_fit(a: &[f64], thr: f64) -> (f64, f64, f64, bool) {
             -truncated_ln_l(a, thr, u.exp(), Some(nu))
         })
     };
-    let (v, _) = golden_argmin(0.0, 50f64.ln(), 40, |v| best_scale(v.exp()).1);
+    let (v, _) = golden_argmin(DOF_RANGE[0].ln(), DOF_RANGE[1].ln(), 40, |v| {
+        best_scale(v.exp()).1
+    });
     let nu = v.exp();
     let (u, neg) = best_scale(nu);
-    (u.exp(), nu, -neg, u - s_lo < 1e-3)
+    (u.exp(), nu, -neg, [s_lo.exp(), s_hi.exp()])
 }
 
 /// Upper tail of the standard normal, Q(c) = 1 - Phi(c) = Phi(-c).
@@ -149,7 +158,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
     }
     let scale_normal = (0.5 * (lo + hi)).exp();
     let ln_l_normal = truncated_ln_l(&sizes, thr, scale_normal, None);
-    let (scale_t, dof_t, ln_l_t, t_at_edge) = student_fit(&sizes, thr);
+    let (scale_t, dof_t, ln_l_t, scale_range) = student_fit(&sizes, thr);
     let heavy = 2.0 * (ln_l_t - ln_l_normal) > HEAVY_TAIL_MIN_DEVIANCE;
     let (scale, dof, p_detect) = if heavy {
         (
@@ -172,8 +181,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
         dof,
     };
     let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
-    let mut params = params_json(&comp);
-    let mut note = format!(
+    let note = format!(
         "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations; {}",
         if heavy {
             format!(
@@ -185,22 +193,14 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
             "their sizes fit a truncated normal".to_string()
         }
     );
-    if heavy && t_at_edge {
-        flag_edge(&mut params, &mut note, "scale", 1.0, 1.0, 2.0);
-    }
+    let mut p = added("outliers", comp, Delta::Each(u), note);
     if heavy {
-        flag_edge(&mut params, &mut note, "dof", dof_t, 1.0, 50.0);
+        let [lo, hi] = scale_range;
+        flag_edge(&mut p.params, &mut p.note, "scale", scale_t, lo, hi);
+        let [lo, hi] = DOF_RANGE;
+        flag_edge(&mut p.params, &mut p.note, "dof", dof_t, lo, hi);
     }
-    Ok(Ok(Proposal {
-        also: None,
-        kind: "outliers".into(),
-        params,
-        component: comp,
-        replaces: None,
-        rescales: None,
-        delta: Delta::Each(u),
-        note,
-    }))
+    Ok(Ok(p))
 }
 
 #[cfg(test)]
@@ -226,8 +226,10 @@ mod tests {
         // Student-t of 2 degrees of freedom, scale 1.5: about 600 of 1000 above thr
         let t2 = StudentT::new(2.0).unwrap();
         let a = sizes(1000, 1.5, thr, |r| t2.sample(r));
-        let (scale, dof, ln_l_t, edge) = student_fit(&a, thr);
-        assert!(!edge);
+        let (scale, dof, ln_l_t, [s_lo, s_hi]) = student_fit(&a, thr);
+        // inside both search ranges
+        assert!(scale > 1.01 * s_lo && scale < 0.99 * s_hi, "scale {scale}");
+        assert!(dof > 1.01 && dof < 49.0, "dof {dof}");
         assert!((dof / 2.0).ln().abs() < 0.35, "dof {dof}");
         assert!((scale / 1.5).ln().abs() < 0.25, "scale {scale}");
         // the truncated normal at its best scale (a grid fine enough for the test) is far worse

@@ -12,7 +12,7 @@
 //!   off on one side, the clamped scale max(floor, 1 + k (T - Tm)) by a search over the
 //!   temperature of the clamp's kink ([`heteroskedastic_floor_form`]).
 
-use super::lsq::{golden_argmin, ls, ls_full, shrink_ranges};
+use super::lsq::{golden_argmin, ls, ls_full, refine_on_log_grid, shrink_ranges};
 use super::params::{flag_edge, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
@@ -146,50 +146,44 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
         return Ok(());
     };
     if lag > 0.0 {
-        let i = lags.iter().position(|&l| l == lag).unwrap_or(1);
-        let (a, b) = (lags[(i - 1).max(1)], lags[(i + 1).min(lags.len() - 1)]);
-        let rss_at = |v: f64| match fit(sm, v.exp()) {
+        // the lag's log grid (none left out), refined between its grid neighbours
+        let grid = &lags[1..];
+        let i = grid.iter().position(|&l| l == lag).unwrap_or(0);
+        let rss_at = |v: f64| match fit(sm, v) {
             Ok(Some((_, r, _))) => r,
             _ => f64::INFINITY,
         };
-        let (v, r) = golden_argmin(a.ln(), b.ln(), 30, rss_at);
-        if r < rss
-            && let Some((b2, _, u2)) = fit(sm, v.exp())?
+        let refined = refine_on_log_grid(grid, i, rss, 30, [10.0, lag_top], rss_at);
+        if refined != lag
+            && let Some((b2, _, u2)) = fit(sm, refined)?
         {
-            (cf, lag, u) = (b2, v.exp(), u2);
-        }
-        if (lag / lag_top).ln().abs() <= 1e-3 {
-            lag = lag_top;
+            (cf, lag, u) = (b2, refined, u2);
         }
     }
-    let comp = Component::ThermalRate {
-        coeff: cf,
-        smoothing_s: sm,
-        lag_s: lag,
-    };
     let sig: Vec<f64> = u.iter().map(|v| v * cf).collect();
-    let mut params = params_json(&comp);
-    let mut note = format!(
-        "least squares on dT/dt, smoothing chosen over {:?} s, lag over 0 and 10 .. {} s (golden section)",
-        smoothings,
-        crate::fmt::num(lag_top)
+    let mut p = super::same(
+        "thermal_rate",
+        Component::ThermalRate {
+            coeff: cf,
+            smoothing_s: sm,
+            lag_s: lag,
+        },
+        sig,
+        format!(
+            "least squares on dT/dt, smoothing chosen over {:?} s, lag over 0 and 10 .. {} s (golden section)",
+            smoothings,
+            crate::fmt::num(lag_top)
+        ),
     );
     if lag > 0.0 {
-        flag_edge(&mut params, &mut note, "lag_s", lag, 10.0, lag_top);
+        flag_edge(&mut p.params, &mut p.note, "lag_s", lag, 10.0, lag_top);
     }
-    if smoothings.len() > 1 && sm == smoothings[smoothings.len() - 1] {
-        flag_edge(&mut params, &mut note, "smoothing_s", sm, 0.0, sm);
+    // no smoothing (the bottom of its range) is a value, not a bound
+    if sm > 0.0 {
+        let top = smoothings[smoothings.len() - 1];
+        flag_edge(&mut p.params, &mut p.note, "smoothing_s", sm, 0.0, top);
     }
-    out.push(Proposal {
-        also: None,
-        kind: "thermal_rate".into(),
-        params,
-        component: comp,
-        replaces: None,
-        rescales: None,
-        delta: Delta::Same(sig),
-        note,
-    });
+    out.push(p);
     Ok(())
 }
 
