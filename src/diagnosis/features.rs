@@ -566,16 +566,20 @@ impl Layout {
         let cell = 1e-9 * largest;
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         let distinct = if cell > 0.0 {
-            distinct_count(self.ranges.iter().flat_map(|r| {
-                x[r.clone()]
-                    .iter()
-                    .map(|v| crate::num::round_half_away(v / cell))
-            }))
+            distinct_count_of(
+                self.ranges.iter().flat_map(|r| {
+                    x[r.clone()]
+                        .iter()
+                        .map(|v| crate::num::round_half_away(v / cell))
+                }),
+                n_part,
+            )
         } else {
-            distinct_count(
+            distinct_count_of(
                 self.ranges
                     .iter()
                     .flat_map(|r| x[r.clone()].iter().copied()),
+                n_part,
             )
         };
         vec![
@@ -708,11 +712,19 @@ pub fn order_statistics_by_sort(v: &[f64], ranks: &[usize]) -> Vec<f64> {
 /// not hashed into it again, which spares the set's probing for a series on a grid of
 /// few values (a rounded log); a miss only costs the insert it would have made anyway.
 pub fn distinct_count(x: impl Iterator<Item = f64>) -> usize {
+    let n = x.size_hint().0;
+    distinct_count_of(x, n)
+}
+
+/// [`distinct_count`] of the `n` values of `x` (room for them reserved at once).
+pub fn distinct_count_of(x: impl Iterator<Item = f64>, n: usize) -> usize {
     const RECENT: usize = 1 << 10;
     // a NaN's bit pattern: never a key (NaNs are counted apart)
     const EMPTY: u64 = u64::MAX;
     let mut recent = [EMPTY; RECENT];
-    let mut seen: std::collections::HashSet<u64, BitsHash> = Default::default();
+    // room for every value at once: no rehash as the set grows
+    let mut seen: std::collections::HashSet<u64, BitsHash> =
+        std::collections::HashSet::with_capacity_and_hasher(n, BitsHash);
     let mut nans = 0;
     for v in x {
         if v.is_nan() {

@@ -427,28 +427,26 @@ fn diagnose_log(
             let out: Vec<Vec<f64>> = (0..prm.replicas)
                 .into_par_iter()
                 .map(|r| {
+                    // the thread's scratch series, taken out while in use (a nested
+                    // parallel loop may run another replica on this thread)
+                    let mut buf = SCRATCH.with(|s| s.take());
                     let mut out = Vec::with_capacity(defs.len());
                     for fold in 0..2 {
-                        let x = &xs[fold][r];
-                        let mut y: Option<Vec<f64>> = delta[fold].map(|(d, sign)| {
-                            x.iter().zip(d[r]).map(|(a, b)| a + sign * b).collect()
-                        });
-                        // one copy at most: the sum, through the path and rounded in place
-                        if y.is_none() && (printed.is_some() || !path[fold].is_empty()) {
-                            y = Some(x.clone());
-                        }
-                        if let Some(y) = y.as_mut() {
-                            path[fold].apply(y);
-                            if let Some(step) = printed {
-                                features::round_in_place(y, step);
-                            }
-                        }
+                        let y = path::part_output(
+                            &xs[fold][r],
+                            delta[fold].map(|(d, sign)| (d[r], sign)),
+                            path[fold],
+                            printed,
+                            withheld[fold].ranges(),
+                            &mut buf,
+                        );
                         out.extend(withheld[fold].compute_with(
-                            y.as_deref().unwrap_or(x),
+                            y,
                             temperature.as_ref(),
                             &other_sides[r][fold],
                         ));
                     }
+                    SCRATCH.with(|s| s.set(buf));
                     out
                 })
                 .collect();
@@ -697,15 +695,11 @@ fn diagnose_log(
         // each fold's own on its withheld part
         let mut held = held.into_inner();
         let mut unpaired = lone.into_inner();
-        for p in left.into_inner() {
-            match held.iter().position(|q| loose_key(q) == loose_key(&p)) {
-                Some(i) => {
-                    let q = held.remove(i);
-                    score_pair(p, q);
-                }
-                None => unpaired.push((p.kind, p.note)),
-            }
+        let (pairs, alone) = pair_across_forms(left.into_inner(), &mut held);
+        for (p, q) in pairs {
+            score_pair(p, q);
         }
+        unpaired.extend(alone.into_iter().map(|p| (p.kind, p.note)));
         unpaired.extend(held.into_iter().map(|q| (q.kind, q.note)));
         for (kind, note) in unpaired {
             match skipped.iter_mut().find(|s| s.kind == kind) {
@@ -1005,6 +999,11 @@ fn diagnose_log(
     })
 }
 
+thread_local! {
+    /// Each thread's scratch for a replica's output series ([`path::part_output`]).
+    static SCRATCH: Cell<Vec<f64>> = const { Cell::new(Vec::new()) };
+}
+
 /// The free parameters effect `e` estimates, for the parsimony rule of a tie between
 /// deterministic effects: its
 /// component's (a temperature bias its coefficients and its reference, which carries
@@ -1151,6 +1150,24 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
 /// when the two halves chose different forms of it.
 fn loose_key(p: &Proposal) -> (String, Option<usize>, bool) {
     (p.kind.clone(), p.replaces, p.also.is_some())
+}
+
+/// Fold 1's estimates `left` that met no fold-2 estimate of their form, each paired
+/// with the first of fold 2's `held` of the same [`loose_key`] (taken out of `held`):
+/// the pairs, and fold 1's estimates left without one.
+fn pair_across_forms(
+    left: Vec<Proposal>,
+    held: &mut Vec<Proposal>,
+) -> (Vec<(Proposal, Proposal)>, Vec<Proposal>) {
+    let mut pairs = Vec::new();
+    let mut alone = Vec::new();
+    for p in left {
+        match held.iter().position(|q| loose_key(q) == loose_key(&p)) {
+            Some(i) => pairs.push((p, held.remove(i))),
+            None => alone.push(p),
+        }
+    }
+    (pairs, alone)
 }
 
 /// The form that tells two output-path candidates of one kind apart: a filter's order
@@ -1915,6 +1932,54 @@ mod tests {
         let comps: Vec<usize> = slots.iter().map(|s| s.comp).collect();
         assert!(!removable_comp(&comps, 0));
         assert!(removable_comp(&comps, 1));
+    }
+
+    #[test]
+    fn estimates_of_different_forms_pair_by_kind_and_a_joint_one_only_with_a_joint_one() {
+        use crate::simulator::Discretization;
+        let filter = |order: usize, bw: f64, joint: bool| {
+            let mut p = proposal(
+                Component::OutputFilter {
+                    order,
+                    bandwidth_hz: bw,
+                    damping: None,
+                    discretization: Discretization::Zoh,
+                },
+                None,
+                candidates::Delta::Same(Vec::new()),
+            );
+            if joint {
+                p.also = Some(candidates::Also {
+                    comp: 1,
+                    component: Component::WhiteNoise { n: 1.0 },
+                    factor: 0.1,
+                    delta: candidates::Delta::Same(Vec::new()),
+                });
+            }
+            p
+        };
+        let resolution = proposal(
+            Component::OutputResolution {
+                quantum: 0.05,
+                on_angle: false,
+            },
+            None,
+            candidates::Delta::Same(Vec::new()),
+        );
+        // fold 1 chose order 1 (alone and joint), fold 2 order 2 (joint first)
+        let left = vec![filter(1, 10.0, false), filter(1, 11.0, true), resolution];
+        let mut held = vec![filter(2, 20.0, true), filter(2, 21.0, false)];
+        assert_ne!(pair_key(&left[0]), pair_key(&held[1]));
+        let (pairs, alone) = pair_across_forms(left, &mut held);
+        let bw = |p: &Proposal| match p.component {
+            Component::OutputFilter { bandwidth_hz, .. } => bandwidth_hz,
+            _ => f64::NAN,
+        };
+        let got: Vec<(f64, f64)> = pairs.iter().map(|(p, q)| (bw(p), bw(q))).collect();
+        assert_eq!(got, vec![(10.0, 21.0), (11.0, 20.0)]);
+        assert!(held.is_empty());
+        assert_eq!(alone.len(), 1);
+        assert_eq!(alone[0].kind, "output_resolution");
     }
 
     #[test]
