@@ -1170,9 +1170,9 @@ fn pair_across_forms(
     (pairs, alone)
 }
 
-/// The form that tells two output-path candidates of one kind apart: a filter's order
-/// and discretization (a FIR: its number of taps), a resolution on the rate or on the
-/// angle; empty for the other kinds.
+/// The form that tells two candidates of one kind apart: a filter's order and
+/// discretization (a FIR: its number of taps), a resolution on the rate or on the
+/// angle, outliers' normal or Student-t amplitudes; empty for the other kinds.
 fn form(c: &Component) -> String {
     match c {
         Component::OutputFilter {
@@ -1190,6 +1190,12 @@ fn form(c: &Component) -> String {
             }
         ),
         Component::OutputFir { taps } => format!("fir {} taps", taps.len()),
+        Component::Outliers { dof, .. } => if dof.is_some() {
+            "student-t amplitudes"
+        } else {
+            "normal amplitudes"
+        }
+        .to_string(),
         Component::OutputResolution { on_angle, .. } => if *on_angle {
             "on the angle"
         } else {
@@ -1415,13 +1421,20 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
         }
         None => {
             st.spec.channels[channel].components.push(p.component);
-            let same = matches!(p.delta, candidates::Delta::Same(_));
-            for (r, parts) in st.parts.iter_mut().enumerate() {
-                parts.push(Arc::new(if same && r > 0 {
-                    Vec::new()
-                } else {
-                    p.delta.get(r).to_vec()
-                }));
+            // the change's signals become the new component's parts (moved, not copied)
+            match p.delta {
+                candidates::Delta::Same(v) => {
+                    let mut v = Some(v);
+                    for parts in st.parts.iter_mut() {
+                        parts.push(Arc::new(v.take().unwrap_or_default()));
+                    }
+                }
+                candidates::Delta::Each(vs) => {
+                    debug_assert_eq!(vs.len(), st.parts.len());
+                    for (parts, v) in st.parts.iter_mut().zip(vs) {
+                        parts.push(Arc::new(v));
+                    }
+                }
             }
             Slot {
                 comp: st.spec.channels[channel].components.len() - 1,

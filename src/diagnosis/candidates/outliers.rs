@@ -9,8 +9,11 @@
 //!   as a sample of |scale T_dof| truncated at the threshold,
 //!   sum_i [ln f_dof(a_i / scale) - ln scale] - n ln P(|T_dof| > thr / scale),
 //!   profiled over ln dof in [1, 50] and ln scale in [thr / 6, 10 max a_i] by golden
-//!   section. The t is kept when its likelihood beats the truncated normal's (the same
-//!   likelihood at the moment scale) by the 1 % point of chi2(1), 6.63 in -2 ln L.
+//!   section. The t alone is proposed when its likelihood beats the truncated normal's
+//!   (the same likelihood at the moment scale) by the 1 % point of chi2(1), 6.63 in
+//!   -2 ln L; below that, too few spikes tell the forms apart by their sizes, and when
+//!   the t's dof is inside its range both forms are proposed, for the withheld part's
+//!   statistics to choose (a few dozen spikes of a t(3) rarely reach 6.63).
 
 use std::ops::Range;
 
@@ -30,7 +33,7 @@ pub const HEAVY_TAIL_MIN_DEVIANCE: f64 = 6.63;
 /// spikes more than the simulations (the reason gives both counts).
 pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     match estimate_outliers(cx)? {
-        Ok(p) => out.push(p),
+        Ok(ps) => ps.into_iter().for_each(|p| out.push(p)),
         Err(why) => out.skip("outliers", &why),
     }
     Ok(())
@@ -120,9 +123,9 @@ fn normal_tail(c: f64) -> f64 {
     normal_cdf(-c)
 }
 
-/// The outliers proposal, or why there is none (fewer than 3 spikes more than the
-/// simulations': the two counts).
-fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, String>> {
+/// The outliers proposals (one per amplitude form offered), or why there is none
+/// (fewer than 3 spikes more than the simulations': the two counts).
+fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, String>> {
     let ranges = cx.ranges();
     let (sizes, thr) = spikes(cx.real, ranges);
     let c_real = sizes.len();
@@ -159,48 +162,65 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Proposal, Strin
     let scale_normal = (0.5 * (lo + hi)).exp();
     let ln_l_normal = truncated_ln_l(&sizes, thr, scale_normal, None);
     let (scale_t, dof_t, ln_l_t, scale_range) = student_fit(&sizes, thr);
-    let heavy = 2.0 * (ln_l_t - ln_l_normal) > HEAVY_TAIL_MIN_DEVIANCE;
-    let (scale, dof, p_detect) = if heavy {
-        (
+    let deviance = 2.0 * (ln_l_t - ln_l_normal);
+    let heavy = deviance > HEAVY_TAIL_MIN_DEVIANCE;
+    let t_train = cx.n_train() as f64 / cx.rate_hz();
+    let counts = format!(
+        "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations"
+    );
+    // the proposal of one amplitude form: the rate from the excess count and the
+    // share of spikes of that form above the threshold
+    let make = |scale: f64, dof: Option<f64>, note: String| -> Result<Proposal> {
+        let p_detect = match dof {
+            Some(nu) => student_t_two_sided_tail(thr / scale, nu),
+            None => 2.0 * normal_tail(thr / scale),
+        }
+        .max(1e-6);
+        let rate_hz = (excess / (t_train * p_detect)).min(cx.rate_hz());
+        let comp = Component::Outliers {
+            rate_hz,
+            scale,
+            dof,
+        };
+        let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
+        let mut p = added("outliers", comp, Delta::Each(u), note);
+        if dof.is_some() {
+            let [lo, hi] = scale_range;
+            flag_edge(&mut p.params, &mut p.note, "scale", scale_t, lo, hi);
+            let [lo, hi] = DOF_RANGE;
+            flag_edge(&mut p.params, &mut p.note, "dof", dof_t, lo, hi);
+        }
+        Ok(p)
+    };
+    let t_note = |how: &str| {
+        format!(
+            "{counts}; {how}: Student-t of {} degrees of freedom (-2 ln L {} below the truncated normal's)",
+            crate::fmt::num(dof_t),
+            crate::fmt::num(deviance)
+        )
+    };
+    if heavy {
+        return Ok(Ok(vec![make(
             scale_t,
             Some(dof_t),
-            student_t_two_sided_tail(thr / scale_t, dof_t).max(1e-6),
-        )
-    } else {
-        (
-            scale_normal,
-            None,
-            (2.0 * normal_tail(thr / scale_normal)).max(1e-6),
-        )
-    };
-    let t_train = cx.n_train() as f64 / cx.rate_hz();
-    let rate_hz = (excess / (t_train * p_detect)).min(cx.rate_hz());
-    let comp = Component::Outliers {
-        rate_hz,
-        scale,
-        dof,
-    };
-    let u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
-    let note = format!(
-        "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations; {}",
-        if heavy {
-            format!(
-                "their sizes are heavy-tailed: Student-t of {} degrees of freedom (-2 ln L {} below the truncated normal's)",
-                crate::fmt::num(dof_t),
-                crate::fmt::num(2.0 * (ln_l_t - ln_l_normal))
-            )
-        } else {
-            "their sizes fit a truncated normal".to_string()
-        }
-    );
-    let mut p = added("outliers", comp, Delta::Each(u), note);
-    if heavy {
-        let [lo, hi] = scale_range;
-        flag_edge(&mut p.params, &mut p.note, "scale", scale_t, lo, hi);
-        let [lo, hi] = DOF_RANGE;
-        flag_edge(&mut p.params, &mut p.note, "dof", dof_t, lo, hi);
+            t_note("their sizes are heavy-tailed"),
+        )?]));
     }
-    Ok(Ok(p))
+    let mut out = vec![make(
+        scale_normal,
+        None,
+        format!("{counts}; their sizes fit a truncated normal"),
+    )?];
+    // too few spikes to tell the forms apart by their sizes, but a t inside its range
+    // of dof: both are offered, and the withheld part's spikes choose
+    if dof_t < 0.99 * DOF_RANGE[1] {
+        out.push(make(
+            scale_t,
+            Some(dof_t),
+            t_note("too few to tell a t from a normal by their sizes; the t offered beside it"),
+        )?);
+    }
+    Ok(Ok(out))
 }
 
 #[cfg(test)]
