@@ -836,6 +836,51 @@ fn assert_first_step(d: &farma::diagnosis::Diagnosis, kind: &str) {
     );
 }
 
+/// Spikes with Student-t(3) sizes, too few in each training half for their sizes to
+/// tell a t from a normal (the likelihood-ratio rule keeps the normal): both forms are
+/// scored on the withheld part, whose spikes choose the t, and the gap closes.
+#[test]
+fn few_heavy_tailed_spikes_get_both_amplitude_forms_scored_and_the_t_chosen() {
+    let spec = bank::base_spec(10.0, false);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::Outliers {
+        rate_hz: 0.02,
+        scale: 0.3,
+        dof: Some(3.0),
+    });
+    let case = Case {
+        expect: "outliers".into(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 81, 12);
+    let forms: Vec<bool> = d
+        .effects
+        .iter()
+        .filter(|e| e.kind == "outliers")
+        .map(|e| e.params.get("dof").is_some())
+        .collect();
+    assert!(
+        forms.contains(&true) && forms.contains(&false),
+        "outliers forms scored (t?): {forms:?}; {:?}",
+        d.effects
+            .iter()
+            .map(|e| (&e.kind, &e.note))
+            .collect::<Vec<_>>()
+    );
+    assert_first_step(&d, "outliers");
+    let o = d.added.iter().find(|e| e.kind == "outliers").unwrap();
+    let dof = o.params["dof"].as_f64().unwrap_or(f64::NAN);
+    assert!((1.5..8.0).contains(&dof), "dof {dof}: {}", o.params);
+    assert!(
+        d.gap_after <= 2.0 * d.noise_floor,
+        "gap {} -> {} (floor {})",
+        d.gap_before,
+        d.gap_after,
+        d.noise_floor
+    );
+}
+
 #[test]
 fn spikes_in_one_half_of_the_blocks_are_not_scored_and_the_reason_says_so() {
     // a knock is a local event: ten spikes, all in fold 1's training part, leave fold 2
