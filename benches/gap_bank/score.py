@@ -246,6 +246,12 @@ def main():
                 k = sum(r["right"] for r in dc)
                 if dc:
                     print(f"{'  members detectable alone':<28}{k:>6}{len(dc):>6}{k / len(dc):>8.0%}")
+            if cat == "non_candidate" and cr:
+                # an effect whose gap is not significant cannot be told from a right spec
+                sc = [r for r in cr if r["significant"] in (True, "True")]
+                k = sum(r["right"] for r in sc)
+                if sc:
+                    print(f"{'  gap before significant':<28}{k:>6}{len(sc):>6}{k / len(sc):>8.0%}")
             if cat == "single" and cr:
                 cc = [r for r in cr if r["contract_kinds"] in (True, "True")]
                 k = sum(r["right"] for r in cc)
