@@ -415,6 +415,15 @@ class Case:
                     f.write(spec_toml(fs, unit, temp, spec + others,
                                       f"{self.part}/{self.name}: detectability of {k} alone (the other member in the spec)"))
                 oracle[k] = fn
+        # the truth in contract form: the spec with every withheld effect added in the
+        # form the simulator has (spec_truth.toml, when each has one; `score.py --oracle`
+        # runs it): whether a diagnosis that found the effects exactly could pass
+        truth_spec = None
+        if self.withheld() and all(wcomp.get(k) is not None for k in self.withheld()):
+            truth_spec = "spec_truth.toml"
+            with open(os.path.join(d, truth_spec), "w") as f:
+                f.write(spec_toml(fs, unit, temp, spec + [wcomp[k] for k in self.withheld()],
+                                  f"{self.part}/{self.name}: the truth in contract form"))
         if self.category == "correct":
             tk = ["none"]
         elif self.category == "non_candidate":
@@ -429,6 +438,7 @@ class Case:
             "withheld": truth,
             "spec_components": [c["kind"] for c in spec],
             "detectability_specs": oracle,
+            "truth_spec": truth_spec,
             "base": base_truth,
             "rate_hz": fs, "duration_s": T, "n_samples": n, "unit": unit,
             "temperature": ({"profile": self.tprof, "range_c": list(self.trange),

@@ -130,7 +130,9 @@ def main():
                     help="also check each pair member's detectability: run the pair's "
                          "spec_only_<kind>.toml (the truth minus that member alone) and "
                          "report whether its gap is significant (runs only those not saved "
-                         "yet: --rescore --oracle runs just them)")
+                         "yet: --rescore --oracle runs just them); and each case's "
+                         "spec_truth.toml (the truth in contract form), reporting whether "
+                         "a diagnosis that found the withheld effects exactly would pass")
     # the extra arguments of farma gap follow "--" (split off here: argparse gives a
     # trailing nargs="*" positional nothing once the two before it are matched)
     argv = sys.argv[1:]
@@ -185,6 +187,28 @@ def main():
                 orows.append((part, c, k, "significant" if sig else "NOT significant",
                               f"{d.get('gap_before', float('nan')):.3g} vs {thr:.3g}",
                               "+".join(d.get("added") or [])))
+        # the truth in contract form: would the exact effects pass the case's gap rule?
+        reach = {}
+        for part, c, cd, ob in todo:
+            truth = json.load(open(os.path.join(cd, "truth.json")))
+            fn = truth.get("truth_spec")
+            if not fn or truth["category"] not in ("single", "pair"):
+                continue
+            obk = f"{ob}.truth"
+            if load_json(obk + ".json") is None:
+                run_case(os.path.abspath(a.farma), cd, obk, a.timeout, a.extra, spec=fn)
+            d = load_json(obk + ".json")
+            if d is None:
+                continue
+            floor = float(d.get("noise_floor") or 0.0)
+            thr = float(d.get("gap_threshold", 2 * floor))
+            bar = 2.0 * floor if truth["category"] == "single" else thr
+            reach[(part, c)] = float(d.get("gap_before", float("inf"))) <= bar
+        rname = "reachable.csv" if a.part == "all" else f"reachable_{a.part}.csv"
+        with open(os.path.join(out, rname), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["part", "case", "truth_passes"])
+            w.writerows([(p_, c_, int(v)) for (p_, c_), v in sorted(reach.items())])
         print("\n== detectability of each pair member alone (truth minus that member)")
         for r in orows:
             print(f"{r[0]}/{r[1]:<46} {r[2]:<18} {r[3]:<16} gap {r[4]}  added={r[5]}")
@@ -229,6 +253,12 @@ def main():
             detect[key] = detect.get(key, True) and r["verdict"] == "significant"
     for r in rows:
         r["members_detectable"] = detect.get((r["part"], r["case"]), "")
+    # cases whose truth in contract form passes their own rule (`--oracle`)
+    reachable = {}
+    for rname in sorted(os.listdir(out)) if os.path.isdir(out) else []:
+        if rname.startswith("reachable") and rname.endswith(".csv"):
+            for r in csv.DictReader(open(os.path.join(out, rname))):
+                reachable[(r["part"], r["case"])] = r["truth_passes"] == "1"
 
     for part in parts:
         pr = [r for r in rows if r["part"] == part]
@@ -246,6 +276,18 @@ def main():
                 k = sum(r["right"] for r in dc)
                 if dc:
                     print(f"{'  members detectable alone':<28}{k:>6}{len(dc):>6}{k / len(dc):>8.0%}")
+            if cat in ("single", "pair") and cr and reachable:
+                # reachable: the gap before is significant and the truth in contract
+                # form passes the case's rule (with members detectable alone, for pairs)
+                def ok(r):
+                    return (reachable.get((part, r["case"])) is True
+                            and r["significant"] in (True, "True")
+                            and (cat == "single" or detect.get((part, r["case"])) is True))
+                rc = [r for r in cr if ok(r)]
+                k = sum(r["right"] for r in rc)
+                n_known = sum((part, r["case"]) in reachable for r in cr)
+                print(f"{'  reachable':<28}{k:>6}{len(rc):>6}"
+                      f"{(k / len(rc) if rc else 0):>8.0%}  (of {n_known} with a contract form)")
             if cat == "non_candidate" and cr:
                 # an effect whose gap is not significant cannot be told from a right spec
                 sc = [r for r in cr if r["significant"] in (True, "True")]
