@@ -141,11 +141,10 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
         let _ = writeln!(s, "  nowhere");
     }
     for r in d.where_before.iter().take(12) {
-        // a statistic of the whole withheld part (the distribution's) has no range
-        let range = if r.lo.is_finite() && r.hi.is_finite() {
-            format!("{:>12.4e} .. {:<12.4e} {:<8}", r.lo, r.hi, r.unit)
-        } else {
+        let range = if r.is_whole_part() {
             format!("{:^39}", "(whole withheld part)")
+        } else {
+            format!("{:>12.4e} .. {:<12.4e} {:<8}", r.lo, r.hi, r.unit)
         };
         let _ = writeln!(
             s,

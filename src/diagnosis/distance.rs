@@ -239,6 +239,14 @@ pub struct Region {
     pub n_features: usize,
 }
 
+impl Region {
+    /// Whether the region is a statistic of the whole withheld part (the
+    /// distribution's), which has no range of lags, times or frequencies.
+    pub fn is_whole_part(&self) -> bool {
+        !(self.lo.is_finite() && self.hi.is_finite())
+    }
+}
+
 /// The regions of `z` out of the band, largest first.
 pub fn regions(
     z: &[f64],

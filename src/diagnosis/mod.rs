@@ -612,8 +612,9 @@ fn diagnose_log(
             held.borrow_mut().push(p)
         };
         let mut round = Round::default();
-        // fold 1's output-path estimates that met no fold-2 estimate of the same form
-        // (paired by kind afterwards, [`loose_key`]), and the other kinds' unpaired ones
+        // fold 1's estimates of a kind with forms ([`form`]) that met no fold-2
+        // estimate of the same form (paired by kind afterwards, [`loose_key`]), and the
+        // other kinds' unpaired ones
         let left: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
         let lone: RefCell<Vec<(String, String)>> = RefCell::new(Vec::new());
         // fold 1's estimate p and fold 2's q of one candidate, scored on the withheld

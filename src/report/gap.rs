@@ -306,10 +306,10 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
                 vec![
                     r.statistic.as_str().to_string(),
                     r.feature.clone(),
-                    if r.lo.is_finite() && r.hi.is_finite() {
-                        format!("{} .. {} {}", tick(&r.lo), tick(&r.hi), r.unit)
-                    } else {
+                    if r.is_whole_part() {
                         "whole withheld part".to_string()
+                    } else {
+                        format!("{} .. {} {}", tick(&r.lo), tick(&r.hi), r.unit)
                     },
                     format!("{:.2}", r.excess),
                     tick(&r.ratio_or_delta),

@@ -24,6 +24,23 @@ fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
     diagnose(&real, &case.spec, &prm).unwrap()
 }
 
+/// A case at 10 Hz: the bank's base spec, and the truth with `extra` added to it;
+/// `expect` is the kind the diagnosis should find.
+fn hidden(
+    expect: &str,
+    with_temperature: bool,
+    extra: impl IntoIterator<Item = Component>,
+) -> Case {
+    let spec = bank::base_spec(10.0, with_temperature);
+    let mut truth = spec.clone();
+    truth.channels[0].components.extend(extra);
+    Case {
+        expect: expect.into(),
+        spec,
+        truth,
+    }
+}
+
 #[test]
 fn bank_ranks_the_hidden_effect_first_and_closes_the_gap() {
     let rate_hz = 10.0;
@@ -189,17 +206,14 @@ fn a_gauss_markov_that_took_a_sinusoids_variance_is_estimated_again_beside_it() 
 fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
     // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s and the 120 s warm-up is over long
     // before it ends
-    let spec = bank::base_spec(10.0, false);
-    let mut truth = spec.clone();
-    truth.channels[0].components.push(Component::Warmup {
-        amplitude: 0.05,
-        tau_s: 120.0,
-    });
-    let case = Case {
-        expect: "warmup".into(),
-        spec,
-        truth,
-    };
+    let case = hidden(
+        "warmup",
+        false,
+        [Component::Warmup {
+            amplitude: 0.05,
+            tau_s: 120.0,
+        }],
+    );
     let n = 72_000;
     let d = run(&case, n, 4242, 12);
     let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
@@ -240,18 +254,15 @@ fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
 /// gap closes.
 #[test]
 fn a_thermal_rate_behind_a_lagged_temperature_is_found_with_its_lag() {
-    let spec = bank::base_spec(10.0, true);
-    let mut truth = spec.clone();
-    truth.channels[0].components.push(Component::ThermalRate {
-        coeff: 6.0,
-        smoothing_s: 0.0,
-        lag_s: 200.0,
-    });
-    let case = Case {
-        expect: "thermal_rate".into(),
-        spec,
-        truth,
-    };
+    let case = hidden(
+        "thermal_rate",
+        true,
+        [Component::ThermalRate {
+            coeff: 6.0,
+            smoothing_s: 0.0,
+            lag_s: 200.0,
+        }],
+    );
     let d = run(&case, 72_000, 77, 12);
     assert!(d.gap_before > d.gap_threshold, "not significant");
     assert_first_step(&d, "thermal_rate");
@@ -594,19 +605,14 @@ fn a_log_on_an_output_grid_gets_the_output_resolution_and_the_gap_closes() {
     use farma::simulator::Component;
     // the base spec's sensor writing its rate rounded to 0.025 u (about 0.8 of the
     // white noise's per-sample sd at 10 Hz)
-    let spec = bank::base_spec(10.0, false);
-    let mut truth = spec.clone();
-    truth.channels[0]
-        .components
-        .push(Component::OutputResolution {
+    let case = hidden(
+        "output_resolution",
+        false,
+        [Component::OutputResolution {
             quantum: 0.025,
             on_angle: false,
-        });
-    let case = Case {
-        expect: "output_resolution".into(),
-        spec,
-        truth,
-    };
+        }],
+    );
     let d = run(&case, 36_000, 5, 12);
     let added: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
     assert_eq!(added.first(), Some(&"output_resolution"), "{added:?}");
@@ -627,19 +633,16 @@ fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
     // the base spec's sensor writing its rate through a first-order low-pass at 1 Hz
     // (a fifth of the Nyquist frequency at 10 Hz), and one of second order at 2 Hz
     for (order, bandwidth_hz, damping) in [(1, 1.0, None), (2, 2.0, Some(0.7))] {
-        let spec = bank::base_spec(10.0, false);
-        let mut truth = spec.clone();
-        truth.channels[0].components.push(Component::OutputFilter {
-            order,
-            bandwidth_hz,
-            damping,
-            discretization: Default::default(),
-        });
-        let case = Case {
-            expect: "output_filter".into(),
-            spec,
-            truth,
-        };
+        let case = hidden(
+            "output_filter",
+            false,
+            [Component::OutputFilter {
+                order,
+                bandwidth_hz,
+                damping,
+                discretization: Default::default(),
+            }],
+        );
         let d = run(&case, 36_000, 7, 12);
         let first = d
             .steps
@@ -674,19 +677,16 @@ fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
     // the base spec's sensor writing its rate through the bilinear first-order
     // Butterworth of filter-design tools at 1.5 Hz (10 Hz samples): the zero-order
     // hold's family lacks its zero at the Nyquist frequency
-    let spec = bank::base_spec(10.0, false);
-    let mut truth = spec.clone();
-    truth.channels[0].components.push(Component::OutputFilter {
-        order: 1,
-        bandwidth_hz: 1.5,
-        damping: None,
-        discretization: Discretization::Bilinear,
-    });
-    let case = Case {
-        expect: "output_filter".into(),
-        spec,
-        truth,
-    };
+    let case = hidden(
+        "output_filter",
+        false,
+        [Component::OutputFilter {
+            order: 1,
+            bandwidth_hz: 1.5,
+            damping: None,
+            discretization: Discretization::Bilinear,
+        }],
+    );
     let d = run(&case, 36_000, 8, 12);
     assert_first_step(&d, "output_filter");
     let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
@@ -791,19 +791,16 @@ fn a_log_through_an_ma1_fir_gets_the_fir_with_its_theta() {
 fn a_low_pass_log_does_not_get_the_fir() {
     // a first-order low-pass at 2 Hz (10 Hz samples) has lag-2 autocorrelation
     // rho_1^2: the MA(1) candidate is not proposed, the low-pass is added
-    let spec = bank::base_spec(10.0, false);
-    let mut truth = spec.clone();
-    truth.channels[0].components.push(Component::OutputFilter {
-        order: 1,
-        bandwidth_hz: 2.0,
-        damping: None,
-        discretization: Default::default(),
-    });
-    let case = Case {
-        expect: "output_filter".into(),
-        spec,
-        truth,
-    };
+    let case = hidden(
+        "output_filter",
+        false,
+        [Component::OutputFilter {
+            order: 1,
+            bandwidth_hz: 2.0,
+            damping: None,
+            discretization: Default::default(),
+        }],
+    );
     let d = run(&case, 36_000, 31, 12);
     assert_first_step(&d, "output_filter");
     let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
@@ -841,18 +838,15 @@ fn assert_first_step(d: &farma::diagnosis::Diagnosis, kind: &str) {
 /// scored on the withheld part, whose spikes choose the t, and the gap closes.
 #[test]
 fn few_heavy_tailed_spikes_get_both_amplitude_forms_scored_and_the_t_chosen() {
-    let spec = bank::base_spec(10.0, false);
-    let mut truth = spec.clone();
-    truth.channels[0].components.push(Component::Outliers {
-        rate_hz: 0.02,
-        scale: 0.3,
-        dof: Some(3.0),
-    });
-    let case = Case {
-        expect: "outliers".into(),
-        spec,
-        truth,
-    };
+    let case = hidden(
+        "outliers",
+        false,
+        [Component::Outliers {
+            rate_hz: 0.02,
+            scale: 0.3,
+            dof: Some(3.0),
+        }],
+    );
     let d = run(&case, 36_000, 81, 12);
     let forms: Vec<bool> = d
         .effects

@@ -82,10 +82,9 @@ fn cacheable(cx: &Context, j: usize, name: &str) -> bool {
 }
 
 /// For a cross_axis proposal of the state `cx` whose delta [`cross_axis`] took from
-/// the ensemble's simulations ([`cached_signal`]): that delta built again, bit for
-/// bit, when `build`; None for any other proposal (and, without `build`, Some of an
-/// empty vector for one).
-pub(super) fn rebuilt(cx: &Context, p: &Proposal, build: bool) -> Option<Vec<Vec<f64>>> {
+/// the ensemble's simulations ([`cached_signal`]): what rebuilds that delta bit for
+/// bit, (the other channel's index, its name, the gain); None for any other proposal.
+pub(super) fn rebuild_source<'p>(cx: &Context, p: &'p Proposal) -> Option<(usize, &'p str, f64)> {
     let Component::CrossAxis { from, gain } = &p.component else {
         return None;
     };
@@ -93,10 +92,7 @@ pub(super) fn rebuilt(cx: &Context, p: &Proposal, build: bool) -> Option<Vec<Vec
         return None;
     }
     let j = cx.others.iter().position(|(name, _)| name == from)?;
-    if !build {
-        return cacheable(cx, j, from).then(Vec::new);
-    }
-    cached_signal(cx, j, from, *gain)
+    cacheable(cx, j, from).then_some((j, from.as_str(), *gain))
 }
 
 #[cfg(test)]

@@ -133,7 +133,7 @@ impl Proposal {
         if let Some(a) = self.also.as_mut() {
             a.shed();
         }
-        if cross_axis::rebuilt(cx, self, false).is_some() {
+        if cross_axis::rebuild_source(cx, self).is_some() {
             self.delta = Delta::Each(Vec::new());
         }
     }
@@ -146,7 +146,8 @@ impl Proposal {
             a.build(cx.parts);
         }
         if self.delta.is_shed()
-            && let Some(u) = cross_axis::rebuilt(cx, self, true)
+            && let Some(u) = cross_axis::rebuild_source(cx, self)
+                .and_then(|(j, from, gain)| cross_axis::cached_signal(cx, j, from, gain))
         {
             self.delta = Delta::Each(u);
         }

@@ -12,12 +12,8 @@ use super::streams::{CHUNK, StreamKey, for_chunks_from};
 /// [u sqrt(s)]: one-sided PSD n^2, so each sample (an average over dt = 1/rate_hz) has
 /// standard deviation n / sqrt(dt) = n sqrt(rate_hz), and ADEV(tau) = n / sqrt(tau)
 /// exactly at every tau = m dt (IEEE Std 952-1997 Annex C, eq. C.13 with the rate
-/// sample being the average rate over dt).
-pub fn white_noise(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey) {
-    white_noise_from(out, n, rate_hz, key, 0)
-}
-
-/// [`white_noise`] for a block starting at sample `c0 * CHUNK` of the series.
+/// sample being the average rate over dt). For a block starting at sample `c0 * CHUNK`
+/// of the series (0 for a whole series).
 pub fn white_noise_from(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey, c0: u64) {
     let sd = n * rate_hz.sqrt();
     for_chunks_from(out, c0, |c, s| {
@@ -36,20 +32,10 @@ pub fn white_noise_from(out: &mut [f64], n: f64, rate_hz: f64, key: &StreamKey, 
 /// Allan variance is 6 q^2 / (2 tau^2): ADEV(tau) = sqrt(3) q / tau exactly at every
 /// tau = m dt (IEEE Std 952-1997 Annex C, quantization noise). The integrated angle
 /// sum_k rate_k dt = e_k - e_{-1} stays within one quantum. e_{-1} is drawn from the
-/// initial-state stream.
-pub fn quantization(out: &mut [f64], q: f64, rate_hz: f64, key: &StreamKey) {
-    let mut prev = quantization_init(q, key);
-    quantization_from(out, q, rate_hz, key, 0, &mut prev);
-}
-
-/// The angle error e_{-1} before the first sample of [`quantization`].
-pub fn quantization_init(q: f64, key: &StreamKey) -> f64 {
-    12f64.sqrt() * q * (key.init_rng(0).random::<f64>() - 0.5)
-}
-
-/// [`quantization`] for a block starting at sample `c0 * CHUNK`: `prev` holds the
-/// angle error before the block ([`quantization_init`] for the first) and is left
-/// holding the block's last.
+/// initial-state stream ([`quantization_init`]).
+///
+/// For a block starting at sample `c0 * CHUNK`: `prev` holds the angle error before the
+/// block ([`quantization_init`] for the first) and is left holding the block's last.
 pub fn quantization_from(
     out: &mut [f64],
     q: f64,
@@ -82,24 +68,18 @@ pub fn quantization_from(
     *prev = e[e.len() - 1];
 }
 
+/// The angle error e_{-1} before the first sample of [`quantization_from`].
+pub fn quantization_init(q: f64, key: &StreamKey) -> f64 {
+    12f64.sqrt() * q * (key.init_rng(0).random::<f64>() - 0.5)
+}
+
 /// outliers: at each sample, with probability rate_hz / sample_rate_hz independently
 /// (a Bernoulli process, `rate_hz` outliers per second on average), a spike
 /// scale * N(0, 1) \[u\] is added, or with `dof` scale * T_dof, T_dof a Student-t draw
 /// of `dof` degrees of freedom (rand_distr's `StudentT`: N(0, 1) / sqrt(chi2_dof / dof)).
 /// Positions come from geometric gaps drawn per chunk (memoryless, so restarting at
-/// each chunk start is exact).
-pub fn outliers(
-    out: &mut [f64],
-    rate_hz: f64,
-    scale: f64,
-    dof: Option<f64>,
-    sample_rate_hz: f64,
-    key: &StreamKey,
-) {
-    outliers_from(out, rate_hz, scale, dof, sample_rate_hz, key, 0)
-}
-
-/// [`outliers`] for a block starting at sample `c0 * CHUNK` of the series.
+/// each chunk start is exact). For a block starting at sample `c0 * CHUNK` of the
+/// series (0 for a whole series).
 pub fn outliers_from(
     out: &mut [f64],
     rate_hz: f64,
