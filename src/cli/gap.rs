@@ -135,7 +135,7 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
     }
     let _ = writeln!(
         s,
-        "\nwhere the real log leaves the simulations' band (withheld part):"
+        "\nwhere the real log leaves the simulations' band (withheld part of fold 1 or 2):"
     );
     if d.where_before.is_empty() {
         let _ = writeln!(s, "  nowhere");
@@ -148,7 +148,8 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
         };
         let _ = writeln!(
             s,
-            "  {:<13} {:<30} {range} excess {:>7.1} sd",
+            "  fold {} {:<13} {:<30} {range} excess {:>7.1} sd",
+            r.fold,
             r.statistic.as_str(),
             r.feature,
             r.excess

@@ -237,6 +237,8 @@ pub struct Region {
     pub ratio_or_delta: f64,
     /// Features in the region.
     pub n_features: usize,
+    /// The fold whose withheld part the region is on ([`FeatureDef::fold`]).
+    pub fold: u8,
 }
 
 impl Region {
@@ -268,6 +270,7 @@ pub fn regions(
         while e + 1 < z.len()
             && defs[e + 1].statistic == defs[k].statistic
             && defs[e + 1].name == defs[k].name
+            && defs[e + 1].fold == defs[k].fold
             && defs[e + 1].lo.partial_cmp(&defs[e].lo) != Some(std::cmp::Ordering::Less)
             && z[e + 1].abs() > thr
             && z[e + 1].signum() == sign
@@ -291,6 +294,7 @@ pub fn regions(
             excess: z[worst].abs().min(1e3),
             ratio_or_delta: if defs[k].log_scale { diff.exp() } else { diff },
             n_features: e - k + 1,
+            fold: defs[k].fold,
         });
         k = e + 1;
     }
@@ -315,6 +319,7 @@ mod tests {
                 hi: i as f64,
                 unit: "s".into(),
                 log_scale: false,
+                fold: 1,
             })
             .collect()
     }
@@ -387,5 +392,34 @@ mod tests {
         assert_eq!(r[0].statistic, Statistic::Time);
         assert_eq!((r[1].lo, r[1].hi, r[1].n_features), (1.0, 2.0, 2));
         assert!(cal.noise_floor > 0.3 && cal.noise_floor < 3.0);
+    }
+
+    #[test]
+    fn a_region_stays_within_one_fold_and_says_which() {
+        // features 0..4 of fold 1 then 4..8 of fold 2, all of one statistic and name,
+        // with rising lo across the boundary: neighbours out of the band on both sides
+        let mut d = defs(8);
+        for (i, f) in d.iter_mut().enumerate() {
+            f.statistic = Statistic::Adev;
+            f.fold = if i < 4 { 1 } else { 2 };
+        }
+        let reps: Vec<Vec<f64>> = (0..10)
+            .map(|i| (0..8).map(|k| ((i * 7 + k * 3) % 5) as f64).collect())
+            .collect();
+        let st = EnsembleStats::new(&reps, &d, None);
+        let cal = Calibration::new(&reps, &d);
+        let mut real = st.mean.clone();
+        for k in 2..6 {
+            real[k] += (20.0 + k as f64) * st.sd[k];
+        }
+        let z = st.z(&real);
+        let r = regions(&z, &real, &st, &d, &cal);
+        assert_eq!(r.len(), 2, "{r:?}");
+        let mut got: Vec<(u8, f64, f64, usize)> = r
+            .iter()
+            .map(|g| (g.fold, g.lo, g.hi, g.n_features))
+            .collect();
+        got.sort_by_key(|g| g.0);
+        assert_eq!(got, vec![(1, 2.0, 3.0, 2), (2, 4.0, 5.0, 2)]);
     }
 }

@@ -77,6 +77,10 @@ pub struct FeatureDef {
     pub unit: String,
     /// Natural logarithm of a positive quantity (compared as a ratio).
     pub log_scale: bool,
+    /// The fold whose withheld part the feature is computed on: 1 for the blocks of
+    /// [`Blocks::part`]`(false)`, 2 for those of `part(true)` (fold 2 trains on fold
+    /// 1's withheld part and the reverse).
+    pub fold: u8,
 }
 
 /// The temperature of the log as the features use it (the same for the real log and
@@ -162,6 +166,7 @@ impl Layout {
         others: &[String],
     ) -> Layout {
         let ranges = blocks.part(training);
+        let fold = if training { 2 } else { 1 };
         let max_len = ranges.iter().map(|r| r.len()).max().unwrap_or(0);
         let mut defs = Vec::new();
         let dt = 1.0 / rate_hz;
@@ -181,6 +186,7 @@ impl Layout {
                 hi: tau,
                 unit: "s".into(),
                 log_scale: true,
+                fold,
             });
         }
 
@@ -206,6 +212,7 @@ impl Layout {
                 hi: (b.end - 1) as f64 * df,
                 unit: "Hz".into(),
                 log_scale: true,
+                fold,
             });
         }
 
@@ -226,6 +233,7 @@ impl Layout {
                     hi: w.end as f64 * dt,
                     unit: "s".into(),
                     log_scale,
+                    fold,
                 });
             }
         }
@@ -244,6 +252,7 @@ impl Layout {
                 hi: f64::NAN,
                 unit: "u".into(),
                 log_scale: true,
+                fold,
             });
         }
 
@@ -286,6 +295,7 @@ impl Layout {
                     hi,
                     unit: unit.into(),
                     log_scale: false,
+                    fold,
                 });
             }
             let bins = |edges: &[f64], min: f64, max: f64| -> Vec<(f64, f64)> {
@@ -306,6 +316,7 @@ impl Layout {
                     hi,
                     unit: "degC".into(),
                     log_scale: false,
+                    fold,
                 });
             }
             for (lo, hi) in bins(&r_edges, rmin, rmax) {
@@ -316,6 +327,7 @@ impl Layout {
                     hi,
                     unit: "degC/s".into(),
                     log_scale: false,
+                    fold,
                 });
             }
             for (lo, hi) in bins(&t_edges, tmin, tmax) {
@@ -326,6 +338,7 @@ impl Layout {
                     hi,
                     unit: "degC".into(),
                     log_scale: true,
+                    fold,
                 });
             }
             TempLayout {
@@ -343,6 +356,7 @@ impl Layout {
                 hi: (k + 1) as f64 / N_BINS as f64,
                 unit: "quantile".into(),
                 log_scale: false,
+                fold,
             });
         }
 
@@ -355,6 +369,7 @@ impl Layout {
                     hi: j as f64,
                     unit: "channel".into(),
                     log_scale: false,
+                    fold,
                 });
             }
         }

@@ -2007,6 +2007,7 @@ mod tests {
                 hi: k as f64 + 1.0,
                 unit: "s".into(),
                 log_scale: true,
+                fold: 1,
             })
             .collect();
         let reps: Vec<Vec<f64>> = (0..8)

@@ -22,6 +22,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "unit": r.unit,
             "excess": r.excess,
             "ratio_or_delta": finite(r.ratio_or_delta),
+            "fold": r.fold,
         })
     };
     let fam = |f: &[(Statistic, f64)]| -> Value {
@@ -125,6 +126,12 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
         ("sim_mean_after", f64s(d.ens_after.mean.clone())),
         ("sim_sd_after", f64s(d.ens_after.sd.clone())),
         ("z_after", f64s(za)),
+        (
+            "fold",
+            Arc::new(Int64Array::from(
+                d.defs.iter().map(|f| f.fold as i64).collect::<Vec<_>>(),
+            )) as ArrayRef,
+        ),
     ])?;
     let regions: Vec<(&str, &Region)> = d
         .where_before
@@ -159,6 +166,12 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
         (
             "ratio_or_delta",
             f64s(regions.iter().map(|r| r.1.ratio_or_delta).collect()),
+        ),
+        (
+            "fold",
+            Arc::new(Int64Array::from(
+                regions.iter().map(|r| r.1.fold as i64).collect::<Vec<_>>(),
+            )) as ArrayRef,
         ),
     ])?;
     let ne = d.effects.len() + d.added.len();

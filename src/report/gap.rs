@@ -304,6 +304,7 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
             .iter()
             .map(|r| {
                 vec![
+                    r.fold.to_string(),
                     r.statistic.as_str().to_string(),
                     r.feature.clone(),
                     if r.is_whole_part() {
@@ -321,6 +322,7 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
         } else {
             p.table(
                 &[
+                    "fold",
                     "statistic",
                     "feature",
                     "range",

@@ -445,9 +445,17 @@ fn cli_writes_the_contract_json_tables_and_report() {
     let f = v["effects"][0]["params"]["freq_hz"].as_f64().unwrap();
     assert!((f - 0.1).abs() < 1e-3, "frequency {f}");
     let w = &v["where"][0];
-    for key in ["statistic", "lo", "hi", "unit", "excess"] {
+    for key in ["statistic", "lo", "hi", "unit", "excess", "fold"] {
         assert!(w.get(key).is_some(), "region lacks {key}: {w}");
     }
+    // a sinusoid shows on the withheld parts of both folds
+    let folds: std::collections::BTreeSet<u64> = v["where"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["fold"].as_u64().unwrap())
+        .collect();
+    assert_eq!(folds, [1, 2].into(), "{}", v["where"]);
     assert!(v["gap_after"].as_f64().unwrap() < v["gap_before"].as_f64().unwrap());
     for f in [
         "gap_features.parquet",
