@@ -18,7 +18,7 @@ sinusoid is slowly amplitude-modulated, the heteroskedastic noise scales with
 (T - 25 degC).
 
 Usage:
-    python3 generate.py OUTDIR [--part dev|heldout|all] [--only CASE_SUBSTRING]
+    python3 generate.py OUTDIR [--part dev|dev2|heldout|heldout2|all] [--only CASE_SUBSTRING]
 
 OUTDIR/<part>/<case>/{real.parquet, spec.toml, truth.json}, and OUTDIR/<part>/cases.json.
 Deterministic: the same command writes the same bank (seeds per part and case).
@@ -56,7 +56,7 @@ ACCEPT = {
 # kinds that are candidate kinds of contracts.md section 2 today (the rest: issue 27's)
 CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 
-PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007}
+PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -483,6 +483,16 @@ PAIRS = {
                 [("output_filter", "2"), ("warmup", "long")],
                 [("thermal_rate", ""), ("rate_random_walk", "")],
                 [("bias_instability", ""), ("temperature_bias", "lin")]],
+    # a second held-out draw (eleventh session): pairs that no other part has, each
+    # member sized to be seen on its own (see size_for)
+    "heldout2": [[("warmup", "short"), ("sinusoid", "")],
+                 [("gauss_markov", ""), ("rate_ramp", "")],
+                 [("heteroskedastic", ""), ("warmup", "long")],
+                 [("thermal_rate", ""), ("constant_bias", "")],
+                 [("quantization", "rate"), ("rate_random_walk", "")],
+                 [("output_filter", "1"), ("temperature_bias", "quad")],
+                 [("bias_instability", ""), ("sinusoid", "")],
+                 [("outliers", ""), ("temperature_bias", "lin")]],
     # a second development draw: pairs that neither other part has
     "dev2": [[("temperature_bias", "quad"), ("gauss_markov", "")],
              [("warmup", "short"), ("rate_random_walk", "")],
@@ -496,7 +506,8 @@ PAIRS = {
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
-           "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")]}
+           "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")],
+           "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")]}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -507,15 +518,24 @@ GRID = {
     "dev": [(10, 1200), (10, 3600), (10, 7200), (100, 1200), (100, 2400)],
     "heldout": [(10, 4 * 3600), (10, 8 * 3600), (100, 1800), (10, 3 * 3600), (100, 1500)],
     "dev2": [(10, 5400), (10, 6 * 3600), (100, 3600), (100, 900), (10, 2700)],
+    # the issue's outside cases are 4 h at 10 Hz with a chamber temperature channel
+    "heldout2": [(10, 4 * 3600), (10, 5 * 3600), (100, 2 * 3600), (10, 4 * 3600), (100, 2700)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
-            "dev2": ["drift", "ramp", "steps"]}
+            "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
-          "dev2": [(-25, 55), (5, 35), (-5, 60)]}
+          "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)]}
 
 
-def size_for(part, rng):
+def size_for(part, rng, category="single"):
+    if part == "heldout2":
+        # a pair's members share one size: the held-out's larger sizes only, so that
+        # each member can show beside the other (the first held-out part's small pairs
+        # mostly could not, BENCHMARKS "The tenth session"); the rest as the held-out's
+        if category == "pair":
+            return float(rng.uniform(2.5, 4.0))
+        return float(rng.uniform(0.6, 0.85)) if rng.random() < 0.5 else float(rng.uniform(2.5, 4.0))
     if part == "dev":
         return float(rng.uniform(1.0, 2.0))
     if part == "dev2":
@@ -550,7 +570,7 @@ def make_part(part):
         has_temp = need or rng.random() < 0.6
         tprof = PROFILES[part][int(rng.integers(3))] if has_temp else None
         trange = TRANGE[part][int(rng.integers(3))]
-        size = size_for(part, rng)
+        size = size_for(part, rng, cat)
         seed = PART_SEED[part] * 1000 + i
         cases.append(Case(part, i, f"{i:02d}_{name}", cat, eff, fs, dur, tprof, size, trange, seed))
     return cases
@@ -559,10 +579,10 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "heldout", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "heldout", "heldout2", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
-    parts = ["dev", "dev2", "heldout"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "heldout", "heldout2"] if a.part == "all" else [a.part]
     for part in parts:
         cases = make_part(part)
         index = []
