@@ -409,8 +409,8 @@ mod tests {
         let st = EnsembleStats::new(&reps, &d, None);
         let cal = Calibration::new(&reps, &d);
         let mut real = st.mean.clone();
-        for k in 2..6 {
-            real[k] += (20.0 + k as f64) * st.sd[k];
+        for (k, (v, sd)) in real.iter_mut().zip(&st.sd).enumerate().take(6).skip(2) {
+            *v += (20.0 + k as f64) * sd;
         }
         let z = st.z(&real);
         let r = regions(&z, &real, &st, &d, &cal);
