@@ -418,7 +418,7 @@ fn diagnose_log(
     // continuous change added to rounded simulations would leave the grid)
     let path0 = PathStage::of(&spec.channels[channel].components, rate_hz);
     // the features of each replica: for fold f, its withheld features of the fold's
-    // series xs[f][r], plus sign * delta[f][r] when given, passed through the fold's
+    // series xs[f][r], plus coef * delta[f][r] when (delta, coef) is given, passed through the fold's
     // path, then rounded to the printed precision
     type Deltas<'d> = Option<(&'d [&'d [f64]], f64)>;
     let feats_of =
@@ -620,8 +620,13 @@ fn diagnose_log(
         // fold 1's estimate p and fold 2's q of one candidate, scored on the withheld
         // parts: an output-path candidate changes the path every sum goes through, any
         // other adds its signal to the sums
-        let mut score_pair = |p: Proposal, mut q: Proposal| {
-            q.restore(&cx(1));
+        // what each fold's state rebuilds is read from the state, not built
+        // (Proposal::change, Proposal::also_change)
+        let mut score_pair = |p: Proposal, q: Proposal| {
+            let mut pq = [p, q];
+            pq[0].shed(&cx(0));
+            pq[1].shed(&cx(1));
+            let [p, q] = &pq;
             pb.set_message(p.kind.clone());
             let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
@@ -630,31 +635,23 @@ fn diagnose_log(
                     sts[1].path.with(&q.component),
                 ];
                 // a joint candidate also changes a component's signal
-                fn also(pr: &Proposal, m: usize) -> Option<Vec<&[f64]>> {
-                    let d = &pr.also.as_ref()?.delta;
-                    Some((0..m).map(|r| d.get(r)).collect())
-                }
-                match (also(&p, prm.replicas), also(&q, prm.replicas)) {
-                    (Some(d0), Some(d1)) => feats_of(
+                match (p.also_change(&sts[0].parts), q.also_change(&sts[1].parts)) {
+                    (Some((d0, c0)), Some((d1, c1))) => feats_of(
                         xs,
-                        [Some((d0.as_slice(), 1.0)), Some((d1.as_slice(), 1.0))],
+                        [Some((d0.as_slice(), c0)), Some((d1.as_slice(), c1))],
                         [&paths[0], &paths[1]],
                     ),
                     _ => feats_of(xs, [None, None], [&paths[0], &paths[1]]),
                 }
             } else {
-                let d0: Vec<&[f64]> = (0..prm.replicas).map(|r| p.delta.get(r)).collect();
-                let d1: Vec<&[f64]> = (0..prm.replicas).map(|r| q.delta.get(r)).collect();
+                let ((d0, c0), (d1, c1)) = (p.change(&cx(0)), q.change(&cx(1)));
                 feats_of(
                     xs,
-                    [Some((&d0, 1.0)), Some((&d1, 1.0))],
+                    [Some((&d0, c0)), Some((&d1, c1))],
                     [&sts[0].path, &sts[1].path],
                 )
             };
             let scored = score(&f);
-            let mut pq = [p, q];
-            pq[0].shed(&cx(0));
-            pq[1].shed(&cx(1));
             round.offer(pq, f, scored, gap_now);
         };
         // fold 1's estimate meets fold 2's of the same kind and form

@@ -86,7 +86,7 @@ impl PathStage {
 }
 
 /// A replica's output as the features of one part read it: the sum `x`, plus
-/// `sign * d` when a change `(d, sign)` is given, through `path`, rounded to the
+/// `coef * d` when a change `(d, coef)` is given, through `path`, rounded to the
 /// printed precision `printed` when there is one, on the samples of `ranges` only
 /// (everything the part's features read; see [`super::features`]). Through a path the
 /// prefix up to the end of the last range is passed (every stage is causal: a sample
@@ -109,9 +109,9 @@ pub fn part_output<'a>(
         buf.resize(x.len(), 0.0);
     }
     let fill = |buf: &mut [f64], r: std::ops::Range<usize>| match change {
-        Some((d, sign)) => {
+        Some((d, coef)) => {
             for ((y, a), b) in buf[r.clone()].iter_mut().zip(&x[r.clone()]).zip(&d[r]) {
-                *y = a + sign * b;
+                *y = a + coef * b;
             }
         }
         None => buf[r.clone()].copy_from_slice(&x[r]),
@@ -135,7 +135,7 @@ pub fn part_output<'a>(
     &buf[..x.len()]
 }
 
-/// The whole output series of [`part_output`]: `x + sign * d` over every sample,
+/// The whole output series of [`part_output`]: `x + coef * d` over every sample,
 /// through the whole path, rounded.
 pub fn whole_output(
     x: &[f64],
@@ -144,7 +144,7 @@ pub fn whole_output(
     printed: Option<f64>,
 ) -> Vec<f64> {
     let mut y: Vec<f64> = match change {
-        Some((d, sign)) => x.iter().zip(d).map(|(a, b)| a + sign * b).collect(),
+        Some((d, coef)) => x.iter().zip(d).map(|(a, b)| a + coef * b).collect(),
         None => x.to_vec(),
     };
     path.apply(&mut y);

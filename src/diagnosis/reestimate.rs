@@ -289,13 +289,15 @@ impl Refit<'_> {
         let [ps0, mut ps1] = props;
         let same =
             |p: &Proposal| p.replaces == r.replaces && form(&p.component) == form(&r.component);
-        let Some(p) = ps0.into_iter().find(|p| same(p)) else {
+        let Some(mut p) = ps0.into_iter().find(|p| same(p)) else {
             return Ok(None);
         };
         let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
             return Ok(None);
         };
-        let q = ps1.swap_remove(j);
+        let mut q = ps1.swap_remove(j);
+        p.restore(&self.cx(&sts[0], 0));
+        q.restore(&self.cx(&sts[1], 1));
         let d0: Vec<&[f64]> = (0..self.replicas).map(|k| p.delta.get(k)).collect();
         let d1: Vec<&[f64]> = (0..self.replicas).map(|k| q.delta.get(k)).collect();
         let f = (self.feats)(sts, [Some(&d0), Some(&d1)]);
@@ -393,11 +395,13 @@ impl Refit<'_> {
         }
         let [ps0, mut ps1] = props;
         let mut round = Round::default();
-        for p in ps0 {
+        for mut p in ps0 {
             let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
                 continue;
             };
-            let q = ps1.remove(j);
+            let mut q = ps1.remove(j);
+            p.restore(&self.cx(&trial[0], 0));
+            q.restore(&self.cx(&trial[1], 1));
             let d0: Vec<&[f64]> = (0..self.replicas).map(|r| p.delta.get(r)).collect();
             let d1: Vec<&[f64]> = (0..self.replicas).map(|r| q.delta.get(r)).collect();
             let f = (self.feats)(&trial, [Some(&d0), Some(&d1)]);

@@ -1,6 +1,9 @@
 //! cross_axis: gain = cov(d_x, d_o) / var(d_o) over the training part (d the first
 //! difference of the residual and of the other channel), for each other channel o of
-//! the spec present in the log.
+//! the spec present in the log. Its signal is gain times the other channel's
+//! simulation, which every replica of the ensemble holds: a proposal comes shed
+//! ([`Proposal::shed`]) and is scored from those simulations ([`Proposal::change`]),
+//! built ([`Proposal::restore`]) only when it is added.
 
 use super::lsq::{diff, ls, shrink_ranges};
 use super::params::params_json;
@@ -23,9 +26,11 @@ pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result
                 from: name.clone(),
                 gain: b[0],
             };
-            let u = match cached_signal(cx, j, name, b[0]) {
-                Some(u) => u,
-                None => cx.sim.extra_signal(cx.spec, cx.channel, &comp)?,
+            // a signal the state rebuilds is not built (Proposal::shed, ::change)
+            let u = if cacheable(cx, j, name) {
+                Vec::new()
+            } else {
+                cx.sim.extra_signal(cx.spec, cx.channel, &comp)?
             };
             out.push(Proposal {
                 also: None,

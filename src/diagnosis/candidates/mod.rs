@@ -154,6 +154,42 @@ impl Proposal {
     }
 }
 
+impl Proposal {
+    /// Each replica's change of its sum, as the signal and the coefficient it enters
+    /// with (`x + coef * signal`), read without building what [`Proposal::shed`]
+    /// dropped: a cross_axis delta is the gain times the other channel's simulation in
+    /// `cx` (`cross_axis::cached_signal`, whose `0 + gain v` is `gain v` bit for bit),
+    /// any other delta its own signal with coefficient 1. `cx` is the state the
+    /// proposal was estimated on.
+    pub fn change<'s>(&'s self, cx: &Context<'s>) -> (Vec<&'s [f64]>, f64) {
+        let m = cx.sim.replicas;
+        if self.delta.is_shed()
+            && let Some((j, _, gain)) = cross_axis::rebuild_source(cx, self)
+        {
+            return (
+                cx.sim_others.iter().map(|chs| chs[j].as_slice()).collect(),
+                gain,
+            );
+        }
+        ((0..m).map(|r| self.delta.get(r)).collect(), 1.0)
+    }
+
+    /// A joint candidate's second change ([`Also`]) as each replica's signal and the
+    /// coefficient it enters with: its factor times the rescaled component's signal in
+    /// `parts` (what [`Also::build`] holds, `v * factor`, bit for bit), without building
+    /// it; None for a proposal with no second change.
+    pub fn also_change<'s>(
+        &'s self,
+        parts: &'s [Vec<std::sync::Arc<Vec<f64>>>],
+    ) -> Option<(Vec<&'s [f64]>, f64)> {
+        let a = self.also.as_ref()?;
+        Some((
+            parts.iter().map(|p| p[a.comp].as_slice()).collect(),
+            a.factor,
+        ))
+    }
+}
+
 impl Delta {
     /// A delta dropped by [`Proposal::shed`] (an `Each` of no replica).
     pub fn is_shed(&self) -> bool {
@@ -629,11 +665,12 @@ mod tests {
     }
 
     /// What a sink is handed, bit for bit: the component, the parameters, the
-    /// replaced index and every replica's delta.
+    /// replaced index and every replica's delta (none when it comes shed).
     fn record(p: &Proposal, m: usize) -> String {
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let delta: Vec<Vec<u64>> = match &p.delta {
             Delta::Same(v) => vec![bits(v)],
+            Delta::Each(v) if v.is_empty() => Vec::new(),
             Delta::Each(_) => (0..m).map(|r| bits(p.delta.get(r))).collect(),
         };
         format!(
@@ -653,9 +690,12 @@ mod tests {
         format!("{} {also:?}", record(p, m))
     }
 
-    /// Every proposal of each state, and a joint rescale of its first component,
-    /// shed and restored: the proposal as estimated, bit for bit; the cross_axis
-    /// ones (taken from the ensemble's other channels) and the joint one shed.
+    /// Every proposal of each state, and a joint rescale of its first component:
+    /// the cross_axis ones (taken from the ensemble's other channels) come shed; shed
+    /// and restored, each is the proposal as restored, bit for bit; the cross_axis and
+    /// the joint one shed; and what scoring reads of a shed one without building it
+    /// (`Proposal::change`, `Proposal::also_change`) changes every replica's sum
+    /// exactly as the built change does.
     fn shed_and_restored_case(cxs: &[Context], m: usize) {
         for cx in cxs {
             let mut got = Vec::new();
@@ -670,7 +710,10 @@ mod tests {
             got.push(joint);
             let mut n_shed = 0;
             for p in &got {
-                let mut q = p.clone();
+                assert_eq!(p.delta.is_shed(), p.kind == "cross_axis", "{}", p.kind);
+                let mut full = p.clone();
+                full.restore(cx);
+                let mut q = full.clone();
                 q.shed(cx);
                 let shed = q.delta.is_shed() || q.also.as_ref().is_some_and(|a| a.delta.is_shed());
                 n_shed += usize::from(shed);
@@ -680,8 +723,28 @@ mod tests {
                     "{}",
                     p.kind
                 );
+                // x + coef * signal, as the scoring adds it, against x + the built change
+                let same_sums = |(sig, coef): (Vec<&[f64]>, f64), built: &Delta| {
+                    for r in 0..m {
+                        let x = &cx.target[r];
+                        let d = built.get(r);
+                        assert_eq!(sig[r].len(), d.len(), "{}", p.kind);
+                        for t in 0..d.len() {
+                            assert_eq!(
+                                (x[t] + coef * sig[r][t]).to_bits(),
+                                (x[t] + 1.0 * d[t]).to_bits(),
+                                "{} replica {r} sample {t}",
+                                p.kind
+                            );
+                        }
+                    }
+                };
+                same_sums(q.change(cx), &full.delta);
+                if let Some(a) = &full.also {
+                    same_sums(q.also_change(cx.parts).unwrap(), &a.delta);
+                }
                 q.restore(cx);
-                assert_eq!(record_all(&q, m), record_all(p, m), "{}", p.kind);
+                assert_eq!(record_all(&q, m), record_all(&full, m), "{}", p.kind);
             }
             assert!(n_shed >= 2, "{n_shed}");
         }
