@@ -725,14 +725,14 @@ mod tests {
                 );
                 // x + coef * signal, as the scoring adds it, against x + the built change
                 let same_sums = |(sig, coef): (Vec<&[f64]>, f64), built: &Delta| {
-                    for r in 0..m {
-                        let x = &cx.target[r];
+                    assert_eq!(sig.len(), m, "{}", p.kind);
+                    for (r, s) in sig.iter().enumerate() {
                         let d = built.get(r);
-                        assert_eq!(sig[r].len(), d.len(), "{}", p.kind);
-                        for t in 0..d.len() {
+                        assert_eq!(s.len(), d.len(), "{}", p.kind);
+                        for (t, ((x, v), b)) in cx.target[r].iter().zip(*s).zip(d).enumerate() {
                             assert_eq!(
-                                (x[t] + coef * sig[r][t]).to_bits(),
-                                (x[t] + 1.0 * d[t]).to_bits(),
+                                (x + coef * v).to_bits(),
+                                (x + 1.0 * b).to_bits(),
                                 "{} replica {r} sample {t}",
                                 p.kind
                             );
