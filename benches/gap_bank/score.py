@@ -3,7 +3,8 @@
 
 Usage:
     python3 score.py FARMA BANKDIR [--part dev|dev2|heldout|heldout2|all] [--jobs N] [--timeout S]
-                     [--out RESULTS] [--only SUBSTRING] [--rescore] [-- EXTRA farma gap ARGS]
+                     [--out RESULTS] [--only SUBSTRING] [--rescore] [--oracle] [--cases]
+                     [-- EXTRA farma gap ARGS]
 
 BANKDIR is what generate.py wrote (BANKDIR/<part>/<case>/{real.parquet,spec.toml,truth.json}).
 For each case it runs, under /usr/bin/time -f "%e %M" (seconds, peak RSS in KiB):
@@ -22,8 +23,9 @@ Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
   gap_before <= threshold) AND nothing was added.
 A run that fails, times out or prints no JSON is wrong.
 
-Prints a table per part and category (and per withheld kind for singles) and writes
-RESULTS/scores.csv (one row per case; scores_<part>.csv with --part).
+Prints a table per part and category, and each case of the development parts (a
+held-out part, heldout or heldout2, prints its aggregates only unless --cases), and
+writes RESULTS/scores.csv (one row per case; scores_<part>.csv with --part).
 """
 
 import argparse
@@ -126,6 +128,10 @@ def main():
     ap.add_argument("--out", default=None)
     ap.add_argument("--only", default=None)
     ap.add_argument("--rescore", action="store_true")
+    ap.add_argument("--cases", action="store_true",
+                    help="print the held-out parts' cases too (by default a held-out part, "
+                         "heldout or heldout2, prints its aggregates only: tuning must not "
+                         "read them)")
     ap.add_argument("--oracle", action="store_true",
                     help="also check each pair member's detectability: run the pair's "
                          "spec_only_<kind>.toml (the truth minus that member alone) and "
@@ -139,6 +145,10 @@ def main():
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     argv = argv[:argv.index("--")] if "--" in argv else argv
     a = ap.parse_args(argv)
+
+    def shown(part):
+        # a held-out part's cases are not printed unless asked for
+        return a.cases or not part.startswith("heldout")
     a.extra = extra
     out = a.out or os.path.join(a.bank, "results")
     parts = ["dev", "dev2", "heldout", "heldout2"] if a.part == "all" else [a.part]
@@ -211,7 +221,8 @@ def main():
             w.writerows([(p_, c_, int(v)) for (p_, c_), v in sorted(reach.items())])
         print("\n== detectability of each pair member alone (truth minus that member)")
         for r in orows:
-            print(f"{r[0]}/{r[1]:<46} {r[2]:<18} {r[3]:<16} gap {r[4]}  added={r[5]}")
+            if shown(r[0]):
+                print(f"{r[0]}/{r[1]:<46} {r[2]:<18} {r[3]:<16} gap {r[4]}  added={r[5]}")
         dname = "detectability.csv" if a.part == "all" else f"detectability_{a.part}.csv"
         with open(os.path.join(out, dname), "w", newline="") as f:
             w = csv.writer(f)
@@ -310,6 +321,10 @@ def main():
             times_s = sorted(times)
             print(f"time per case: median {times_s[len(times_s) // 2]:.1f} s, max {max(times):.1f} s, "
                   f"total {sum(times):.0f} s; peak RSS median {sorted(rss)[len(rss) // 2]:.0f} MiB, max {max(rss):.0f} MiB")
+        if not shown(part):
+            print(f"(a held-out part: aggregates only; --cases prints its cases, which a "
+                  f"development step must not read; the CSV has them)")
+            continue
         print(f"{'case':<48}{'ok':>3}  why")
         for r in pr:
             print(f"{r['case']:<48}{'Y' if r['right'] else '-':>3}  [{r['status']}] {r['why']}")
