@@ -171,6 +171,7 @@ pub fn cases(rate_hz: f64, duration_s: f64) -> Vec<Case> {
             of: Kind::WhiteNoise,
             slope: 0.12,
             floor: 0.0,
+            reference_c: None,
         }),
         true,
         None,

@@ -2074,6 +2074,7 @@ mod tests {
             of: crate::simulator::spec::Kind::WhiteNoise,
             slope: 0.01,
             floor: 0.0,
+            reference_c: None,
         };
         assert_eq!(
             n(

@@ -64,6 +64,7 @@ fn every_component() -> Spec {
                         of: Kind::WhiteNoise,
                         slope: 0.01,
                         floor: 0.0,
+                        reference_c: Some(25.0),
                     },
                     Component::CrossAxis {
                         from: "gyro_y".into(),
@@ -233,6 +234,7 @@ fn round_trip_heteroskedastic_floor() {
                     of: Kind::WhiteNoise,
                     slope: -0.07,
                     floor,
+                    reference_c: None,
                 },
             ],
         }],

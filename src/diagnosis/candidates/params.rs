@@ -192,10 +192,18 @@ pub fn params_json(c: &Component) -> Value {
             }
             p
         }
-        C::Heteroskedastic { of, slope, floor } => {
+        C::Heteroskedastic {
+            of,
+            slope,
+            floor,
+            reference_c,
+        } => {
             let mut p = json!({ "of": of.as_str(), "slope": slope });
             if *floor > 0.0 {
                 p["floor"] = json!(floor);
+            }
+            if let Some(r) = reference_c {
+                p["reference_c"] = json!(r);
             }
             p
         }

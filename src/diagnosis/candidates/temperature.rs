@@ -196,11 +196,8 @@ pub(super) fn heteroskedastic(
     out: &mut Found,
 ) -> Result<()> {
     match estimate_heteroskedastic(cx, tp, tm)? {
-        Some(p) => out.push(p),
-        None => out.skip(
-            "heteroskedastic",
-            "the spec's channel has no noise component to modulate",
-        ),
+        Ok(p) => out.push(p),
+        Err(why) => out.skip("heteroskedastic", why),
     }
     Ok(())
 }
@@ -454,7 +451,22 @@ fn heteroskedastic_floor_form(
 /// non-positive level): the scale's slope and, with it, that component's level
 /// rescaled by f = sqrt(v_mod / its variance of the differences in the ensemble)
 /// ([`heteroskedastic_form`]); the signal added is (f s_t - 1) times the component's.
-fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<Option<Proposal>> {
+/// The quantiles of the training temperature at which [`estimate_heteroskedastic`] also
+/// puts the reference of the scale (besides the log's mean): one on each side, so that
+/// a scale clamped over most of the log (the mean temperature on its floor, where no
+/// line through 1 fits) is fitted about a temperature where it is not clamped.
+const REFERENCE_QUANTILES: [f64; 2] = [0.02, 0.98];
+
+/// How much more a fit about another reference must lower -2 ln L than the fit about
+/// the mean to be taken: two references that reach the same kink are one model, and
+/// their likelihoods differ by rounding only; the mean is kept then.
+const REFERENCE_MIN_GAIN: f64 = 1.0;
+
+fn estimate_heteroskedastic(
+    cx: &Context,
+    tp: &Temperature,
+    tm: f64,
+) -> Result<std::result::Result<Proposal, &'static str>> {
     let comps = &cx.spec.channels[cx.channel].components;
     let ranges = shrink_ranges(cx.ranges());
     // the noise component with the largest share of the variance of the differences
@@ -482,9 +494,12 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
             best = Some((k, v));
         }
     }
-    let Some((k, v)) = best else { return Ok(None) };
+    let no_noise = "the spec's channel has no noise component to modulate";
+    let Some((k, v)) = best else {
+        return Ok(Err(no_noise));
+    };
     if v <= 0.0 {
-        return Ok(None);
+        return Ok(Err(no_noise));
     }
     let of = comps[k].kind();
     let d2: Vec<f64> = {
@@ -494,9 +509,41 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         }
         d
     };
-    let dt: Vec<f64> = tp.t_c.iter().map(|t| t - tm).collect();
-    let Some(fit) = heteroskedastic_floor_form(&d2, &dt, (total - v).max(0.0), &ranges) else {
-        return Ok(None);
+    // the form about the mean temperature, and about a cold and a warm quantile of the
+    // training temperature, which are the same model wherever the scale is not clamped
+    // at the reference (the level v_mod and the slope k rescale by 1 + k (r' - r)): a
+    // clamped fit about another reference replaces the mean's when its deviance is
+    // larger by REFERENCE_MIN_GAIN
+    let fit_about = |r: f64| {
+        let dt: Vec<f64> = tp.t_c.iter().map(|t| t - r).collect();
+        heteroskedastic_floor_form(&d2, &dt, (total - v).max(0.0), &ranges)
+    };
+    let mut chosen: Option<(Option<f64>, HeteroFit)> = fit_about(tm).map(|f| (None, f));
+    let mut train_t: Vec<f64> = ranges
+        .iter()
+        .flat_map(|r| tp.t_c[r.clone()].iter().copied())
+        .collect();
+    if !train_t.is_empty() {
+        let n_t = train_t.len();
+        let ranks: Vec<usize> = REFERENCE_QUANTILES
+            .iter()
+            .map(|q| ((q * (n_t - 1) as f64).round() as usize).min(n_t - 1))
+            .collect();
+        for r in crate::diagnosis::features::order_statistics(&mut train_t, &ranks) {
+            let Some(f) = fit_about(r) else { continue };
+            let better = match &chosen {
+                None => f.floor > 0.0,
+                Some((_, c)) => f.floor > 0.0 && f.deviance > c.deviance + REFERENCE_MIN_GAIN,
+            };
+            if better {
+                chosen = Some((Some(r), f));
+            }
+        }
+    }
+    let Some((reference_c, fit)) = chosen else {
+        return Ok(Err(
+            "the squared differences' regression on temperature gives no positive level about the mean temperature or its 10 % and 90 % quantiles",
+        ));
     };
     let HeteroFit {
         slope,
@@ -505,7 +552,12 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         ..
     } = fit;
     let f = (v_mod / v).sqrt();
-    let comp = Component::Heteroskedastic { of, slope, floor };
+    let comp = Component::Heteroskedastic {
+        of,
+        slope,
+        floor,
+        reference_c,
+    };
     let level = scaled(&comps[k], f).expect("noise kinds scale");
     // (s - 1) x times f, plus (f - 1) x: (f s - 1) x
     let mut u = cx.sim.extra_signal(cx.spec, cx.channel, &comp)?;
@@ -522,9 +574,14 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
     let mut params = params_json(&comp);
     params["level_factor"] = serde_json::json!(f);
     let mut floor_note = String::new();
-    if floor > 0.0 {
-        let kink_c = tm + (floor - 1.0) / slope;
+    if let Some(r) = reference_c {
         floor_note = format!(
+            "; about {r:.2} degC (the scale is 1 there): the fit about the mean temperature {tm:.2} degC does not reach this clamp"
+        );
+    }
+    if floor > 0.0 {
+        let kink_c = reference_c.unwrap_or(tm) + (floor - 1.0) / slope;
+        floor_note += &format!(
             "; the squared differences level off {} {kink_c:.2} degC: scale floor {floor:.3} (the clamp lowers the residual sum of squares by {:.0} residual variances)",
             if slope > 0.0 { "below" } else { "above" },
             fit.deviance
@@ -536,7 +593,12 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
             );
         }
     }
-    Ok(Some(Proposal {
+    let at = if reference_c.is_some() {
+        "reference"
+    } else {
+        "mean"
+    };
+    Ok(Ok(Proposal {
         also: None,
         kind: "heteroskedastic".into(),
         params,
@@ -545,7 +607,7 @@ fn estimate_heteroskedastic(cx: &Context, tp: &Temperature, tm: f64) -> Result<O
         rescales: Some((k, level)),
         delta: Delta::Each(u),
         note: format!(
-            "regression of the squared differences on temperature; {} carries {:.0} % of their variance in the ensemble, its level at the mean temperature rescaled by {f:.3}{floor_note}",
+            "regression of the squared differences on temperature; {} carries {:.0} % of their variance in the ensemble, its level at the {at} temperature rescaled by {f:.3}{floor_note}",
             of.as_str(),
             100.0 * v / total.max(f64::MIN_POSITIVE)
         ),

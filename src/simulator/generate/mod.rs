@@ -366,14 +366,20 @@ impl<'a> Simulator<'a> {
             )));
         }
         match comp {
-            Component::Heteroskedastic { of, slope, floor } => {
+            Component::Heteroskedastic {
+                of,
+                slope,
+                floor,
+                reference_c,
+            } => {
                 let mut base = vec![0.0; out.len()];
                 for (k, c) in ch.components.iter().enumerate() {
                     if c.kind() == *of {
                         self.add_plain(channel, k, &mut base)?;
                     }
                 }
-                let (t, tref) = self.temperature()?;
+                let (t, mean_c) = self.temperature()?;
+                let tref = reference_c.unwrap_or(mean_c);
                 let s = thermal::scale(*slope, *floor, tref, t);
                 for ((o, b), s) in out.iter_mut().zip(&base).zip(&s) {
                     *o += (s - 1.0) * b;
@@ -658,8 +664,15 @@ impl<'a> Simulator<'a> {
             }
         }
         for (k, comp) in ch.components.iter().enumerate() {
-            if let Component::Heteroskedastic { of, slope, floor } = comp {
-                let (t, tref) = self.temperature()?;
+            if let Component::Heteroskedastic {
+                of,
+                slope,
+                floor,
+                reference_c,
+            } = comp
+            {
+                let (t, mean_c) = self.temperature()?;
+                let tref = reference_c.unwrap_or(mean_c);
                 let s = thermal::scale(*slope, *floor, tref, &t[start..start + len]);
                 let base = &bases[of];
                 for ((o, b), s) in out.iter_mut().zip(base).zip(&s) {

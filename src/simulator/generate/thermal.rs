@@ -109,7 +109,8 @@ pub fn thermal_rate_from(out: &mut [f64], coeff: f64, rate_hz: f64, s: &[f64], s
 }
 
 /// heteroskedastic scale at each sample: max(floor, 1 + slope (T_k - reference_c)),
-/// the reference being the mean temperature, `floor` in [0, 1) (0: a noise scale is
+/// the reference being the component's `reference_c` or else the log's mean
+/// temperature, `floor` in [0, 1) (0: a noise scale is
 /// not negative; above 0: a sensor's noise levels off rather than vanishing).
 pub fn scale(slope: f64, floor: f64, reference_c: f64, temp_c: &[f64]) -> Vec<f64> {
     temp_c

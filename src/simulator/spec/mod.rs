@@ -166,8 +166,15 @@ pub enum Component {
     },
     /// The scale of the channel's `of` noise component varies with temperature:
     /// scale = max(floor, 1 + slope (T - T_ref)); `slope` [1/degC], `floor` (unitless,
-    /// 0 <= floor < 1, default 0) the level the scale does not fall below.
-    Heteroskedastic { of: Kind, slope: f64, floor: f64 },
+    /// 0 <= floor < 1, default 0) the level the scale does not fall below, T_ref =
+    /// `reference_c` [degC] (default: the log's mean temperature), where the
+    /// unclamped scale is 1.
+    Heteroskedastic {
+        of: Kind,
+        slope: f64,
+        floor: f64,
+        reference_c: Option<f64>,
+    },
     /// Cross-axis coupling: `gain` (any sign) times the signal of channel `from`.
     CrossAxis { from: String, gain: f64 },
     /// Output resolution: every output sample rounded to a multiple of `quantum` \[u\]
@@ -390,7 +397,7 @@ impl Kind {
             Kind::ThermalRate => &["coeff", "smoothing_s", "lag_s"],
             Kind::Warmup => &["amplitude", "tau_s"],
             Kind::Outliers => &["rate_hz", "scale", "dof"],
-            Kind::Heteroskedastic => &["of", "slope", "floor"],
+            Kind::Heteroskedastic => &["of", "slope", "floor", "reference_c"],
             Kind::CrossAxis => &["from", "gain"],
             Kind::OutputFilter => &[
                 "form",

@@ -390,6 +390,7 @@ fn decode_component(table: &Table, channel: &str, index: usize) -> Result<Compon
                 of,
                 slope: p.f64("slope")?,
                 floor: p.opt_f64("floor")?.unwrap_or(0.0),
+                reference_c: p.opt_f64("reference_c")?,
             }
         }
         Kind::CrossAxis => Component::CrossAxis {

@@ -156,11 +156,19 @@ fn write_component(out: &mut String, c: &Component) -> Result<()> {
                 line(out, "dof", float(*d));
             }
         }
-        Component::Heteroskedastic { of, slope, floor } => {
+        Component::Heteroskedastic {
+            of,
+            slope,
+            floor,
+            reference_c,
+        } => {
             line(out, "of", string(of.as_str()));
             line(out, "slope", float(*slope));
             if *floor > 0.0 {
                 line(out, "floor", float(*floor));
+            }
+            if let Some(r) = reference_c {
+                line(out, "reference_c", float(*r));
             }
         }
         Component::CrossAxis { from, gain } => {

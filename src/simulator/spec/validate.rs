@@ -93,8 +93,14 @@ fn numbers(c: &Component) -> Vec<(&'static str, f64)> {
             v.extend([("rate_hz", *rate_hz), ("scale", *scale)]);
             v.extend(dof.map(|d| ("dof", d)));
         }
-        Component::Heteroskedastic { slope, floor, .. } => {
+        Component::Heteroskedastic {
+            slope,
+            floor,
+            reference_c,
+            ..
+        } => {
             v.extend([("slope", *slope), ("floor", *floor)]);
+            v.extend(reference_c.map(|r| ("reference_c", r)));
         }
         Component::CrossAxis { gain, .. } => v.push(("gain", *gain)),
         Component::OutputFilter {
@@ -406,8 +412,16 @@ impl Spec {
                         ));
                     }
                 }
-                Component::Heteroskedastic { of, slope, floor } => {
+                Component::Heteroskedastic {
+                    of,
+                    slope,
+                    floor,
+                    reference_c,
+                } => {
                     check.finite("slope", *slope)?;
+                    if let Some(r) = reference_c {
+                        check.finite("reference_c", *r)?;
+                    }
                     check.non_negative("floor", *floor)?;
                     if *floor >= 1.0 {
                         return Err(format!(
