@@ -542,7 +542,7 @@ fn estimate_heteroskedastic(
     }
     let Some((reference_c, fit)) = chosen else {
         return Ok(Err(
-            "the squared differences' regression on temperature gives no positive level about the mean temperature or its 10 % and 90 % quantiles",
+            "the squared differences' regression on temperature gives no positive level about the mean temperature or its 2 % and 98 % quantiles",
         ));
     };
     let HeteroFit {
