@@ -167,7 +167,7 @@ pub enum Component {
     /// The scale of the channel's `of` noise component varies with temperature:
     /// scale = max(floor, 1 + slope (T - T_ref)); `slope` [1/degC], `floor` (unitless,
     /// 0 <= floor < 1, default 0) the level the scale does not fall below, T_ref =
-    /// `reference_c` [degC] (default: the log's mean temperature), where the
+    /// `reference_c` \[degC\] (default: the log's mean temperature), where the
     /// unclamped scale is 1.
     Heteroskedastic {
         of: Kind,
