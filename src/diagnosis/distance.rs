@@ -374,14 +374,21 @@ mod tests {
         assert!(gap(&wide.z(&real), None, &d) < gap(&right.z(&real), None, &d));
     }
 
-    #[test]
-    fn regions_merge_neighbours_and_sort() {
-        let d = defs(8);
+    /// The statistics and calibration of 10 fixed replicas of the 8 features `d`.
+    fn ensemble_of(d: &[FeatureDef]) -> (EnsembleStats, Calibration) {
         let reps: Vec<Vec<f64>> = (0..10)
             .map(|i| (0..8).map(|k| ((i * 7 + k * 3) % 5) as f64).collect())
             .collect();
-        let st = EnsembleStats::new(&reps, &d, None);
-        let cal = Calibration::new(&reps, &d);
+        (
+            EnsembleStats::new(&reps, d, None),
+            Calibration::new(&reps, d),
+        )
+    }
+
+    #[test]
+    fn regions_merge_neighbours_and_sort() {
+        let d = defs(8);
+        let (st, cal) = ensemble_of(&d);
         let mut real = st.mean.clone();
         real[1] += 20.0 * st.sd[1];
         real[2] += 30.0 * st.sd[2];
@@ -403,11 +410,7 @@ mod tests {
             f.statistic = Statistic::Adev;
             f.fold = if i < 4 { 1 } else { 2 };
         }
-        let reps: Vec<Vec<f64>> = (0..10)
-            .map(|i| (0..8).map(|k| ((i * 7 + k * 3) % 5) as f64).collect())
-            .collect();
-        let st = EnsembleStats::new(&reps, &d, None);
-        let cal = Calibration::new(&reps, &d);
+        let (st, cal) = ensemble_of(&d);
         let mut real = st.mean.clone();
         for (k, (v, sd)) in real.iter_mut().zip(&st.sd).enumerate().take(6).skip(2) {
             *v += (20.0 + k as f64) * sd;

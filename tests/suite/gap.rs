@@ -273,6 +273,50 @@ fn a_thermal_rate_behind_a_lagged_temperature_is_found_with_its_lag() {
     assert!(th.params.get("at_search_edge").is_none(), "{}", th.params);
 }
 
+/// A white noise of level `n` whose scale is `het` (a heteroskedastic component) over
+/// the temperature `temp` at 10 Hz (simulation seed `seed`), diagnosed (12 replicas)
+/// against the base spec without the scale, whose white noise is at the log's RMS
+/// level: `n` times the root of `mean_square`, the scale's mean square over the log.
+fn diagnose_hidden_scale(
+    temp: &[f64],
+    n: f64,
+    mean_square: f64,
+    het: Component,
+    seed: u64,
+) -> Diagnosis {
+    use farma::simulator::{SimRequest, simulate};
+    let rate_hz = 10.0;
+    let mut truth = bank::base_spec(rate_hz, true);
+    truth.channels[0].components[0] = Component::WhiteNoise { n };
+    truth.channels[0].components.push(het);
+    let mut spec = bank::base_spec(rate_hz, true);
+    spec.channels[0].components[0] = Component::WhiteNoise {
+        n: n * mean_square.sqrt(),
+    };
+    let mut req = SimRequest::new(temp.len(), rate_hz);
+    req.temperature_c = Some(temp);
+    req.seed = Some(seed);
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz,
+        temperature_c: Some(temp),
+        others: vec![],
+        spec_dir: None,
+        scan: Vec::new(),
+    };
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    diagnose(&real, &spec, &prm).unwrap()
+}
+
 /// A heteroskedastic white noise clamped at its floor over most of the log: a chamber
 /// warming slowly from -10 to 40 degC as (t / T)^3, 71 % of two hours below the kink at
 /// 8 degC of max(0.15, 1 + 0.05 (T - 25 degC)). The log's mean temperature (2.5 degC)
@@ -282,8 +326,7 @@ fn a_thermal_rate_behind_a_lagged_temperature_is_found_with_its_lag() {
 /// where the truth has it. Its floor comes out high, so the gap shrinks without closing.
 #[test]
 fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_reference() {
-    use farma::simulator::{Kind, SimRequest, simulate};
-    let rate_hz = 10.0;
+    use farma::simulator::Kind;
     let n = 72_000;
     let temp: Vec<f64> = (0..n)
         .map(|k| -10.0 + 50.0 * (k as f64 / n as f64).powi(3))
@@ -294,42 +337,13 @@ fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_referen
         .map(|t| (1.0 + k * (t - r)).max(floor).powi(2))
         .sum::<f64>()
         / n as f64;
-    let mut truth = bank::base_spec(rate_hz, true);
-    truth.channels[0].components[0] = Component::WhiteNoise { n: 0.05 };
-    truth.channels[0]
-        .components
-        .push(Component::Heteroskedastic {
-            of: Kind::WhiteNoise,
-            slope: k,
-            floor,
-            reference_c: Some(r),
-        });
-    let mut spec = bank::base_spec(rate_hz, true);
-    spec.channels[0].components[0] = Component::WhiteNoise {
-        n: 0.05 * ms.sqrt(),
+    let het = Component::Heteroskedastic {
+        of: Kind::WhiteNoise,
+        slope: k,
+        floor,
+        reference_c: Some(r),
     };
-    let mut req = SimRequest::new(n, rate_hz);
-    req.temperature_c = Some(&temp);
-    req.seed = Some(616);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
-    let real = RealLog {
-        channel: CHANNEL.into(),
-        x: &x,
-        rate_hz,
-        temperature_c: Some(&temp),
-        others: vec![],
-        spec_dir: None,
-        scan: Vec::new(),
-    };
-    let prm = GapParams {
-        replicas: 12,
-        ..GapParams::default()
-    };
-    let d = diagnose(&real, &spec, &prm).unwrap();
+    let d = diagnose_hidden_scale(&temp, 0.05, ms, het, 616);
     let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
     assert!(d.gap_before > d.gap_threshold, "{}", d.gap_before);
     assert_eq!(
@@ -370,7 +384,7 @@ fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_referen
 /// closes, and nothing was added. The candidate sets the level along with the slope.
 #[test]
 fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
-    use farma::simulator::{Kind, SimRequest, simulate};
+    use farma::simulator::Kind;
     let rate_hz = 10.0;
     let n = 36_000;
     let temp: Vec<f64> = (0..n)
@@ -383,42 +397,13 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         .map(|t| (1.0 + k * (t - tm)).max(0.0).powi(2))
         .sum::<f64>()
         / n as f64;
-    let mut truth = bank::base_spec(rate_hz, true);
-    truth.channels[0].components[0] = Component::WhiteNoise { n: 0.02 };
-    truth.channels[0]
-        .components
-        .push(Component::Heteroskedastic {
-            of: Kind::WhiteNoise,
-            slope: k,
-            floor: 0.0,
-            reference_c: None,
-        });
-    let mut spec = bank::base_spec(rate_hz, true);
-    spec.channels[0].components[0] = Component::WhiteNoise {
-        n: 0.02 * ms.sqrt(),
+    let het = Component::Heteroskedastic {
+        of: Kind::WhiteNoise,
+        slope: k,
+        floor: 0.0,
+        reference_c: None,
     };
-    let mut req = SimRequest::new(n, rate_hz);
-    req.temperature_c = Some(&temp);
-    req.seed = Some(515);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
-    let real = RealLog {
-        channel: CHANNEL.into(),
-        x: &x,
-        rate_hz,
-        temperature_c: Some(&temp),
-        others: vec![],
-        spec_dir: None,
-        scan: Vec::new(),
-    };
-    let prm = GapParams {
-        replicas: 12,
-        ..GapParams::default()
-    };
-    let d = diagnose(&real, &spec, &prm).unwrap();
+    let d = diagnose_hidden_scale(&temp, 0.02, ms, het, 515);
     let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
     assert!(d.gap_before > d.gap_threshold, "{}", d.gap_before);
     assert_eq!(
