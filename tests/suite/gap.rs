@@ -322,8 +322,8 @@ fn diagnose_hidden_scale(
 /// 8 degC of max(0.15, 1 + 0.05 (T - 25 degC)). The log's mean temperature (2.5 degC)
 /// lies on the floor, where no line through 1 at the mean fits the scale (one fold found
 /// no fit at all, and the candidate was not scored); the candidate is fitted about a
-/// warm quantile of the temperature instead (reference_c) and added first, its kink
-/// where the truth has it. Its floor comes out high, so the gap shrinks without closing.
+/// warm quantile of the temperature instead (reference_c) and added first, its kink and
+/// its floor where the truth has them, and the gap closes.
 #[test]
 fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_reference() {
     use farma::simulator::Kind;
@@ -362,19 +362,16 @@ fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_referen
         .as_f64()
         .expect("a reference other than the mean");
     let (slope, fl) = (p["slope"].as_f64().unwrap(), p["floor"].as_f64().unwrap());
-    // what does not depend on the reference: the kink (the scale's range from the
-    // floor to 40 degC, 11.7 in the truth, comes out at 9.0 here: the floor is read
-    // 0.19 about 25 degC for the true 0.15)
+    // what does not depend on the reference: the kink, and the floor as a share of
+    // the scale at the reference (the truth's 0.15 / (1 + k (reference - 25)))
     let kink_c = reference + (fl - 1.0) / slope;
-    assert!((kink_c - 8.0).abs() < 2.0, "kink {kink_c} degC ({p})");
-    // the gap does not close (18.4 -> 4.5 against 2 x floor 2.2): the clamp's floor
-    // is read too high; it shrinks by three quarters
+    assert!((kink_c - 8.0).abs() < 1.0, "kink {kink_c} degC ({p})");
+    let floor_want = floor / (1.0 + k * (reference - r));
     assert!(
-        d.gap_after < 0.4 * d.gap_before,
-        "gap {} -> {} ({kinds:?})",
-        d.gap_before,
-        d.gap_after
+        (fl - floor_want).abs() < 0.1 * floor_want,
+        "floor {fl} vs {floor_want} ({p})"
     );
+    assert_explained(&d);
 }
 
 /// A heteroskedastic white noise whose spec gives its RMS level over the log: the

@@ -9,8 +9,9 @@
 //!   simulator's scale 1 + k (T - Tm), v_other being the other components' variance
 //!   of d (from the ensemble): the slope k and the modulated component's level v_mod,
 //!   which the proposal sets along with the scale; where the squared differences level
-//!   off on one side, the clamped scale max(floor, 1 + k (T - Tm)) by a search over the
-//!   temperature of the clamp's kink ([`heteroskedastic_floor_form`]).
+//!   off on one side, the clamped scale max(floor, 1 + k (T - Tm)) by maximum
+//!   likelihood in its level and slope, profiled over the temperature of the clamp's
+//!   kink ([`heteroskedastic_floor_form`]).
 
 use super::lsq::{golden_argmin, ls, ls_full, refine_on_log_grid, shrink_ranges};
 use super::params::{flag_edge, params_json, scaled};
@@ -233,7 +234,7 @@ fn heteroskedastic_form(
 /// unclamped one. The kink is searched over about fifty temperatures and the squared
 /// differences of neighbouring samples are correlated; a chi-square of one degree of
 /// freedom exceeds 25 with probability 6e-7, and on the unclamped logs of the tests
-/// the best clamp lowers -2 ln L by under 5.
+/// the best clamp lowers -2 ln L by under 7.
 pub(super) const FLOOR_MIN_DEVIANCE: f64 = 25.0;
 
 /// Shares of the samples (in temperature order, from the clamped side) beyond the
@@ -257,58 +258,84 @@ struct HeteroFit {
     deviance: f64,
 }
 
-/// Maximum (Gaussian) likelihood of the variance model var(d_t) = a + b u_t + e u_t^2
-/// given the squared differences d2 over `ranges`: d_t^2 / var(d_t) is chi-square of
-/// one degree of freedom, a gamma family, and Fisher scoring with the identity link is
-/// least squares of d^2 on 1, u, u^2 weighted by 1 / var(d_t)^2, iterated (McCullagh
-/// and Nelder, Generalized Linear Models, 2nd ed., 1989, sections 2.5 and 8.3). From
-/// `start`, at most 8 iterations (to a relative change of 1e-9); the variance is held
-/// at 1e-6 of the mean d^2 or above. ((a, b, e), -2 ln L up to its constant: the sum of
-/// ln var + d^2 / var); None when a system is singular.
-fn variance_ml(
+/// Maximum (Gaussian) likelihood of the scale model var(d_t) = v_other + (s + g u_t)^2
+/// given the squared differences d2 over `ranges`, the model's own two parameters:
+/// with s = sqrt(v_mod) and g = s k it is v_other + v_mod (1 + k u)^2, the form
+/// [`heteroskedastic_form`] expands into a + b u + e u^2 with e = b^2 / (4 v_mod) tied
+/// to the others (a free e would let the curvature take what the slope and the floor
+/// should). d_t^2 / var(d_t) is chi-square of one degree of freedom; Fisher scoring
+/// minimizes -2 ln L = sum (ln v_t + d_t^2 / v_t) by the weighted least squares of
+/// d^2 - v on the gradient (2 m, 2 m u), m = s + g u, weights 1 / v^2 (McCullagh and
+/// Nelder, Generalized Linear Models, 2nd ed., 1989, sections 2.5 and 9.2), the step
+/// halved until -2 ln L falls. From `start`, at most 30 steps (to a relative change of
+/// 1e-9); the variance is held at `min_var` or above. ((s, g) with s >= 0, -2 ln L up
+/// to its constant); None when a system is singular or -2 ln L is not finite.
+fn scale_ml(
     d2: &[f64],
     u: &[f64],
     ranges: &[std::ops::Range<usize>],
-    start: [f64; 3],
+    v_other: f64,
+    start: [f64; 2],
     min_var: f64,
-) -> Option<([f64; 3], f64)> {
-    let var = |c: &[f64; 3], x: f64| (c[0] + x * (c[1] + x * c[2])).max(min_var);
-    let mut c = start;
-    for _ in 0..8 {
-        let mut ata = [0.0; 9];
-        let mut aty = [0.0; 3];
+) -> Option<([f64; 2], f64)> {
+    // -2 ln L at c, with the scoring system's sums there (J'WJ, J'W (d^2 - v))
+    let pass = |c: &[f64; 2]| -> (f64, [f64; 3], [f64; 2]) {
+        let (mut f, mut ata, mut aty) = (0.0, [0.0; 3], [0.0; 2]);
         for r in ranges {
             for t in r.clone() {
                 let x = u[t];
-                let v = var(&c, x);
-                let w = 1.0 / (v * v);
-                let row = [1.0, x, x * x];
-                for i in 0..3 {
-                    aty[i] += w * row[i] * d2[t];
-                    for j in 0..3 {
-                        ata[i * 3 + j] += w * row[i] * row[j];
-                    }
+                let m = c[0] + c[1] * x;
+                if m <= 0.0 {
+                    f = f64::INFINITY;
                 }
+                let v = (v_other + m * m).max(min_var);
+                f += v.ln() + d2[t] / v;
+                let w = 4.0 * m * m / (v * v);
+                let g = 2.0 * m * (d2[t] - v) / (v * v);
+                ata[0] += w;
+                ata[1] += w * x;
+                ata[2] += w * x * x;
+                aty[0] += g;
+                aty[1] += g * x;
             }
         }
-        let b = crate::estimator::linalg::normal_equations(&ata, &aty, 3)?;
-        let next = [b[0], b[1], b[2]];
-        let change = (0..3)
+        (f, ata, aty)
+    };
+    let mut c = start;
+    let (mut f, mut ata, mut aty) = pass(&c);
+    if !f.is_finite() {
+        return None;
+    }
+    for _ in 0..30 {
+        let step =
+            crate::estimator::linalg::normal_equations(&[ata[0], ata[1], ata[1], ata[2]], &aty, 2)?;
+        let mut h = 1.0;
+        let mut taken = None;
+        for _ in 0..10 {
+            let next = [c[0] + h * step[0], c[1] + h * step[1]];
+            let p = pass(&next);
+            if p.0.is_finite() && p.0 <= f {
+                taken = Some((next, p));
+                break;
+            }
+            h *= 0.5;
+        }
+        let Some((next, p)) = taken else { break };
+        let change = (0..2)
             .map(|i| (next[i] - c[i]).abs() / (next[i].abs() + c[i].abs()).max(f64::MIN_POSITIVE))
             .fold(0.0, f64::max);
+        let fall = f - p.0;
         c = next;
-        if change < 1e-9 {
+        (f, ata, aty) = p;
+        if change < 1e-9 || fall < 1e-6 {
             break;
         }
     }
-    let mut nll = 0.0;
-    for r in ranges {
-        for t in r.clone() {
-            let v = var(&c, u[t]);
-            nll += v.ln() + d2[t] / v;
-        }
+    // (s, g) and (-s, -g) are one model
+    if c[0] < 0.0 {
+        c = [-c[0], -c[1]];
     }
-    nll.is_finite().then_some((c, nll))
+    Some((c, f))
 }
 
 /// The clamped form E[d^2] = v_other + v_mod max(floor, 1 + k dT)^2 (dT = T - Tm): for
@@ -318,12 +345,15 @@ fn variance_ml(
 /// k < 0, the clamp on the warm side), with floor = 1 + k c. The squared differences'
 /// spread grows with their mean (a chi-square's), so where the scale levels off the
 /// ordinary least squares of [`heteroskedastic_form`] hardly sees the clamp; each form
-/// is fitted by maximum likelihood instead ([`variance_ml`], from the ordinary least
-/// squares of the unclamped form), and the kink profiled out (the change-point fit of a
-/// segmented regression; Hudson, J. Am. Stat. Assoc. 61, 1966) over the temperatures
-/// beyond which [`floor_shares`] of the samples lie, on each side of Tm, keeping fits
+/// is fitted by maximum likelihood instead, in the model's own two parameters
+/// ([`scale_ml`]: the level and the slope, the curvature tied to them), and the kink
+/// profiled out (the change-point fit of a segmented regression; Hudson, J. Am. Stat.
+/// Assoc. 61, 1966) over the temperatures beyond which [`floor_shares`] of the samples
+/// lie, on each side of Tm, each kink's fit starting from its neighbour's (or from a
+/// constant scale where that start would put the scale at or below 0), keeping fits
 /// with k of the side's sign and 0 <= floor < 1. The best is taken when it lowers
-/// -2 ln L by [`FLOOR_MIN_DEVIANCE`] against the unclamped form's maximum likelihood;
+/// -2 ln L by [`FLOOR_MIN_DEVIANCE`] against the unclamped form's maximum likelihood
+/// (the better of the two starts: the ordinary least squares and a constant scale);
 /// otherwise the unclamped ordinary least squares is returned (floor 0, the same slope
 /// and level as [`heteroskedastic_form`]). A kink at the first or last temperature
 /// searched on its side is flagged `at_edge`. None when the unclamped regression is
@@ -364,21 +394,40 @@ fn heteroskedastic_floor_form(
     if min_var.is_nan() || min_var <= 0.0 {
         return Some(unclamped);
     }
-    let start = [b0[0], b0[1], b0[2]];
-    let Some((_, nll0)) = variance_ml(d2, dt, ranges, start, min_var) else {
+    // the starts of the two-parameter fits: the unclamped least squares, a constant
+    // scale (m = s > 0 everywhere: always a valid start)
+    let s0 = v_mod0.sqrt();
+    let flat = [(mean_d2 - v_other).max(min_var).sqrt(), 0.0];
+    // a start is valid when m = s + g u > 0 over u's range [lo, hi]
+    let valid = |c: &[f64; 2], lo: f64, hi: f64| c[0] + c[1] * lo > 0.0 && c[0] + c[1] * hi > 0.0;
+    sorted.sort_by(f64::total_cmp);
+    let (lo_all, hi_all) = (sorted[0], sorted[n - 1]);
+    let Some(nll0) = [[s0, s0 * unclamped.slope], flat]
+        .iter()
+        .filter(|c| valid(c, lo_all, hi_all))
+        .filter_map(|c| scale_ml(d2, dt, ranges, v_other, *c, min_var))
+        .map(|(_, f)| f)
+        .reduce(f64::min)
+    else {
         return Some(unclamped);
     };
-    sorted.sort_by(f64::total_cmp);
-    // the clamped form's fit at kink c on the low (k > 0) or high side, from `from`:
-    // (-2 ln L, fit, coefficients), None when singular or out of the form's range
-    let fit_at = |low: bool, c: f64, from: [f64; 3]| -> Option<(f64, HeteroFit, [f64; 3])> {
+    // the clamped form's fit at kink c on the low (k > 0) or high side, from `from`
+    // when it is a valid start there, else from a constant scale: (-2 ln L, fit, (s, g)),
+    // None when singular or out of the form's range
+    let fit_at = |low: bool, c: f64, from: [f64; 2]| -> Option<(f64, HeteroFit, [f64; 2])> {
         let u: Vec<f64> = dt
             .iter()
             .map(|&v| if low { v.max(c) } else { v.min(c) })
             .collect();
-        let (b, nll) = variance_ml(d2, &u, ranges, from, min_var)?;
-        let v_mod = b[0] - v_other;
-        let k = b[1] / (2.0 * v_mod);
+        let (lo, hi) = if low {
+            (c, hi_all.max(c))
+        } else {
+            (lo_all.min(c), c)
+        };
+        let start = if valid(&from, lo, hi) { from } else { flat };
+        let (b, nll) = scale_ml(d2, &u, ranges, v_other, start, min_var)?;
+        let v_mod = b[0] * b[0];
+        let k = b[1] / b[0];
         let floor = 1.0 + k * c;
         let fit = HeteroFit {
             slope: k,
@@ -390,7 +439,7 @@ fn heteroskedastic_floor_form(
         (v_mod > 0.0 && (k > 0.0) == low && (0.0..1.0).contains(&floor)).then_some((nll, fit, b))
     };
     // (-2 ln L, fit, coefficients, side, kinks searched on it, index of the best)
-    type Best = (f64, HeteroFit, [f64; 3], bool, Vec<f64>, usize);
+    type Best = (f64, HeteroFit, [f64; 2], bool, Vec<f64>, usize);
     let mut best: Option<Best> = None;
     for low in [true, false] {
         let mut kinks: Vec<f64> = floor_shares()
@@ -401,8 +450,8 @@ fn heteroskedastic_floor_form(
             .filter(|&c| if low { c < 0.0 } else { c > 0.0 })
             .collect();
         kinks.dedup();
-        let mut from = start;
-        let mut side: Option<(f64, HeteroFit, [f64; 3], usize)> = None;
+        let mut from = [s0, s0 * unclamped.slope];
+        let mut side: Option<(f64, HeteroFit, [f64; 2], usize)> = None;
         for (i, &c) in kinks.iter().enumerate() {
             let Some((nll, fit, b)) = fit_at(low, c, from) else {
                 continue;
