@@ -41,9 +41,10 @@ pub struct GapArgs {
     /// Most effects the greedy search adds.
     #[arg(long, default_value_t = 4, value_name = "N")]
     pub max_effects: usize,
-    /// Estimate the kept effects again after each addition, and let a round's rivals
-    /// compete with its best (each trial copies both folds' ensembles: about twice
-    /// the peak memory, and more time).
+    /// Estimate every kept effect again after each addition (by default only those
+    /// estimated at the edge of a search range), and let a round's rivals compete with
+    /// its best (each trial copies both folds' ensembles: about twice the peak memory,
+    /// and more time).
     #[arg(long)]
     pub reestimate: bool,
     /// Keep test-stand events (shocks seen on the diagnosed channel and at least two

@@ -918,6 +918,21 @@ fn diagnose_log(
             ens_now = e;
             gap_now = g;
         }
+        // the kept effects estimated at the edge of a search range, again beside the
+        // round's addition
+        if !prm.reestimate
+            && let Some(newest) = steps.iter().rposition(|s| s.action == "add")
+        {
+            let mut search = reestimate::Search {
+                sts: &mut sts,
+                slots: &mut slots,
+                added: &mut added,
+                gap_now: &mut gap_now,
+                ens_now: &mut ens_now,
+                steps: &mut steps,
+            };
+            refit.bounds_again(&mut search, newest + 1)?;
+        }
         lap(&format!("round {round_no}: backward steps"));
         if added.len() >= prm.max_added {
             notes.push(format!(

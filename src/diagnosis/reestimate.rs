@@ -77,7 +77,8 @@ pub(super) type ScoreFn<'a> =
 /// What re-estimation reads from the diagnosis: the log and the simulation base the
 /// forward steps estimate on, and the scoring they use.
 pub(super) struct Refit<'a> {
-    /// False: no re-estimation and no rivals (an addition is the round's best alone).
+    /// False: no rivals, and only the effects estimated at the edge of a search range
+    /// are estimated again after an addition ([`Refit::bounds_again`]).
     pub enabled: bool,
     pub channel: usize,
     pub replicas: usize,
@@ -168,6 +169,36 @@ impl Refit<'_> {
         s.added.push(eff);
         if self.enabled {
             self.after_addition(s)?;
+        }
+        Ok(())
+    }
+
+    /// Without re-estimation (the default): once a round's addition and backward steps
+    /// are done, the earlier effects whose estimate stopped at the edge of its search
+    /// range (`at_edge`) and that the backward steps kept are estimated again with the
+    /// newest in place, then the newest when one of them changed. A bound, not an
+    /// estimate, is what an effect missing from the residual often leaves behind in
+    /// another's fit (a thermal rate whose lag and smoothing run to the top of their
+    /// ranges while it stands in for part of a temperature bias); the others keep their
+    /// estimates, and the states are copied only for these. `newest`: the step that
+    /// added the round's effect (nothing is done when it was taken back).
+    pub fn bounds_again(&self, s: &mut Search, newest: usize) -> Result<()> {
+        if !s.added.iter().any(|e| e.step == Some(newest)) {
+            return Ok(());
+        }
+        let at_edge: Vec<usize> = s
+            .added
+            .iter()
+            .filter(|e| !e.at_edge.is_empty())
+            .filter_map(|e| e.step)
+            .filter(|&id| id != newest)
+            .collect();
+        let mut changed = false;
+        for id in at_edge {
+            changed |= self.one(s, id)?;
+        }
+        if changed {
+            self.one(s, newest)?;
         }
         Ok(())
     }
@@ -411,7 +442,8 @@ impl Refit<'_> {
         let Some((mut eff, e, [p0, p1], _)) = round.best else {
             return Ok(false);
         };
-        if eff.gap_after >= *s.gap_now {
+        // a fall within rounding (the same estimate found again) changes nothing
+        if eff.gap_after >= *s.gap_now * (1.0 - 1e-9) {
             return Ok(false);
         }
         trial_slots.push([
