@@ -324,6 +324,7 @@ fn diagnose_log(
     // pairs alive at once (the search's, the best trial's, the one being tried)
     let trial_signals = if prm.reestimate { 6 } else { 0 };
     let n_signals = 2 * (n_comp + 1) + real.others.len() + trial_signals;
+    let ensemble_bytes = 8.0 * n as f64 * prm.replicas as f64 * n_signals as f64;
     crate::workflow::budget::check_memory(
         &format!("--replicas {}", prm.replicas),
         &format!(
@@ -335,7 +336,7 @@ fn diagnose_log(
                 ""
             }
         ),
-        8.0 * n as f64 * prm.replicas as f64 * n_signals as f64,
+        ensemble_bytes,
     )?;
     let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
     let max_rounds = 2 * prm.max_added + 2;
@@ -919,19 +920,33 @@ fn diagnose_log(
             gap_now = g;
         }
         // the kept effects estimated at the edge of a search range, again beside the
-        // round's addition
+        // round's addition, on a copy of both folds' states when it fits in memory
         if !prm.reestimate
-            && let Some(newest) = steps.iter().rposition(|s| s.action == "add")
+            && let Some(newest) = steps.iter().rposition(|s| s.action == "add").map(|i| i + 1)
+            && added
+                .iter()
+                .any(|e| !e.at_edge.is_empty() && e.step != Some(newest))
         {
-            let mut search = reestimate::Search {
-                sts: &mut sts,
-                slots: &mut slots,
-                added: &mut added,
-                gap_now: &mut gap_now,
-                ens_now: &mut ens_now,
-                steps: &mut steps,
-            };
-            refit.bounds_again(&mut search, newest + 1)?;
+            let copy_bytes = 8.0
+                * n as f64
+                * prm.replicas as f64
+                * (2 * (sts[0].spec.channels[channel].components.len() + 1)) as f64;
+            if ensemble_bytes + copy_bytes <= crate::workflow::budget::memory_limit_bytes() {
+                let mut search = reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                };
+                refit.bounds_again(&mut search, newest)?;
+            } else {
+                notes.push(format!(
+                    "the effects estimated at the edge of a search range were not estimated again: a copy of both folds' states (about {:.1} GB) would exceed the memory limit",
+                    copy_bytes / 1e9
+                ));
+            }
         }
         lap(&format!("round {round_no}: backward steps"));
         if added.len() >= prm.max_added {

@@ -1126,14 +1126,10 @@ fn cli_excludes_a_knock_seen_on_every_channel_and_keep_events_keeps_it() {
     );
 }
 
-/// A thermal-rate drift (through a 300 s lag) beside a temperature bias over a soak, a
-/// linear ramp from 15 to 45 degC and a soak (two hours at 10 Hz). Alone in the
-/// residual, the thermal rate's smoothing runs to the top of its range (1000 s, for the
-/// true 150 s) while it also takes part of the bias; once a later effect is in, that
-/// bound is estimated again beside it (a `reestimate` step: 100 s here), the temperature
-/// bias is added and the gap closes (10.95 -> 1.49 against 1.67).
-#[test]
-fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bias() {
+/// The log of the test below: a thermal rate 20 dT/dt (150 s smoothing, 300 s lag) and
+/// a temperature bias -0.002 (T - 25 degC) beside the bank's base spec over a soak, a
+/// ramp from 15 to 45 degC and a soak (two hours at 10 Hz): (rate, temperature, spec).
+fn thermal_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
     use farma::simulator::{SimRequest, simulate};
     let rate_hz = 10.0;
     let n = 72_000;
@@ -1164,10 +1160,22 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
         .channel(CHANNEL)
         .unwrap()
         .to_vec();
+    (x, temp, spec)
+}
+
+/// A thermal-rate drift (through a 300 s lag) beside a temperature bias over a soak, a
+/// linear ramp from 15 to 45 degC and a soak (two hours at 10 Hz). Alone in the
+/// residual, the thermal rate's smoothing runs to the top of its range (1000 s, for the
+/// true 150 s) while it also takes part of the bias; once a later effect is in, that
+/// bound is estimated again beside it (a `reestimate` step: 100 s here), the temperature
+/// bias is added and the gap closes (10.95 -> 1.49 against 1.67).
+#[test]
+fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bias() {
+    let (x, temp, spec) = thermal_beside_bias_log();
     let real = RealLog {
         channel: CHANNEL.into(),
         x: &x,
-        rate_hz,
+        rate_hz: 10.0,
         temperature_c: Some(&temp),
         others: vec![],
         spec_dir: None,
@@ -1204,5 +1212,55 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
         "gap {} -> {} ({kinds:?})",
         d.gap_before,
         d.gap_after
+    );
+}
+
+/// The same log through the command line with a memory limit above the ensemble's
+/// (0.04 GB) but below it plus a copy of both folds' states: the bound is not
+/// estimated again, and a note says why.
+#[test]
+fn a_bound_is_left_as_it_is_when_its_copy_would_pass_the_memory_limit() {
+    let (x, temp, spec) = thermal_beside_bias_log();
+    let dir = tempfile::tempdir().unwrap();
+    let spec_path = dir.path().join("spec.toml");
+    std::fs::write(&spec_path, spec.to_toml().unwrap()).unwrap();
+    let mut csv = format!("time_s,{CHANNEL},{}\n", bank::TEMP);
+    for (t, (v, c)) in x.iter().zip(&temp).enumerate() {
+        csv.push_str(&format!("{},{v},{c}\n", t as f64 / 10.0));
+    }
+    let log = dir.path().join("log.csv");
+    std::fs::write(&log, csv).unwrap();
+    let out = farma(&[
+        "gap",
+        "--real",
+        log.to_str().unwrap(),
+        "--sim",
+        spec_path.to_str().unwrap(),
+        "--channel",
+        CHANNEL,
+        "--replicas",
+        "12",
+        "--json",
+        "--no-cache",
+        "-o",
+        dir.path().join("out").to_str().unwrap(),
+        "--memory-limit",
+        "0.08",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert!(
+        steps.iter().all(|s| s["action"] != "reestimate"),
+        "{steps:?}"
+    );
+    let notes = v["notes"].to_string();
+    assert!(
+        notes.contains("not estimated again") && notes.contains("memory limit"),
+        "{notes}"
     );
 }
