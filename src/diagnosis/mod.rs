@@ -923,9 +923,7 @@ fn diagnose_log(
         // round's addition, on a copy of both folds' states when it fits in memory
         if !prm.reestimate
             && let Some(newest) = steps.iter().rposition(|s| s.action == "add").map(|i| i + 1)
-            && added
-                .iter()
-                .any(|e| !e.at_edge.is_empty() && e.step != Some(newest))
+            && !reestimate::bounds(&added, newest).is_empty()
         {
             let copy_bytes = 8.0
                 * n as f64
@@ -940,7 +938,26 @@ fn diagnose_log(
                     ens_now: &mut ens_now,
                     steps: &mut steps,
                 };
+                let edges: Vec<(String, Vec<String>)> = reestimate::bounds(search.added, newest)
+                    .into_iter()
+                    .filter_map(|id| search.added.iter().find(|e| e.step == Some(id)))
+                    .map(|e| (e.kind.clone(), e.at_edge.clone()))
+                    .collect();
+                let before = search.steps.len();
                 refit.bounds_again(&mut search, newest)?;
+                for st in &steps[before..] {
+                    let edge = edges
+                        .iter()
+                        .find(|(k, _)| *k == st.kind)
+                        .map(|(_, a)| {
+                            format!(" (its {} at the edge of the search range)", a.join(", "))
+                        })
+                        .unwrap_or_default();
+                    notes.push(format!(
+                        "{} estimated again with the later effects in place{edge}: gap {:.3} -> {:.3}",
+                        st.kind, st.gap_before, st.gap_after
+                    ));
+                }
             } else {
                 notes.push(format!(
                     "the effects estimated at the edge of a search range were not estimated again: a copy of both folds' states (about {:.1} GB) would exceed the memory limit",

@@ -67,6 +67,21 @@ pub(super) fn rivals<'e>(
     out
 }
 
+/// The steps of the kept effects that [`Refit::bounds_again`] estimates again: those
+/// with a parameter at the edge of its search range, other than the round's addition
+/// `newest`; none when `newest` was taken back.
+pub(super) fn bounds(added: &[Effect], newest: usize) -> Vec<usize> {
+    if !added.iter().any(|e| e.step == Some(newest)) {
+        return Vec::new();
+    }
+    added
+        .iter()
+        .filter(|e| !e.at_edge.is_empty())
+        .filter_map(|e| e.step)
+        .filter(|&id| id != newest)
+        .collect()
+}
+
 /// The replicas' features of both folds' states, each state's sum plus the given
 /// change (one signal per replica) when there is one.
 pub(super) type FeatsFn<'a> = dyn Fn(&[State; 2], [Option<&[&[f64]]>; 2]) -> Vec<Vec<f64>> + 'a;
@@ -183,18 +198,8 @@ impl Refit<'_> {
     /// estimates, and the states are copied only for these. `newest`: the step that
     /// added the round's effect (nothing is done when it was taken back).
     pub fn bounds_again(&self, s: &mut Search, newest: usize) -> Result<()> {
-        if !s.added.iter().any(|e| e.step == Some(newest)) {
-            return Ok(());
-        }
-        let at_edge: Vec<usize> = s
-            .added
-            .iter()
-            .filter(|e| !e.at_edge.is_empty())
-            .filter_map(|e| e.step)
-            .filter(|&id| id != newest)
-            .collect();
         let mut changed = false;
-        for id in at_edge {
+        for id in bounds(s.added, newest) {
             changed |= self.one(s, id)?;
         }
         if changed {
