@@ -178,6 +178,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "seed",
             "max_effects",
             "reestimate",
+            "screen",
             "keep_events",
         ],
     }

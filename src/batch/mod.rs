@@ -503,6 +503,7 @@ fn run_task(
                     seed: opt_usize(task, "seed")?.map(|s| s as u64),
                     max_added: opt_usize(task, "max_effects")?.unwrap_or(d.max_added),
                     reestimate: opt_bool(task, "reestimate")?.unwrap_or(d.reestimate),
+                    screen: opt_bool(task, "screen")?.unwrap_or(d.screen),
                     keep_events: opt_bool(task, "keep_events")?.unwrap_or(d.keep_events),
                     ..d
                 },

@@ -47,6 +47,11 @@ pub struct GapArgs {
     /// and more time).
     #[arg(long)]
     pub reestimate: bool,
+    /// Score every candidate on every replica; by default a round's candidates are
+    /// scored on a quarter of the replicas first (at M >= 20), and only those whose gap
+    /// there is below 1.3 times the round's lowest are scored on the rest.
+    #[arg(long)]
+    pub no_screen: bool,
     /// Keep test-stand events (shocks seen on the diagnosed channel and at least two
     /// other channels at once) in the real log; by default each is replaced by the
     /// stretch before it and listed in `events_excluded`.
@@ -83,6 +88,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             seed: a.seed,
             max_added: a.max_effects,
             reestimate: a.reestimate,
+            screen: !a.no_screen,
             keep_events: a.keep_events,
             ..GapParams::default()
         },

@@ -135,8 +135,11 @@ pub struct Layout {
 #[derive(Clone, Debug)]
 struct TempLayout {
     t_mean: f64,
-    t_edges: Vec<f64>,
-    r_edges: Vec<f64>,
+    /// The normal matrix of the regressors (1, T - Tm, (T - Tm)^2, dT/dt) over the
+    /// part, row-major: the same for every series.
+    ata: [f64; 16],
+    /// Per sample of the part (blocks in order): its temperature bin and its dT/dt bin.
+    bins: Vec<(u8, u8)>,
 }
 
 const N_BINS: usize = 5;
@@ -341,11 +344,24 @@ impl Layout {
                     fold,
                 });
             }
-            TempLayout {
-                t_mean,
-                t_edges,
-                r_edges,
+            let mut ata = [0.0; 16];
+            let mut bins = Vec::with_capacity(ranges.iter().map(|r| r.len()).sum());
+            for r in &ranges {
+                for i in r.clone() {
+                    let dtc = tp.t_c[i] - t_mean;
+                    let row = [1.0, dtc, dtc * dtc, tp.dtdt_c_per_s[i]];
+                    for a in 0..4 {
+                        for b in 0..4 {
+                            ata[a * 4 + b] += row[a] * row[b];
+                        }
+                    }
+                    bins.push((
+                        bin_of(&t_edges, tp.t_c[i]) as u8,
+                        bin_of(&r_edges, tp.dtdt_c_per_s[i]) as u8,
+                    ));
+                }
             }
+            TempLayout { t_mean, ata, bins }
         });
 
         for k in 0..N_BINS {
@@ -396,8 +412,9 @@ impl Layout {
         &self.ms
     }
 
-    /// The features of series `x` (a whole log's length), with the log's temperature and
-    /// the other channels (same order as the names given to [`Layout::new`]).
+    /// The features of series `x` (a whole log's length), with the log's temperature (the
+    /// one given to [`Layout::new`], whose regressors and bins the layout holds) and the
+    /// other channels (same order as the names given to [`Layout::new`]).
     pub fn compute(
         &self,
         x: &[f64],
@@ -480,6 +497,45 @@ impl Layout {
         out
     }
 
+    /// Seconds each family of [`Layout::compute_with`] takes on `x`, `reps` times over
+    /// (for `benches/features.rs`; the features are computed and dropped).
+    #[doc(hidden)]
+    pub fn family_seconds(
+        &self,
+        x: &[f64],
+        temperature: Option<&Temperature>,
+        reps: usize,
+    ) -> Vec<(&'static str, f64)> {
+        let time = |f: &dyn Fn() -> usize| {
+            let t0 = std::time::Instant::now();
+            let mut k = 0;
+            for _ in 0..reps {
+                k += std::hint::black_box(f());
+            }
+            std::hint::black_box(k);
+            t0.elapsed().as_secs_f64()
+        };
+        let mut out = vec![
+            ("adev", time(&|| self.ln_avar(x).len())),
+            ("psd", time(&|| self.ln_psd(x).len())),
+            (
+                "time",
+                time(&|| {
+                    self.windows
+                        .iter()
+                        .map(|w| mean_var(&x[w.clone()]).0 as usize)
+                        .sum()
+                }),
+            ),
+            ("distribution", time(&|| self.distribution(x).len())),
+            ("state", time(&|| self.state(x).len())),
+        ];
+        if let (Some(tl), Some(tp)) = (&self.temp, temperature) {
+            out.push(("temperature", time(&|| self.temperature(x, tl, tp).len())));
+        }
+        out
+    }
+
     /// ln of the pooled Allan variance at the layout's averaging factors.
     pub fn ln_avar(&self, x: &[f64]) -> Vec<f64> {
         let mut num = vec![0.0; self.ms.len()];
@@ -547,11 +603,10 @@ impl Layout {
     }
 
     fn distribution(&self, x: &[f64]) -> Vec<f64> {
-        let mut d: Vec<f64> = self
-            .ranges
-            .iter()
-            .flat_map(|r| (r.start + 1..r.end).map(move |t| x[t] - x[t - 1]))
-            .collect();
+        let mut d: Vec<f64> = Vec::with_capacity(x.len());
+        for r in &self.ranges {
+            d.extend(x[r.clone()].windows(2).map(|w| w[1] - w[0]));
+        }
         let (m, v) = mean_var(&d);
         // the fourth central moment and |d| in one pass
         let mut s4 = 0.0;
@@ -581,12 +636,11 @@ impl Layout {
         let cell = 1e-9 * largest;
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         let distinct = if cell > 0.0 {
-            distinct_count_of(
-                self.ranges.iter().flat_map(|r| {
-                    x[r.clone()]
-                        .iter()
-                        .map(|v| crate::num::round_half_away(v / cell))
-                }),
+            distinct_count_on_grid(
+                self.ranges
+                    .iter()
+                    .flat_map(|r| x[r.clone()].iter().copied()),
+                cell,
                 n_part,
             )
         } else {
@@ -607,9 +661,14 @@ impl Layout {
     }
 
     fn temperature(&self, x: &[f64], tl: &TempLayout, tp: &Temperature) -> Vec<f64> {
-        // normal equations of x on (1, dT, dT^2, dT/dt)
-        let mut ata = [0.0; 16];
+        // normal equations of x on (1, dT, dT^2, dT/dt); the matrix and the bins are
+        // the layout's (its temperature is the one every series is compared under)
+        debug_assert_eq!(
+            tl.bins.len(),
+            self.ranges.iter().map(|r| r.len()).sum::<usize>()
+        );
         let mut aty = [0.0; 4];
+        let mut at = 0;
         let mut sum_t = [0.0; N_BINS];
         let mut cnt_t = [0.0; N_BINS];
         let mut sum_r = [0.0; N_BINS];
@@ -622,14 +681,12 @@ impl Layout {
                 let row = [1.0, dtc, dtc * dtc, tp.dtdt_c_per_s[t]];
                 for i in 0..4 {
                     aty[i] += row[i] * x[t];
-                    for j in 0..4 {
-                        ata[i * 4 + j] += row[i] * row[j];
-                    }
                 }
-                let bt = bin_of(&tl.t_edges, tp.t_c[t]);
+                let (bt, br) = tl.bins[at];
+                let (bt, br) = (bt as usize, br as usize);
+                at += 1;
                 sum_t[bt] += x[t];
                 cnt_t[bt] += 1.0;
-                let br = bin_of(&tl.r_edges, tp.dtdt_c_per_s[t]);
                 sum_r[br] += x[t];
                 cnt_r[br] += 1.0;
                 if t > r.start {
@@ -639,7 +696,7 @@ impl Layout {
                 }
             }
         }
-        let coef = crate::estimator::linalg::normal_equations(&ata, &aty, 4)
+        let coef = crate::estimator::linalg::normal_equations(&tl.ata, &aty, 4)
             .unwrap_or_else(|| vec![0.0; 4]);
         let mut out = vec![coef[1], coef[2], coef[3]];
         let mean_or_zero = |s: f64, c: f64| if c > 0.0 { s / c } else { 0.0 };
@@ -654,11 +711,10 @@ impl Layout {
     }
 
     fn state(&self, x: &[f64]) -> Vec<f64> {
-        let mut u: Vec<f64> = self
-            .ranges
-            .iter()
-            .flat_map(|r| x[r.start..r.end - 1].iter().copied())
-            .collect();
+        let mut u: Vec<f64> = Vec::with_capacity(x.len());
+        for r in &self.ranges {
+            u.extend_from_slice(&x[r.start..r.end - 1]);
+        }
         let ranks: Vec<usize> = (1..N_BINS).map(|k| (k * (u.len() - 1)) / N_BINS).collect();
         let edges = order_statistics(&mut u, &ranks);
         // per bin: sums for the slope of x_t on x_{t-1}
@@ -754,6 +810,130 @@ pub fn distinct_count_of(x: impl Iterator<Item = f64>, n: usize) -> usize {
         }
     }
     seen.len() + nans
+}
+
+/// How many distinct values the cells `round_half_away(v / cell)` of the values `v` of
+/// `x` (`n` of them) hold, as [`distinct_count`] of the rounded values counts them (every
+/// NaN its own value, each infinity one), for a `cell` with `|v| / cell` below about
+/// 1e15 for every finite `v` (the features' grid: 1e-9 of the largest magnitude).
+///
+/// The finite cells are integers: up to 4096 distinct ones are counted in a small hash
+/// set; more, by an LSD radix sort (8-bit digits,
+/// as many passes as the span of the cells needs: four for a span of 2e9 cells) and a
+/// count of the runs, which reads memory in order where a hash set probes it at random
+/// (several times faster on 1e6 values). [`distinct_count_by_sort`] of the rounded
+/// values is its slow twin.
+pub fn distinct_count_on_grid(x: impl Iterator<Item = f64>, cell: f64, n: usize) -> usize {
+    let mut keys: Vec<i64> = Vec::with_capacity(n);
+    let (mut nans, mut pos_inf, mut neg_inf) = (0usize, false, false);
+    let (mut lo, mut hi) = (i64::MAX, i64::MIN);
+    let mut wide = false;
+    for v in x {
+        let c = crate::num::round_half_away(v / cell);
+        if c.is_nan() {
+            nans += 1;
+        } else if c == f64::INFINITY {
+            pos_inf = true;
+        } else if c == f64::NEG_INFINITY {
+            neg_inf = true;
+        } else {
+            if c.abs() >= 1e15 {
+                wide = true;
+            }
+            let k = c as i64;
+            lo = lo.min(k);
+            hi = hi.max(k);
+            keys.push(k);
+        }
+    }
+    let extra = nans + usize::from(pos_inf) + usize::from(neg_inf);
+    if keys.is_empty() {
+        return extra;
+    }
+    if wide {
+        // beyond the grid this is for: the values themselves, hashed
+        return distinct_count_of(keys.iter().map(|&k| k as f64), keys.len()) + extra;
+    }
+    // a series on a grid of few levels (a printed or quantized log) is counted in a
+    // small set; one with more levels than FEW_LEVELS is sorted
+    if let Some(c) = few_levels(&keys) {
+        return c + extra;
+    }
+    let span = (hi - lo) as u64;
+    if span > u64::from(u32::MAX) {
+        let mut a: Vec<u64> = keys.iter().map(|&k| (k - lo) as u64).collect();
+        a.sort_unstable();
+        return 1 + a.windows(2).filter(|w| w[0] != w[1]).count() + extra;
+    }
+    RADIX_SCRATCH.with(|cell| {
+        let (a, b) = &mut *cell.borrow_mut();
+        a.clear();
+        a.extend(keys.iter().map(|&k| (k - lo) as u32));
+        drop(keys);
+        b.resize(a.len(), 0);
+        radix_sort_u32(a, b, span as u32);
+        1 + a.windows(2).filter(|w| w[0] != w[1]).count() + extra
+    })
+}
+
+/// Most distinct values [`few_levels`] counts in a set.
+const FEW_LEVELS: usize = 4096;
+
+/// How many distinct values `keys` holds when at most [`FEW_LEVELS`], else None (as
+/// soon as more are seen): a direct-mapped table of the last key in each of 1024 slots
+/// before a hash set, so that a key seen recently is not hashed again.
+fn few_levels(keys: &[i64]) -> Option<usize> {
+    const RECENT: usize = 1 << 10;
+    // the fill: never a cell (every cell is below 1e15 in magnitude)
+    let mut recent = [i64::MIN; RECENT];
+    let mut seen: std::collections::HashSet<u64, BitsHash> =
+        std::collections::HashSet::with_capacity_and_hasher(2 * FEW_LEVELS, BitsHash);
+    for &k in keys {
+        let slot = ((k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 54) as usize;
+        if recent[slot] != k {
+            recent[slot] = k;
+            seen.insert(k as u64);
+            if seen.len() > FEW_LEVELS {
+                return None;
+            }
+        }
+    }
+    Some(seen.len())
+}
+
+thread_local! {
+    /// The two buffers of [`radix_sort_u32`], kept per thread between calls (a fresh
+    /// allocation of a few MB pays a page fault for each of its pages).
+    static RADIX_SCRATCH: std::cell::RefCell<(Vec<u32>, Vec<u32>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
+/// `a` sorted ascending by an LSD radix sort of 8-bit digits (only the digits below the
+/// highest set bit of `max`, every value of `a` being at most `max`), `b` a buffer of
+/// `a`'s length; the digit counts of every pass are taken in one read of `a`.
+fn radix_sort_u32(a: &mut Vec<u32>, b: &mut Vec<u32>, max: u32) {
+    let passes = (32 - max.leading_zeros()).div_ceil(8) as usize;
+    let mut count = [[0usize; 256]; 4];
+    for &k in a.iter() {
+        for (p, c) in count.iter_mut().enumerate().take(passes) {
+            c[((k >> (8 * p)) & 0xff) as usize] += 1;
+        }
+    }
+    for (p, c) in count.iter_mut().enumerate().take(passes) {
+        let mut at = 0;
+        for v in c.iter_mut() {
+            let here = *v;
+            *v = at;
+            at += here;
+        }
+        let shift = 8 * p;
+        for &k in a.iter() {
+            let d = ((k >> shift) & 0xff) as usize;
+            b[c[d]] = k;
+            c[d] += 1;
+        }
+        std::mem::swap(a, b);
+    }
 }
 
 /// The count of [`distinct_count`] by sorting and `dedup` (its slow twin).
@@ -956,7 +1136,8 @@ mod printed_tests {
 #[cfg(test)]
 mod selection_tests {
     use super::{
-        distinct_count, distinct_count_by_sort, order_statistics, order_statistics_by_sort,
+        distinct_count, distinct_count_by_sort, distinct_count_on_grid, order_statistics,
+        order_statistics_by_sort,
     };
 
     /// A reproducible series with ties, signed zeros, a grid and wide tails.
@@ -1009,6 +1190,17 @@ mod selection_tests {
                 distinct_count_by_sort(grid.iter().copied()),
                 "n {n}"
             );
+            // the cells of the features' grid, NaNs and infinities among the values
+            let mut y = x.clone();
+            y.extend([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, -0.0, 0.0]);
+            for cell in [1e-9, 1e-3, 0.1, 7.0] {
+                let rounded = y.iter().map(|v| crate::num::round_half_away(v / cell));
+                assert_eq!(
+                    distinct_count_on_grid(y.iter().copied(), cell, y.len()),
+                    distinct_count_by_sort(rounded),
+                    "n {n} cell {cell}"
+                );
+            }
         }
     }
 }

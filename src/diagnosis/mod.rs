@@ -83,6 +83,10 @@ pub struct GapParams {
     /// one development case and no held-out one, at about twice the peak memory
     /// (BENCHMARKS.md).
     pub reestimate: bool,
+    /// Score a round's candidates on a quarter of the replicas first and the rest only
+    /// for those within [`SCREEN_RATIO`] of the round's best so far (the default);
+    /// false: every candidate on every replica.
+    pub screen: bool,
     /// Keep the test-stand events ([`events`]) in the real log; false (the default):
     /// each is found and replaced by the stretch before it.
     pub keep_events: bool,
@@ -98,6 +102,7 @@ impl Default for GapParams {
             max_added: 4,
             min_shrink: 0.05,
             reestimate: false,
+            screen: true,
             keep_events: false,
         }
     }
@@ -348,8 +353,17 @@ fn diagnose_log(
     let lap = |what: &str| {
         if timing {
             let now = Instant::now();
+            // the peak resident set so far (Linux), MB
+            let peak_mb = std::fs::read_to_string("/proc/self/status")
+                .ok()
+                .and_then(|s| {
+                    s.lines()
+                        .find(|l| l.starts_with("VmHWM:"))
+                        .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+                })
+                .map_or(f64::NAN, |kb| kb / 1024.0);
             eprintln!(
-                "gap timing: {what}: {:.3} s",
+                "gap timing: {what}: {:.3} s (peak RSS {peak_mb:.0} MB)",
                 (now - clock.get()).as_secs_f64()
             );
             clock.set(now);
@@ -357,6 +371,8 @@ fn diagnose_log(
     };
     // seconds spent computing features since the last lap
     let feature_s = Cell::new(0.0f64);
+    // ensembles whose features were computed since the last lap
+    let feature_n = Cell::new(0usize);
     let rate_hz = real.rate_hz;
     let mut notes = Vec::new();
     if (spec.sample_rate_hz - rate_hz).abs() > 1e-9 * rate_hz {
@@ -422,38 +438,46 @@ fn diagnose_log(
     // series xs[f][r], plus coef * delta[f][r] when (delta, coef) is given, passed through the fold's
     // path, then rounded to the printed precision
     type Deltas<'d> = Option<(&'d [&'d [f64]], f64)>;
-    let feats_of =
-        |xs: [&[Vec<f64>]; 2], delta: [Deltas; 2], path: [&PathStage; 2]| -> Vec<Vec<f64>> {
-            let t0 = Instant::now();
-            let out: Vec<Vec<f64>> = (0..prm.replicas)
-                .into_par_iter()
-                .map(|r| {
-                    // the thread's scratch series, taken out while in use (a nested
-                    // parallel loop may run another replica on this thread)
-                    let mut buf = SCRATCH.with(|s| s.take());
-                    let mut out = Vec::with_capacity(defs.len());
-                    for fold in 0..2 {
-                        let y = path::part_output(
-                            &xs[fold][r],
-                            delta[fold].map(|(d, sign)| (d[r], sign)),
-                            path[fold],
-                            printed,
-                            withheld[fold].ranges(),
-                            &mut buf,
-                        );
-                        out.extend(withheld[fold].compute_with(
-                            y,
-                            temperature.as_ref(),
-                            &other_sides[r][fold],
-                        ));
-                    }
-                    SCRATCH.with(|s| s.set(buf));
-                    out
-                })
-                .collect();
-            feature_s.set(feature_s.get() + t0.elapsed().as_secs_f64());
-            out
-        };
+    // ... of the replicas in `reps` only
+    let feats_in = |reps: std::ops::Range<usize>,
+                    xs: [&[Vec<f64>]; 2],
+                    delta: [Deltas; 2],
+                    path: [&PathStage; 2]|
+     -> Vec<Vec<f64>> {
+        let t0 = Instant::now();
+        let out: Vec<Vec<f64>> = reps
+            .into_par_iter()
+            .map(|r| {
+                // the thread's scratch series, taken out while in use (a nested
+                // parallel loop may run another replica on this thread)
+                let mut buf = SCRATCH.with(|s| s.take());
+                let mut out = Vec::with_capacity(defs.len());
+                for fold in 0..2 {
+                    let y = path::part_output(
+                        &xs[fold][r],
+                        delta[fold].map(|(d, sign)| (d[r], sign)),
+                        path[fold],
+                        printed,
+                        withheld[fold].ranges(),
+                        &mut buf,
+                    );
+                    out.extend(withheld[fold].compute_with(
+                        y,
+                        temperature.as_ref(),
+                        &other_sides[r][fold],
+                    ));
+                }
+                SCRATCH.with(|s| s.set(buf));
+                out
+            })
+            .collect();
+        feature_s.set(feature_s.get() + t0.elapsed().as_secs_f64());
+        feature_n.set(feature_n.get() + 1);
+        out
+    };
+    let feats_of = |xs: [&[Vec<f64>]; 2], delta: [Deltas; 2], path: [&PathStage; 2]| {
+        feats_in(0..prm.replicas, xs, delta, path)
+    };
     lap("ensemble simulated");
     let feats = feats_of([&target, &target], [None, None], [&path0, &path0]);
     let cal = Calibration::new(&feats, &defs);
@@ -465,6 +489,14 @@ fn diagnose_log(
         ));
     }
     let ens = EnsembleStats::new(&feats, &defs, None);
+    // a round's candidates are first scored on the first `screen` replicas
+    // ([`SCREEN_RATIO`]); 0: every candidate on all of them
+    let screen = if prm.screen {
+        screen_replicas(prm.replicas)
+    } else {
+        0
+    };
+    let ens_screen = (screen > 0).then(|| EnsembleStats::new(&feats[..screen], &defs, None));
     let z0 = ens.z(&real_feats);
     let gap_before = distance::gap(&z0, None, &defs);
     let where_before = distance::regions(&z0, &real_feats, &ens, &defs, &cal);
@@ -506,6 +538,16 @@ fn diagnose_log(
         (
             distance::gap(&z, Some(&pen), &defs),
             e,
+            distance::family_gaps(&z, Some(&pen), &defs),
+        )
+    };
+    // the gap and family gaps of features of the first `screen` replicas
+    let score_screen = |f: &[Vec<f64>]| -> (f64, Vec<(Statistic, f64)>) {
+        let e = EnsembleStats::new(f, &defs, None);
+        let z = e.z(&real_feats);
+        let pen = e.spread_penalty(ens_screen.as_ref().expect("screening is on"));
+        (
+            distance::gap(&z, Some(&pen), &defs),
             distance::family_gaps(&z, Some(&pen), &defs),
         )
     };
@@ -578,6 +620,7 @@ fn diagnose_log(
         pb.set_position(round_no as u64);
         pb.set_message(format!("round {round_no}"));
         feature_s.set(0.0);
+        feature_n.set(0);
         let stop_floor = gap_now <= cal.gap_threshold;
         if stop_floor && first.is_some() {
             notes.push(format!(
@@ -613,6 +656,25 @@ fn diagnose_log(
             held.borrow_mut().push(p)
         };
         let mut round = Round::default();
+        // the lowest gap on the screening replicas in this round so far
+        let best_screen: Cell<Option<f64>> = Cell::new(None);
+        // the features of all replicas, unless the first `screen` replicas' gap is
+        // SCREEN_RATIO times the round's lowest such gap or more: then that gap and
+        // its family gaps (the candidate is not scored further)
+        type Screened = std::result::Result<Vec<Vec<f64>>, (f64, Vec<(Statistic, f64)>)>;
+        let screened = |f: &dyn Fn(std::ops::Range<usize>) -> Vec<Vec<f64>>| -> Screened {
+            if screen == 0 {
+                return Ok(f(0..prm.replicas));
+            }
+            let mut fs = f(0..screen);
+            let (g, families) = score_screen(&fs);
+            if best_screen.get().is_some_and(|b| g >= SCREEN_RATIO * b) {
+                return Err((g, families));
+            }
+            best_screen.set(Some(best_screen.get().map_or(g, |b| b.min(g))));
+            fs.extend(f(screen..prm.replicas));
+            Ok(fs)
+        };
         // fold 1's estimates of a kind with forms ([`form`]) that met no fold-2
         // estimate of the same form (paired by kind afterwards, [`loose_key`]), and the
         // other kinds' unpaired ones
@@ -637,23 +699,34 @@ fn diagnose_log(
                 ];
                 // a joint candidate also changes a component's signal
                 match (p.also_change(&sts[0].parts), q.also_change(&sts[1].parts)) {
-                    (Some((d0, c0)), Some((d1, c1))) => feats_of(
-                        xs,
-                        [Some((d0.as_slice(), c0)), Some((d1.as_slice(), c1))],
-                        [&paths[0], &paths[1]],
-                    ),
-                    _ => feats_of(xs, [None, None], [&paths[0], &paths[1]]),
+                    (Some((d0, c0)), Some((d1, c1))) => screened(&|reps| {
+                        feats_in(
+                            reps,
+                            xs,
+                            [Some((d0.as_slice(), c0)), Some((d1.as_slice(), c1))],
+                            [&paths[0], &paths[1]],
+                        )
+                    }),
+                    _ => screened(&|reps| feats_in(reps, xs, [None, None], [&paths[0], &paths[1]])),
                 }
             } else {
                 let ((d0, c0), (d1, c1)) = (p.change(&cx(0)), q.change(&cx(1)));
-                feats_of(
-                    xs,
-                    [Some((&d0, c0)), Some((&d1, c1))],
-                    [&sts[0].path, &sts[1].path],
-                )
+                screened(&|reps| {
+                    feats_in(
+                        reps,
+                        xs,
+                        [Some((&d0, c0)), Some((&d1, c1))],
+                        [&sts[0].path, &sts[1].path],
+                    )
+                })
             };
-            let scored = score(&f);
-            round.offer(pq, f, scored, gap_now);
+            match f {
+                Ok(f) => {
+                    let scored = score(&f);
+                    round.offer(pq, f, scored, gap_now);
+                }
+                Err((g, families)) => round.offer_screened(&pq, g, families, gap_now, screen),
+            }
         };
         // fold 1's estimate meets fold 2's of the same kind and form
         let mut pair = |p: Proposal| {
@@ -715,8 +788,9 @@ fn diagnose_log(
         }
         if timing {
             eprintln!(
-                "gap timing: round {round_no}: candidates' features {:.3} s",
-                feature_s.get()
+                "gap timing: round {round_no}: candidates' features {:.3} s ({} ensembles)",
+                feature_s.get(),
+                feature_n.get()
             );
         }
         lap(&format!(
@@ -1286,38 +1360,7 @@ impl Round {
         (g, e, families): (f64, EnsembleStats, Vec<(Statistic, f64)>),
         gap_now: f64,
     ) {
-        let note = if p[1].params == p[0].params {
-            p[0].note.clone()
-        } else {
-            format!(
-                "{}; fold 2 (trained on the other half of the blocks): {}",
-                p[0].note, p[1].params
-            )
-        };
-        let p0 = &p[0];
-        let eff = Effect {
-            kind: p0.kind.clone(),
-            gap_after: g,
-            shrink: 1.0 - g / gap_now,
-            params: p0.params.clone(),
-            note,
-            families,
-            contribution: None,
-            step: None,
-            at_edge: {
-                let mut v: Vec<String> = Vec::new();
-                for q in &p {
-                    if let Some(Value::Array(a)) = q.params.get("at_search_edge") {
-                        v.extend(a.iter().filter_map(|x| x.as_str().map(String::from)));
-                    }
-                }
-                v.sort();
-                v.dedup();
-                v
-            },
-            component: p0.component.clone(),
-            replaces: p0.replaces,
-        };
+        let eff = Round::effect_of(&p, g, families, gap_now);
         self.all.push(eff.clone());
         match &self.best {
             Some(b) if g >= b.0.gap_after => {
@@ -1333,6 +1376,78 @@ impl Round {
             }
         }
     }
+
+    /// Takes candidate `p` scored on the first `screen` replicas only (gap `g`, its
+    /// family gaps `families`): listed with that gap, never the round's best or
+    /// runner-up.
+    fn offer_screened(
+        &mut self,
+        p: &[Proposal; 2],
+        g: f64,
+        families: Vec<(Statistic, f64)>,
+        gap_now: f64,
+        screen: usize,
+    ) {
+        let mut eff = Round::effect_of(p, g, families, gap_now);
+        eff.note = format!(
+            "{} (screened out: its gap on the first {screen} replicas is {SCREEN_RATIO} times the round's lowest or more; not scored on the others)",
+            eff.note
+        );
+        self.all.push(eff);
+    }
+
+    /// The effect of candidate `p` with gap `g` after it.
+    fn effect_of(
+        p: &[Proposal; 2],
+        g: f64,
+        families: Vec<(Statistic, f64)>,
+        gap_now: f64,
+    ) -> Effect {
+        let note = if p[1].params == p[0].params {
+            p[0].note.clone()
+        } else {
+            format!(
+                "{}; fold 2 (trained on the other half of the blocks): {}",
+                p[0].note, p[1].params
+            )
+        };
+        let p0 = &p[0];
+        Effect {
+            kind: p0.kind.clone(),
+            gap_after: g,
+            shrink: 1.0 - g / gap_now,
+            params: p0.params.clone(),
+            note,
+            families,
+            contribution: None,
+            step: None,
+            at_edge: {
+                let mut v: Vec<String> = Vec::new();
+                for q in p {
+                    if let Some(Value::Array(a)) = q.params.get("at_search_edge") {
+                        v.extend(a.iter().filter_map(|x| x.as_str().map(String::from)));
+                    }
+                }
+                v.sort();
+                v.dedup();
+                v
+            },
+            component: p0.component.clone(),
+            replaces: p0.replaces,
+        }
+    }
+}
+
+/// A round's candidate whose gap on the first [`screen_replicas`] replicas is this many
+/// times the round's lowest such gap (so far) or more is not scored on the other
+/// replicas: the round's best and its runner-up are always scored on all of them.
+pub const SCREEN_RATIO: f64 = 1.3;
+
+/// The replicas a round's candidates are first scored on: a quarter of the ensemble, at
+/// least 5; 0 (no screening) when that leaves fewer than 10 for the rest.
+pub fn screen_replicas(replicas: usize) -> usize {
+    let s = (replicas / 4).max(5);
+    if replicas >= s + 10 { s } else { 0 }
 }
 
 /// Where an added effect sits in the spec, so that the search can take it back.

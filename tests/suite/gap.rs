@@ -1264,3 +1264,48 @@ fn a_bound_is_left_as_it_is_when_its_copy_would_pass_the_memory_limit() {
         "{notes}"
     );
 }
+
+#[test]
+fn screening_the_candidates_on_a_quarter_of_the_replicas_keeps_the_search_as_it_was() {
+    // every candidate of every round scored on all 20 replicas, and the default: a
+    // round's candidates first on 5, the rest only for those within 1.3 times the
+    // round's lowest gap there
+    let cases = bank::cases(10.0, 3600.0);
+    let case = cases
+        .iter()
+        .find(|c| c.expect == "temperature_bias")
+        .unwrap();
+    let (x, temp) = bank::real_log(case, 36_000, 3).unwrap();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz: case.spec.sample_rate_hz,
+        temperature_c: temp.as_deref(),
+        others: vec![],
+        spec_dir: None,
+        scan: Vec::new(),
+    };
+    let with = |screen: bool| {
+        let prm = GapParams {
+            replicas: 20,
+            screen,
+            ..GapParams::default()
+        };
+        diagnose(&real, &case.spec, &prm).unwrap()
+    };
+    let (all, screened) = (with(false), with(true));
+    let kinds = |d: &Diagnosis| d.added.iter().map(|e| e.kind.clone()).collect::<Vec<_>>();
+    assert_eq!(kinds(&screened), kinds(&all));
+    assert_eq!(screened.gap_after.to_bits(), all.gap_after.to_bits());
+    for (a, b) in screened.added.iter().zip(&all.added) {
+        assert_eq!(a.params, b.params);
+    }
+    let out = screened
+        .effects
+        .iter()
+        .filter(|e| e.note.contains("screened out"))
+        .count();
+    assert!(out > 0, "no candidate screened out");
+    assert_eq!(screened.effects.len(), all.effects.len());
+    assert!(all.effects.iter().all(|e| !e.note.contains("screened out")));
+}
