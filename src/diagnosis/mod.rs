@@ -226,8 +226,9 @@ pub struct Diagnosis {
 #[derive(Clone)]
 struct State {
     spec: Spec,
-    /// Per replica, the pre-path sum of the target channel's components.
-    target: Vec<Vec<f64>>,
+    /// Per replica, the pre-path sum of the target channel's components; shared by the
+    /// two folds' states until one of them changes it.
+    target: Vec<Arc<Vec<f64>>>,
     /// Per replica, per component of the target channel, its signal; a signal that is
     /// the same in every replica (a deterministic component, an added `Delta::Same`)
     /// is held by replica 0 only, the others holding an empty vector ([`part`] reads
@@ -440,7 +441,7 @@ fn diagnose_log(
     type Deltas<'d> = Option<(&'d [&'d [f64]], f64)>;
     // ... of the replicas in `reps` only
     let feats_in = |reps: std::ops::Range<usize>,
-                    xs: [&[Vec<f64>]; 2],
+                    xs: [&[Arc<Vec<f64>>]; 2],
                     delta: [Deltas; 2],
                     path: [&PathStage; 2]|
      -> Vec<Vec<f64>> {
@@ -475,7 +476,7 @@ fn diagnose_log(
         feature_n.set(feature_n.get() + 1);
         out
     };
-    let feats_of = |xs: [&[Vec<f64>]; 2], delta: [Deltas; 2], path: [&PathStage; 2]| {
+    let feats_of = |xs: [&[Arc<Vec<f64>>]; 2], delta: [Deltas; 2], path: [&PathStage; 2]| {
         feats_in(0..prm.replicas, xs, delta, path)
     };
     lap("ensemble simulated");
@@ -1230,7 +1231,7 @@ fn pre_path_parts(
     sim: &ensemble::SimBase,
     spec: &Spec,
     channel: usize,
-) -> Result<(PartSignals, Vec<Vec<f64>>)> {
+) -> Result<(PartSignals, Vec<Arc<Vec<f64>>>)> {
     let comps = &spec.channels[channel].components;
     let summed: Vec<usize> = (0..comps.len())
         .filter(|&k| !comps[k].kind().is_output_path())
@@ -1248,7 +1249,7 @@ fn pre_path_parts(
             p[*k] = Arc::new(v);
         }
         parts.push(p);
-        target.push(sum);
+        target.push(Arc::new(sum));
     }
     Ok((parts, target))
 }
@@ -1548,7 +1549,11 @@ fn apply(st: &mut State, channel: usize, mut p: Proposal) -> Slot {
         )
     });
     for (r, t) in st.target.iter_mut().enumerate() {
-        for (a, v) in t.iter_mut().zip(p.delta.get(r)) {
+        let d = p.delta.get(r);
+        if d.is_empty() {
+            continue;
+        }
+        for (a, v) in Arc::make_mut(t).iter_mut().zip(d) {
             *a += v;
         }
     }
@@ -1630,7 +1635,10 @@ fn take_back<'a>(
             Some((_, d)) => d.get(r),
             None => part(&st.parts, r, s.comp),
         };
-        for (a, v) in t.iter_mut().zip(sig) {
+        if sig.is_empty() {
+            continue;
+        }
+        for (a, v) in Arc::make_mut(t).iter_mut().zip(sig) {
             *a -= v;
         }
     }
@@ -1730,7 +1738,7 @@ mod tests {
         .collect();
         let target = parts
             .iter()
-            .map(|p| (0..3).map(|t| p[0][t] + p[1][t]).collect())
+            .map(|p| Arc::new((0..3).map(|t| p[0][t] + p[1][t]).collect()))
             .collect();
         State {
             spec,
@@ -2009,7 +2017,7 @@ mod tests {
             for k in [1, 3, 5] {
                 assert!(parts[r][k].is_empty());
             }
-            let mut y = target[r].clone();
+            let mut y = target[r].to_vec();
             path.apply(&mut y);
             let mut req = SimRequest::new(n, rate_hz);
             req.seed = Some(3);

@@ -125,17 +125,31 @@ pub struct Proposal {
 impl Proposal {
     /// Drops the full-length signals that [`Proposal::restore`] rebuilds bit for bit
     /// from `cx`, the state the proposal was estimated on: a joint candidate's second
-    /// change (a rescale of one of the parts, [`Also::build`]) and a cross_axis delta
+    /// change (a rescale of one of the parts, [`Also::build`]), a cross_axis delta
     /// taken from the ensemble's simulations of the other channel
-    /// (`cross_axis::cached_signal`). Any other delta is kept. A shed delta is an
+    /// (`cross_axis::cached_signal`) and a noise component's recalibration (its part
+    /// times the size factor less one). Any other delta is kept. A shed delta is an
     /// `Each` of no replica, which no estimate gives (an ensemble has at least one).
     pub fn shed(&mut self, cx: &Context) {
         if let Some(a) = self.also.as_mut() {
             a.shed();
         }
-        if cross_axis::rebuild_source(cx, self).is_some() {
+        if cross_axis::rebuild_source(cx, self).is_some() || self.rescaled_part().is_some() {
             self.delta = Delta::Each(Vec::new());
         }
+    }
+
+    /// For the recalibration of a noise component (`recalibrate:<kind>` with a delta per
+    /// replica): the component's index k and s - 1, its size factor less one; the delta
+    /// `recalibrate.rs` builds is `parts[r][k][t] * (s - 1)`, rebuilt bit for
+    /// bit from the same parts.
+    fn rescaled_part(&self) -> Option<(usize, f64)> {
+        let k = self.replaces?;
+        if !self.kind.starts_with("recalibrate:") || !matches!(self.delta, Delta::Each(_)) {
+            return None;
+        }
+        let s = self.params.get("factor")?.as_f64()?;
+        Some((k, s - 1.0))
     }
 
     /// Rebuilds what [`Proposal::shed`] dropped, from the same state `cx`.
@@ -151,6 +165,16 @@ impl Proposal {
         {
             self.delta = Delta::Each(u);
         }
+        if self.delta.is_shed()
+            && let Some((k, c)) = self.rescaled_part()
+        {
+            self.delta = Delta::Each(
+                cx.parts
+                    .iter()
+                    .map(|p| p[k].iter().map(|v| v * c).collect())
+                    .collect(),
+            );
+        }
     }
 }
 
@@ -159,7 +183,9 @@ impl Proposal {
     /// with (`x + coef * signal`), read without building what [`Proposal::shed`]
     /// dropped: a cross_axis delta is the gain times the other channel's simulation in
     /// `cx` (`cross_axis::cached_signal`, whose `0 + gain v` is `gain v` bit for bit),
-    /// any other delta its own signal with coefficient 1. `cx` is the state the
+    /// a noise recalibration's the component's part with coefficient s - 1 (`v * (s -
+    /// 1)`, the product the built delta holds), any other delta its own signal with
+    /// coefficient 1. `cx` is the state the
     /// proposal was estimated on.
     pub fn change<'s>(&'s self, cx: &Context<'s>) -> (Vec<&'s [f64]>, f64) {
         let m = cx.sim.replicas;
@@ -170,6 +196,11 @@ impl Proposal {
                 cx.sim_others.iter().map(|chs| chs[j].as_slice()).collect(),
                 gain,
             );
+        }
+        if self.delta.is_shed()
+            && let Some((k, c)) = self.rescaled_part()
+        {
+            return (cx.parts.iter().map(|p| p[k].as_slice()).collect(), c);
         }
         ((0..m).map(|r| self.delta.get(r)).collect(), 1.0)
     }
@@ -270,7 +301,7 @@ pub struct Context<'a> {
     /// Per replica, the simulated channels of `others` (same order).
     pub sim_others: &'a [Vec<Vec<f64>>],
     /// Per replica, the target channel's simulation.
-    pub target: &'a [Vec<f64>],
+    pub target: &'a [std::sync::Arc<Vec<f64>>],
     /// Per replica, per spec component of the target channel, its signal.
     pub parts: &'a [Vec<std::sync::Arc<Vec<f64>>>],
 }
@@ -351,7 +382,7 @@ impl Training {
         // residual against the ensemble mean
         let mut xbar = vec![0.0; n];
         for t in cx.target {
-            for (a, v) in xbar.iter_mut().zip(t) {
+            for (a, v) in xbar.iter_mut().zip(t.iter()) {
                 *a += v / m_reps as f64;
             }
         }
@@ -717,9 +748,11 @@ mod tests {
                 q.shed(cx);
                 let shed = q.delta.is_shed() || q.also.as_ref().is_some_and(|a| a.delta.is_shed());
                 n_shed += usize::from(shed);
+                let noise_recalibration =
+                    p.kind.starts_with("recalibrate:") && matches!(p.delta, Delta::Each(_));
                 assert_eq!(
                     shed,
-                    p.kind == "cross_axis" || p.also.is_some(),
+                    p.kind == "cross_axis" || p.also.is_some() || noise_recalibration,
                     "{}",
                     p.kind
                 );
@@ -836,12 +869,14 @@ mod tests {
             .map(|sp| {
                 let k: Vec<usize> = (0..sp.channels[0].components.len()).collect();
                 let sig = sim.component_signals(sp, 0, &k).unwrap();
-                let target: Vec<Vec<f64>> = sig
+                let target: Vec<std::sync::Arc<Vec<f64>>> = sig
                     .iter()
                     .map(|p| {
-                        (0..n)
-                            .map(|t| p.iter().fold(0.0, |a, v| a + v[t]))
-                            .collect()
+                        std::sync::Arc::new(
+                            (0..n)
+                                .map(|t| p.iter().fold(0.0, |a, v| a + v[t]))
+                                .collect(),
+                        )
                     })
                     .collect();
                 let parts: Vec<Vec<Arc<Vec<f64>>>> = sig
@@ -942,7 +977,7 @@ mod tests {
     type GmState = (
         SimBase<'static>,
         Layout,
-        Vec<Vec<f64>>,
+        Vec<Arc<Vec<f64>>>,
         Vec<Vec<Arc<Vec<f64>>>>,
     );
 
@@ -969,7 +1004,7 @@ mod tests {
         let sig = sim.component_signals(spec, 0, &k).unwrap();
         let target = sig
             .iter()
-            .map(|p| (0..n).map(|t| p.iter().map(|v| v[t]).sum()).collect())
+            .map(|p| Arc::new((0..n).map(|t| p.iter().map(|v| v[t]).sum()).collect()))
             .collect();
         let parts = sig
             .into_iter()

@@ -140,15 +140,25 @@ pub fn ar1_bank_from(out: &mut [f64], bank: &[Ar1], key: &StreamKey, c0: u64, x:
             let mut rngs: Vec<ChaCha8Rng> = (0..k).map(|i| key.rng(i, c0 + c as u64)).collect();
             let y = end;
             y.iter_mut().for_each(|v| *v = 0.0);
-            for v in s.iter_mut() {
-                let mut acc = *v;
-                for ((ar, yi), rng) in bank.iter().zip(y.iter_mut()).zip(rngs.iter_mut()) {
-                    let w: f64 = StandardNormal.sample(rng);
-                    let before = *yi;
-                    *yi = ar.phi * before + ar.gain * w;
-                    acc += *yi + ar.prev * before;
+            // each recursion's draws for a stretch of DRAWS samples taken at once (the
+            // same draws in the same order as one per sample), then the recursions run
+            let mut w = vec![0.0f64; k * DRAWS];
+            for piece in s.chunks_mut(DRAWS) {
+                let len = piece.len();
+                for (wi, rng) in w.chunks_mut(DRAWS).zip(rngs.iter_mut()) {
+                    for v in &mut wi[..len] {
+                        *v = StandardNormal.sample(rng);
+                    }
                 }
-                *v = acc;
+                for (j, v) in piece.iter_mut().enumerate() {
+                    let mut acc = *v;
+                    for (i, (ar, yi)) in bank.iter().zip(y.iter_mut()).enumerate() {
+                        let before = *yi;
+                        *yi = ar.phi * before + ar.gain * w[i * DRAWS + j];
+                        acc += *yi + ar.prev * before;
+                    }
+                    *v = acc;
+                }
             }
         });
     // Phase 2: the state before each chunk, sequentially.
@@ -176,6 +186,9 @@ pub fn ar1_bank_from(out: &mut [f64], bank: &[Ar1], key: &StreamKey, c0: u64, x:
             homogeneous(s, live);
         });
 }
+
+/// Samples of each recursion's draws that [`ar1_bank_from`] takes at once.
+const DRAWS: usize = 1024;
 
 /// Samples between two looks for recursions of [`homogeneous`] that have settled.
 const DROP_CHECK: usize = 256;
