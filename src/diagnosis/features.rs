@@ -603,7 +603,7 @@ impl Layout {
     }
 
     fn distribution(&self, x: &[f64]) -> Vec<f64> {
-        let mut d: Vec<f64> = Vec::with_capacity(x.len());
+        let mut d: Vec<f64> = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
         for r in &self.ranges {
             d.extend(x[r.clone()].windows(2).map(|w| w[1] - w[0]));
         }
@@ -711,7 +711,7 @@ impl Layout {
     }
 
     fn state(&self, x: &[f64]) -> Vec<f64> {
-        let mut u: Vec<f64> = Vec::with_capacity(x.len());
+        let mut u: Vec<f64> = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
         for r in &self.ranges {
             u.extend_from_slice(&x[r.start..r.end - 1]);
         }
