@@ -6,17 +6,22 @@ use farma::diagnosis::bank::{self, CHANNEL, Case};
 use farma::diagnosis::{Diagnosis, GapParams, RealLog, diagnose};
 use farma::simulator::Component;
 
-fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
-    let (x, temp) = bank::real_log(case, n, seed).unwrap();
-    let real = RealLog {
+/// The bank's channel `x` (with its temperature) as the real side of a diagnosis.
+fn bank_log<'a>(x: &'a [f64], temp: Option<&'a [f64]>, rate_hz: f64) -> RealLog<'a> {
+    RealLog {
         channel: CHANNEL.into(),
-        x: &x,
-        rate_hz: case.spec.sample_rate_hz,
-        temperature_c: temp.as_deref(),
+        x,
+        rate_hz,
+        temperature_c: temp,
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
-    };
+    }
+}
+
+fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
+    let (x, temp) = bank::real_log(case, n, seed).unwrap();
+    let real = bank_log(&x, temp.as_deref(), case.spec.sample_rate_hz);
     let prm = GapParams {
         replicas,
         ..GapParams::default()
@@ -141,15 +146,7 @@ fn a_gauss_markov_that_took_a_sinusoids_variance_is_estimated_again_beside_it() 
         truth,
     };
     let (x, temp) = bank::real_log(&case, 36_000, 1234).unwrap();
-    let real = RealLog {
-        channel: CHANNEL.into(),
-        x: &x,
-        rate_hz: 10.0,
-        temperature_c: temp.as_deref(),
-        others: vec![],
-        spec_dir: None,
-        scan: Vec::new(),
-    };
+    let real = bank_log(&x, temp.as_deref(), 10.0);
     let diagnose_with = |reestimate: bool| {
         let prm = GapParams {
             replicas: 12,
@@ -1276,15 +1273,7 @@ fn screening_the_candidates_on_a_quarter_of_the_replicas_keeps_the_search_as_it_
         .find(|c| c.expect == "temperature_bias")
         .unwrap();
     let (x, temp) = bank::real_log(case, 36_000, 3).unwrap();
-    let real = RealLog {
-        channel: CHANNEL.into(),
-        x: &x,
-        rate_hz: case.spec.sample_rate_hz,
-        temperature_c: temp.as_deref(),
-        others: vec![],
-        spec_dir: None,
-        scan: Vec::new(),
-    };
+    let real = bank_log(&x, temp.as_deref(), case.spec.sample_rate_hz);
     let with = |screen: bool| {
         let prm = GapParams {
             replicas: 20,
