@@ -40,8 +40,14 @@ pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     Ok(())
 }
 
-/// The spikes of `x` on `ranges`: (their sizes |s_t|, threshold).
-fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, f64) {
+/// Robust sd of the second difference below which a local maximum of |s_t| counts in
+/// the band that [`student_fit`] reads besides the spikes' sizes: [4, 6) robust sd.
+const BAND_SD: f64 = 4.0;
+
+/// The spikes of `x` on `ranges` (module doc): their sizes |s_t| above the threshold
+/// of 6 robust sd, the number of local maxima of |s_t| in the band [`BAND_SD`] .. 6
+/// robust sd, and the threshold.
+fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
     let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let mut all: Vec<f64> = ranges
         .iter()
@@ -50,27 +56,35 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, f64) {
         })
         .collect();
     if all.is_empty() {
-        return (Vec::new(), 0.0);
+        return (Vec::new(), 0, 0.0);
     }
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
     let sd = 1.4826 * all[mid];
     let thr = 6.0 * sd;
+    let band_lo = BAND_SD * sd;
     let mut sizes = Vec::new();
+    let mut band = 0;
     for r in ranges {
         for t in r.start + 2..r.end.saturating_sub(2) {
             let s = s_at(t).abs();
-            if s > thr && s >= s_at(t - 1).abs() && s >= s_at(t + 1).abs() {
-                sizes.push(s);
+            if s > band_lo && s >= s_at(t - 1).abs() && s >= s_at(t + 1).abs() {
+                if s > thr {
+                    sizes.push(s);
+                } else {
+                    band += 1;
+                }
             }
         }
     }
-    (sizes, thr)
+    (sizes, band, thr)
 }
 
-/// The number of spikes of `x` on `ranges` ([`spikes`]).
-fn spike_count(x: &[f64], ranges: &[Range<usize>]) -> usize {
-    spikes(x, ranges).0.len()
+/// The number of spikes of `x` on `ranges` and of local maxima in the band below
+/// them ([`spikes`]).
+fn spike_count(x: &[f64], ranges: &[Range<usize>]) -> (usize, usize) {
+    let (sizes, band, _) = spikes(x, ranges);
+    (sizes.len(), band)
 }
 
 /// ln L of the sizes `a` (all above `thr`) as |scale W| truncated at `thr`, W a
@@ -101,22 +115,50 @@ fn truncated_ln_l(a: &[f64], thr: f64, scale: f64, dof: Option<f64>) -> f64 {
 /// The ends of the search range of [`student_fit`]'s dof.
 const DOF_RANGE: [f64; 2] = [1.0, 50.0];
 
-/// The Student-t fit of the sizes `a` above `thr` (module doc): (scale, dof, ln L,
-/// the scale's search range).
-fn student_fit(a: &[f64], thr: f64) -> (f64, f64, f64, [f64; 2]) {
+/// The count of local maxima of |s_t| in the band [`BAND_SD`] .. 6 robust sd below
+/// the spikes: `observed` in the real log's training part, `noise` the simulations'
+/// mean, `excess` the spikes above the threshold less the simulations' mean.
+#[derive(Clone, Copy, Debug)]
+struct Band {
+    observed: f64,
+    noise: f64,
+    excess: f64,
+}
+
+impl Band {
+    /// ln L of the band's count (a Poisson count, constants dropped) when the spikes
+    /// are |scale T_dof| and `excess` of them lie above `thr`: the spikes number
+    /// excess / P(|T| > thr / scale), and those in the band add
+    /// excess (P(|T| > b / scale) / P(|T| > thr / scale) - 1), b = thr BAND_SD / 6, to
+    /// the simulations' count: lambda = noise + that, ln L = observed ln lambda - lambda.
+    fn ln_l(&self, thr: f64, scale: f64, nu: f64) -> f64 {
+        let p_thr = student_t_two_sided_tail(thr / scale, nu).max(1e-300);
+        let p_band = student_t_two_sided_tail(thr * BAND_SD / 6.0 / scale, nu);
+        let lambda = (self.noise + self.excess * (p_band / p_thr - 1.0)).max(1e-9);
+        self.observed * lambda.ln() - lambda
+    }
+}
+
+/// The Student-t fit of the sizes `a` above `thr` (module doc): (scale, dof, ln L of
+/// the sizes, the scale's search range). With `band`, the likelihood maximized is the
+/// sizes' times the band count's ([`Band::ln_l`]): the sizes above the threshold alone
+/// say little about a scale well below it (their law tends to a Pareto's of index dof
+/// as the scale falls, so a few spikes can fit a tiny scale and a count of undetected
+/// spikes many times theirs), the count of smaller spikes in the band does.
+fn student_fit(a: &[f64], thr: f64, band: Option<Band>) -> (f64, f64, f64, [f64; 2]) {
     let a_max = a.iter().copied().fold(thr, f64::max);
     let (s_lo, s_hi) = ((thr / 6.0).ln(), (10.0 * a_max).ln());
-    let best_scale = |nu: f64| {
-        golden_argmin(s_lo, s_hi, 60, |u| {
-            -truncated_ln_l(a, thr, u.exp(), Some(nu))
-        })
+    let neg_ln_l = |scale: f64, nu: f64| {
+        -truncated_ln_l(a, thr, scale, Some(nu)) - band.map_or(0.0, |b| b.ln_l(thr, scale, nu))
     };
+    let best_scale = |nu: f64| golden_argmin(s_lo, s_hi, 60, |u| neg_ln_l(u.exp(), nu));
     let (v, _) = golden_argmin(DOF_RANGE[0].ln(), DOF_RANGE[1].ln(), 40, |v| {
         best_scale(v.exp()).1
     });
     let nu = v.exp();
-    let (u, neg) = best_scale(nu);
-    (u.exp(), nu, -neg, [s_lo.exp(), s_hi.exp()])
+    let (u, _) = best_scale(nu);
+    let ln_l = truncated_ln_l(a, thr, u.exp(), Some(nu));
+    (u.exp(), nu, ln_l, [s_lo.exp(), s_hi.exp()])
 }
 
 /// Upper tail of the standard normal, Q(c) = 1 - Phi(c) = Phi(-c).
@@ -128,14 +170,14 @@ fn normal_tail(c: f64) -> f64 {
 /// (fewer than 3 spikes more than the simulations': the two counts).
 fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, String>> {
     let ranges = cx.ranges();
-    let (sizes, thr) = spikes(cx.real, ranges);
+    let (sizes, band_real, thr) = spikes(cx.real, ranges);
     let c_real = sizes.len();
-    let c_ens = cx
-        .target
-        .iter()
-        .map(|t| spike_count(t, ranges) as f64)
-        .sum::<f64>()
-        / cx.target.len() as f64;
+    let counts_ens: Vec<(usize, usize)> =
+        cx.target.iter().map(|t| spike_count(t, ranges)).collect();
+    let mean_of = |f: fn(&(usize, usize)) -> usize| {
+        counts_ens.iter().map(|c| f(c) as f64).sum::<f64>() / counts_ens.len() as f64
+    };
+    let (c_ens, band_ens) = (mean_of(|c| c.0), mean_of(|c| c.1));
     let excess = c_real as f64 - c_ens;
     if excess < 3.0 || c_real == 0 || thr <= 0.0 {
         return Ok(Err(format!(
@@ -162,12 +204,20 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     }
     let scale_normal = (0.5 * (lo + hi)).exp();
     let ln_l_normal = truncated_ln_l(&sizes, thr, scale_normal, None);
-    let (scale_t, dof_t, ln_l_t, scale_range) = student_fit(&sizes, thr);
+    // the form by the sizes alone, the t's scale and dof with the band's count
+    let (_, _, ln_l_t, _) = student_fit(&sizes, thr, None);
     let deviance = 2.0 * (ln_l_t - ln_l_normal);
     let heavy = deviance > HEAVY_TAIL_MIN_DEVIANCE;
+    let band = Band {
+        observed: band_real as f64,
+        noise: band_ens,
+        excess,
+    };
+    let (scale_t, dof_t, _, scale_range) = student_fit(&sizes, thr, Some(band));
     let t_train = cx.n_train() as f64 / cx.rate_hz();
     let counts = format!(
-        "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the simulations"
+        "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the \
+         simulations ({band_real} against {band_ens:.1} between {BAND_SD} and 6)"
     );
     // the proposal of one amplitude form: the rate from the excess count and the
     // share of spikes of that form above the threshold
@@ -247,7 +297,7 @@ mod tests {
         // Student-t of 2 degrees of freedom, scale 1.5: about 600 of 1000 above thr
         let t2 = StudentT::new(2.0).unwrap();
         let a = sizes(1000, 1.5, thr, |r| t2.sample(r));
-        let (scale, dof, ln_l_t, [s_lo, s_hi]) = student_fit(&a, thr);
+        let (scale, dof, ln_l_t, [s_lo, s_hi]) = student_fit(&a, thr, None);
         // inside both search ranges
         assert!(scale > 1.01 * s_lo && scale < 0.99 * s_hi, "scale {scale}");
         assert!(dof > 1.01 && dof < 49.0, "dof {dof}");
@@ -260,7 +310,7 @@ mod tests {
         assert!(2.0 * (ln_l_t - ln_l_n) > HEAVY_TAIL_MIN_DEVIANCE);
         // normal sizes: the t adds almost nothing (its dof runs to the top of the range)
         let b = sizes(2000, 1.5, thr, |r| StandardNormal.sample(r));
-        let (_, dof_b, ln_l_tb, _) = student_fit(&b, thr);
+        let (_, dof_b, ln_l_tb, _) = student_fit(&b, thr, None);
         let ln_l_nb = (1..400)
             .map(|i| truncated_ln_l(&b, thr, 0.05 * i as f64, None))
             .fold(f64::NEG_INFINITY, f64::max);
@@ -269,6 +319,62 @@ mod tests {
             "dof {dof_b}"
         );
         assert!(dof_b > 10.0, "dof {dof_b}");
+    }
+
+    #[test]
+    fn the_band_below_the_threshold_pins_the_count_of_spikes_the_sizes_alone_leave_open() {
+        // about 20 spikes of |8 T_3| above a threshold of 6 (noise sd 1) per draw, 45
+        // draws: the number of spikes implied by each fit, (spikes above) / P(|scale
+        // T_dof| > thr), against the truth
+        let (thr, scale, n_true) = (6.0, 8.0, 40.0);
+        let t3 = StudentT::new(3.0).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let poisson = rand_distr::Poisson::new(n_true).unwrap();
+        let noise = rand_distr::Poisson::new(0.3).unwrap();
+        let (mut err_sizes, mut err_band) = (Vec::new(), Vec::new());
+        for _ in 0..45 {
+            let k: f64 = poisson.sample(&mut rng);
+            let k = k as usize;
+            let amps: Vec<f64> = (0..k)
+                .map(|_| {
+                    let w: f64 = t3.sample(&mut rng);
+                    (scale * w).abs()
+                })
+                .collect();
+            let above: Vec<f64> = amps.iter().copied().filter(|&a| a > thr).collect();
+            let in_band = amps
+                .iter()
+                .filter(|&&a| a > thr * BAND_SD / 6.0 && a <= thr)
+                .count() as f64
+                + {
+                    let z: f64 = noise.sample(&mut rng);
+                    z
+                };
+            let band = Band {
+                observed: in_band,
+                noise: 0.3,
+                excess: above.len() as f64,
+            };
+            let implied =
+                |(s, nu): (f64, f64)| above.len() as f64 / student_t_two_sided_tail(thr / s, nu);
+            let (s0, nu0, _, _) = student_fit(&above, thr, None);
+            let (s1, nu1, _, _) = student_fit(&above, thr, Some(band));
+            err_sizes.push((implied((s0, nu0)) / n_true).ln().abs());
+            err_band.push((implied((s1, nu1)) / n_true).ln().abs());
+        }
+        // the median error and the mean of the five largest (the fits that run off
+        // to a small scale and many undetected spikes)
+        let summary = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            (v[v.len() / 2], v[v.len() - 5..].iter().sum::<f64>() / 5.0)
+        };
+        let (m0, w0) = summary(&mut err_sizes);
+        let (m1, w1) = summary(&mut err_band);
+        assert!(
+            m1 <= m0 && m1 < 0.25,
+            "median |ln ratio|: band {m1}, sizes alone {m0}"
+        );
+        assert!(w1 < 0.75 * w0, "worst five: band {w1}, sizes alone {w0}");
     }
 
     #[test]
