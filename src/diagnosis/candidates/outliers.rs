@@ -9,7 +9,11 @@
 //!   as a sample of |scale T_dof| truncated at the threshold,
 //!   sum_i [ln f_dof(a_i / scale) - ln scale] - n ln P(|T_dof| > thr / scale),
 //!   profiled over ln dof in [1, 50] and ln scale in [thr / 6, 10 max a_i] by golden
-//!   section. The t alone is proposed when its likelihood beats the truncated normal's
+//!   section, tells the forms apart; the t proposed takes its scale and dof from that
+//!   likelihood times the Poisson likelihood of the count of smaller local maxima of
+//!   |s_t| between 4 and 6 robust sd (the simulations' count there plus the spikes
+//!   the fit puts in that band), which pins a scale well below the threshold that the
+//!   sizes above it leave open. The t alone is proposed when its likelihood beats the truncated normal's
 //!   (the same likelihood at the moment scale) by the 1 % point of chi2(1), 6.63 in
 //!   -2 ln L; below that, too few spikes tell the forms apart by their sizes, and when
 //!   the t's dof is inside its range both forms are proposed, for the withheld part's
