@@ -13,7 +13,8 @@
 //!   likelihood times the Poisson likelihood of the count of smaller local maxima of
 //!   |s_t| between 4 and 6 robust sd (the simulations' count there plus the spikes
 //!   the fit puts in that band), which pins a scale well below the threshold that the
-//!   sizes above it leave open. The t alone is proposed when its likelihood beats the truncated normal's
+//!   sizes above it leave open. The t alone is proposed when its likelihood beats the
+//!   truncated normal's
 //!   (the same likelihood at the moment scale) by the 1 % point of chi2(1), 6.63 in
 //!   -2 ln L; below that, too few spikes tell the forms apart by their sizes, and when
 //!   the t's dof is inside its range both forms are proposed, for the withheld part's
@@ -44,6 +45,9 @@ pub(super) fn outliers(cx: &Context, out: &mut Found) -> Result<()> {
     Ok(())
 }
 
+/// The spikes' threshold, in robust sd of the second difference.
+const THRESHOLD_SD: f64 = 6.0;
+
 /// Robust sd of the second difference below which a local maximum of |s_t| counts in
 /// the band that [`student_fit`] reads besides the spikes' sizes: [4, 6) robust sd.
 const BAND_SD: f64 = 4.0;
@@ -65,7 +69,7 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
     let sd = 1.4826 * all[mid];
-    let thr = 6.0 * sd;
+    let thr = THRESHOLD_SD * sd;
     let band_lo = BAND_SD * sd;
     let mut sizes = Vec::new();
     let mut band = 0;
@@ -137,7 +141,7 @@ impl Band {
     /// the simulations' count: lambda = noise + that, ln L = observed ln lambda - lambda.
     fn ln_l(&self, thr: f64, scale: f64, nu: f64) -> f64 {
         let p_thr = student_t_two_sided_tail(thr / scale, nu).max(1e-300);
-        let p_band = student_t_two_sided_tail(thr * BAND_SD / 6.0 / scale, nu);
+        let p_band = student_t_two_sided_tail(thr * BAND_SD / THRESHOLD_SD / scale, nu);
         let lambda = (self.noise + self.excess * (p_band / p_thr - 1.0)).max(1e-9);
         self.observed * lambda.ln() - lambda
     }
@@ -176,12 +180,13 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     let ranges = cx.ranges();
     let (sizes, band_real, thr) = spikes(cx.real, ranges);
     let c_real = sizes.len();
-    let counts_ens: Vec<(usize, usize)> =
-        cx.target.iter().map(|t| spike_count(t, ranges)).collect();
-    let mean_of = |f: fn(&(usize, usize)) -> usize| {
-        counts_ens.iter().map(|c| f(c) as f64).sum::<f64>() / counts_ens.len() as f64
-    };
-    let (c_ens, band_ens) = (mean_of(|c| c.0), mean_of(|c| c.1));
+    let (sum_spikes, sum_band) = cx
+        .target
+        .iter()
+        .map(|t| spike_count(t, ranges))
+        .fold((0, 0), |(a, b), (c, d)| (a + c, b + d));
+    let m = cx.target.len() as f64;
+    let (c_ens, band_ens) = (sum_spikes as f64 / m, sum_band as f64 / m);
     let excess = c_real as f64 - c_ens;
     if excess < 3.0 || c_real == 0 || thr <= 0.0 {
         return Ok(Err(format!(
@@ -221,7 +226,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     let t_train = cx.n_train() as f64 / cx.rate_hz();
     let counts = format!(
         "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the \
-         simulations ({band_real} against {band_ens:.1} between {BAND_SD} and 6)"
+         simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd)"
     );
     // the proposal of one amplitude form: the rate from the excess count and the
     // share of spikes of that form above the threshold
