@@ -56,7 +56,8 @@ ACCEPT = {
 # kinds that are candidate kinds of contracts.md section 2 today (the rest: issue 27's)
 CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 
-PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021}
+PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021,
+             "dev3": 30_017_003}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -502,12 +503,26 @@ PAIRS = {
              [("output_filter", "1"), ("constant_bias", "")],
              [("thermal_rate", ""), ("warmup", "long")],
              [("bias_instability", ""), ("rate_random_walk", "")]],
+    # a third development draw (fifteenth session): pairs only, each member as large as
+    # heldout2's (2.5-4), in combinations no other part has, to see what a large pair
+    # does without looking at the held-out part
+    "dev3": [[("temperature_bias", "quad"), ("rate_ramp", "")],
+             [("gauss_markov", ""), ("warmup", "long")],
+             [("heteroskedastic", ""), ("constant_bias", "")],
+             [("thermal_rate", ""), ("sinusoid", "")],
+             [("quantization", "angle"), ("temperature_bias", "lin")],
+             [("output_filter", "2"), ("constant_bias", "")],
+             [("bias_instability", ""), ("rate_ramp", "")],
+             [("outliers", ""), ("rate_random_walk", "")],
+             [("sinusoid", ""), ("rate_random_walk", "")],
+             [("warmup", "short"), ("temperature_bias", "lin")]],
 }
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")],
-           "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")]}
+           "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")],
+           "dev3": []}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -520,15 +535,20 @@ GRID = {
     "dev2": [(10, 5400), (10, 6 * 3600), (100, 3600), (100, 900), (10, 2700)],
     # the issue's outside cases are 4 h at 10 Hz with a chamber temperature channel
     "heldout2": [(10, 4 * 3600), (10, 5 * 3600), (100, 2 * 3600), (10, 4 * 3600), (100, 2700)],
+    "dev3": [(10, 3600), (10, 3 * 3600), (100, 1800), (10, 2 * 3600), (100, 1200)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
-            "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"]}
+            "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
+            "dev3": ["steps", "drift", "ramp"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
-          "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)]}
+          "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
+          "dev3": [(-15, 45), (0, 40), (10, 55)]}
 
 
 def size_for(part, rng, category="single"):
+    if part == "dev3":
+        return float(rng.uniform(2.5, 4.0))
     if part == "heldout2":
         # a pair's members share one size: the held-out's larger sizes only, so that
         # each member can show beside the other (the first held-out part's small pairs
@@ -548,13 +568,13 @@ def size_for(part, rng, category="single"):
 def make_part(part):
     rng = np.random.default_rng(PART_SEED[part])
     plan = []
-    for k, v in SINGLES:
+    for k, v in (SINGLES if part != "dev3" else []):
         plan.append(("single", [(k, v)], f"single_{k}" + (f"_{v}" if v else "")))
     for pr in PAIRS[part]:
         plan.append(("pair", pr, "pair_" + "+".join(k for k, _ in pr)))
     for i, (k, v) in enumerate(NONCAND[part]):
         plan.append(("non_candidate", [(k, v)], f"noncand_{k}_{i}"))
-    for i, eff in enumerate(CORRECT):
+    for i, eff in enumerate(CORRECT if part != "dev3" else []):
         plan.append(("correct", eff, f"correct_{i}" + ("_" + "+".join(k for k, _ in eff) if eff else "")))
     cases = []
     khz_left = KHZ[part]
@@ -579,10 +599,10 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "heldout", "heldout2", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "heldout", "heldout2", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
-    parts = ["dev", "dev2", "heldout", "heldout2"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "dev3", "heldout", "heldout2"] if a.part == "all" else [a.part]
     for part in parts:
         cases = make_part(part)
         index = []

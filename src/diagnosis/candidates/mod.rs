@@ -11,7 +11,8 @@
 //!   intercept: constant_bias (mean of r), rate_ramp, warmup (amplitude for each of a
 //!   log grid of tau_s, the best by residual sum of squares, refined by golden-section
 //!   search between its grid neighbours), sinusoid (frequency of
-//!   the largest peak of the training-masked periodogram of r, refined by a
+//!   the largest peak, relative to its neighbours, of the periodogram of r on the
+//!   training blocks, each less its own mean, refined by a
 //!   golden-section search of the least-squares power; amplitude and phase by least
 //!   squares), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
 //!   (coefficient for each smoothing and first-order lag of a grid, the best by
@@ -25,7 +26,9 @@
 //!   quantization, bias_instability, rate_random_walk, gauss_markov (tau_s by the best
 //!   fit over a log grid, refined by golden section), and recalibration of a noise
 //!   component (A - E + V_k against V_k, its own AVAR, giving the factor s^2 on its
-//!   size);
+//!   size); A(m) is of the log with the residual's line taken out first when the
+//!   periodogram shows one beyond doubt (a line is not noise, and its Allan variance
+//!   is a bump that a Gauss-Markov or a bias instability would take as its own);
 //! - outliers from spikes: the local second difference s_t = x_t - (x_{t-1} + x_{t+1})/2,
 //!   spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD) and is a local
 //!   maximum; the excess count over the ensemble's gives the rate, and the spikes' sizes,
@@ -71,6 +74,7 @@ mod resolution;
 mod temperature;
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use rayon::prelude::*;
 use serde_json::Value;
@@ -370,6 +374,32 @@ struct Training {
     ms: Vec<usize>,
     /// A(m) - E(m), E the ensemble's mean training AVAR.
     excess: Vec<f64>,
+    /// The training residual's largest line ([`Training::line`]), found on first use.
+    line: OnceLock<Option<deterministic::Line>>,
+    /// What the noise fits read ([`Training::noise_avar`]), computed on first use.
+    noise: OnceLock<NoiseAvar>,
+}
+
+/// The training Allan variance the noise fits read: A(m) and A(m) - E(m) of the real
+/// log with a significant line of the residual taken out first (`line_hz`), else the
+/// log's own.
+pub(super) struct NoiseAvar {
+    pub a_real: Vec<f64>,
+    pub excess: Vec<f64>,
+    pub line_hz: Option<f64>,
+}
+
+impl NoiseAvar {
+    /// What a noise proposal's note adds when a line was taken out.
+    pub fn note(&self) -> String {
+        match self.line_hz {
+            Some(f) => format!(
+                ", with the training residual's line at {} Hz taken out of the log first",
+                crate::fmt::num(f)
+            ),
+            None => String::new(),
+        }
+    }
 }
 
 impl Training {
@@ -402,7 +432,53 @@ impl Training {
             a_real,
             ms,
             excess,
+            line: OnceLock::new(),
+            noise: OnceLock::new(),
         }
+    }
+
+    /// The largest line of the training residual ([`deterministic::find_sinusoid`]),
+    /// significant or not; None when the periodogram has no peak.
+    fn line(&self) -> Option<&deterministic::Line> {
+        self.line
+            .get_or_init(|| deterministic::find_sinusoid(&self.res, &self.ranges, self.fs))
+            .as_ref()
+    }
+
+    /// The training Allan variance the noise fits read ([`NoiseAvar`]). A sinusoid's
+    /// Allan variance, A^2 sin^4(pi f tau) / (pi f tau)^2, is a bump near tau = 0.37 / f
+    /// that a Gauss-Markov or a bias instability fitted to the excess takes as its own;
+    /// a line the periodogram shows beyond doubt ([`deterministic::Line::is_significant`])
+    /// is not noise, so it is taken out of the real log before A(m) is computed:
+    /// A'(m) = AVAR(x_t - line_t), excess A'(m) - E(m).
+    fn noise_avar(&self, cx: &Context) -> &NoiseAvar {
+        self.noise
+            .get_or_init(|| match self.line().filter(|l| l.is_significant()) {
+                Some(l) => {
+                    let clean: Vec<f64> = cx
+                        .real
+                        .iter()
+                        .enumerate()
+                        .map(|(t, x)| x - l.at(t, self.fs))
+                        .collect();
+                    let a_clean = cx.avar(&clean);
+                    let excess = a_clean
+                        .iter()
+                        .zip(self.a_real.iter().zip(&self.excess))
+                        .map(|(c, (a, e))| c - (a - e))
+                        .collect();
+                    NoiseAvar {
+                        a_real: a_clean,
+                        excess,
+                        line_hz: Some(l.freq_hz),
+                    }
+                }
+                None => NoiseAvar {
+                    a_real: self.a_real.clone(),
+                    excess: self.excess.clone(),
+                    line_hz: None,
+                },
+            })
     }
 }
 

@@ -4,7 +4,8 @@
 //! c^2 = argmin sum_m w_m (A - E - c^2 U)^2, w_m = 1 / (m A(m)^2) (the relative variance
 //! of an AVAR estimate grows like m / N), c^2 >= 0: white_noise, quantization,
 //! bias_instability, rate_random_walk, and gauss_markov (U in closed form, tau_s by the
-//! best fit over a log grid refined by golden section).
+//! best fit over a log grid refined by golden section). A(m) is of the log with a
+//! significant line of the training residual taken out ([`Training::noise_avar`]).
 
 use super::lsq::{fit_nonneg, log_grid, refine_on_log_grid};
 use super::params::{flag_edge, params_json, scaled};
@@ -31,10 +32,12 @@ pub(super) fn unit_components() -> [(Kind, Component); 4] {
     ]
 }
 
-/// The fit of a unit component to the excess training Allan variance, given G(m), the
-/// unit component's mean training AVAR: (coefficient c, weighted RSS of the fit).
-fn allan_fit(tr: &Training, g: &[f64]) -> (f64, f64) {
-    let (c2, wrss) = fit_nonneg(&tr.excess, g, &tr.a_real, &tr.ms);
+/// The fit of a unit component to the excess training Allan variance (a significant
+/// line of the residual taken out, [`Training::noise_avar`]), given G(m), the unit
+/// component's mean training AVAR: (coefficient c, weighted RSS of the fit).
+fn allan_fit(cx: &Context, tr: &Training, g: &[f64]) -> (f64, f64) {
+    let na = tr.noise_avar(cx);
+    let (c2, wrss) = fit_nonneg(&na.excess, g, &na.a_real, &tr.ms);
     (c2.sqrt(), wrss)
 }
 
@@ -67,7 +70,7 @@ pub(super) fn power_law(
     out: &mut Found,
 ) -> Result<()> {
     let mut u = cx.sim.extra_signal(cx.spec, cx.channel, &unit_c)?;
-    let (c, _) = allan_fit(tr, &cx.mean_avar(u.iter().map(|v| v.as_slice())));
+    let (c, _) = allan_fit(cx, tr, &cx.mean_avar(u.iter().map(|v| v.as_slice())));
     if c <= 0.0 {
         out.skip(
             kind.as_str(),
@@ -89,7 +92,10 @@ pub(super) fn power_law(
             }
             u
         }),
-        note: "weighted least squares on the excess training Allan variance".into(),
+        note: format!(
+            "weighted least squares on the excess training Allan variance{}",
+            tr.noise_avar(cx).note()
+        ),
     });
     Ok(())
 }
@@ -134,7 +140,7 @@ pub(super) fn gm_unit_avar(ms: &[usize], fs: f64, tau_s: f64) -> Vec<f64> {
 /// (`at_search_edge`), a bound rather than an estimate.
 pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (lo, hi) = gm_range(cx, tr);
-    let fit = |tau: f64| allan_fit(tr, &gm_unit_avar(&tr.ms, tr.fs, tau));
+    let fit = |tau: f64| allan_fit(cx, tr, &gm_unit_avar(&tr.ms, tr.fs, tau));
     // the weighted RSS of a fit with a positive coefficient (none: infinite)
     let wrss = |tau: f64| match fit(tau) {
         (c, w) if c > 0.0 => w,
@@ -154,7 +160,7 @@ pub(super) fn gauss_markov(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     };
     let tau = refine_on_log_grid(&grid, i, w_grid, 40, [lo, hi], wrss);
     let (c, _) = fit(tau);
-    gm_propose(cx, tau, c, (lo, hi), out)
+    gm_propose(cx, tr, tau, c, (lo, hi), out)
 }
 
 /// [`gauss_markov`] with U(m) the mean over the ensemble's replicas of the simulated
@@ -170,7 +176,7 @@ pub(super) fn gauss_markov_by_simulation(
     let mut best: Option<(f64, f64, f64)> = None;
     for &tau in grid {
         let g = unit_mean_avar(cx, &gm_unit(tau))?;
-        let (c, wrss) = allan_fit(tr, &g);
+        let (c, wrss) = allan_fit(cx, tr, &g);
         if c > 0.0 && best.as_ref().is_none_or(|b| wrss < b.2) {
             best = Some((c, tau, wrss));
         }
@@ -180,7 +186,14 @@ pub(super) fn gauss_markov_by_simulation(
 
 /// The gauss_markov proposal of the state `cx`: sigma `c` at correlation time `tau`
 /// (searched over `range`), its unit signals simulated and scaled.
-fn gm_propose(cx: &Context, tau: f64, c: f64, range: (f64, f64), out: &mut Found) -> Result<()> {
+fn gm_propose(
+    cx: &Context,
+    tr: &Training,
+    tau: f64,
+    c: f64,
+    range: (f64, f64),
+    out: &mut Found,
+) -> Result<()> {
     let u = scaled_signals(cx, &gm_unit(tau), c)?;
     let mut p = added(
         "gauss_markov",
@@ -190,7 +203,8 @@ fn gm_propose(cx: &Context, tau: f64, c: f64, range: (f64, f64), out: &mut Found
         },
         Delta::Each(u),
         format!(
-            "excess training Allan variance against the closed-form unit AVAR, tau_s over a log grid of {GM_GRID} refined by golden section"
+            "excess training Allan variance against the closed-form unit AVAR, tau_s over a log grid of {GM_GRID} refined by golden section{}",
+            tr.noise_avar(cx).note()
         ),
     );
     flag_edge(&mut p.params, &mut p.note, "tau_s", tau, range.0, range.1);

@@ -17,16 +17,17 @@ use crate::simulator::Component;
 /// has a size factor (none when the channel has no component `k`).
 pub(super) fn recalibrate(cx: &Context, tr: &Training, k: usize, out: &mut Found) -> Result<()> {
     let comps = &cx.spec.channels[cx.channel].components;
-    let (res, ranges, excess) = (&tr.res, &tr.ranges, &tr.excess);
+    let (res, ranges) = (&tr.res, &tr.ranges);
     if let Some(c) = comps.get(k) {
         let kind = format!("recalibrate:{}", c.kind());
         if scaled(c, 1.0).is_none() {
             return Ok(());
         }
         let s = if is_noise(c) {
+            let na = tr.noise_avar(cx);
             let vk = cx.mean_avar(cx.parts.iter().map(|p| p[k].as_slice()));
-            let y: Vec<f64> = excess.iter().zip(&vk).map(|(e, v)| e + v).collect();
-            let (s2, _) = fit_nonneg(&y, &vk, &tr.a_real, &tr.ms);
+            let y: Vec<f64> = na.excess.iter().zip(&vk).map(|(e, v)| e + v).collect();
+            let (s2, _) = fit_nonneg(&y, &vk, &na.a_real, &tr.ms);
             s2.sqrt()
         } else if matches!(c, Component::Outliers { .. }) {
             return Ok(());
@@ -65,7 +66,10 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, k: usize, out: &mut Found
             rescales: None,
             delta,
             note: if is_noise(c) {
-                "size factor from the training Allan variance".into()
+                format!(
+                    "size factor from the training Allan variance{}",
+                    tr.noise_avar(cx).note()
+                )
             } else {
                 "size factor by least squares on the training residual".into()
             },
