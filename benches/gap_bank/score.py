@@ -15,7 +15,9 @@ BANKDIR/results. --rescore scores the saved JSONs again without running farma.
 Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
 - single: right if added[0] is the withheld kind (or a name accepted for it, truth.json
   "accept") AND gap_after <= 2 x noise_floor;
-- pair: right if both withheld kinds are among added AND gap_after <= threshold;
+- pair: right if both withheld kinds are among added AND gap_after <= threshold (the
+  JSON's explained_threshold when present: the gap threshold, or above it 1.1 x the
+  largest gap after of simulations of the spec after diagnosed again);
 - non_candidate: right if the diagnosis does not declare it explained: the JSON's
   `explained` when present (right if false); otherwise right if nothing was added or
   gap_after > threshold;
@@ -66,6 +68,10 @@ def score_case(truth, d):
     if cat == "pair":
         ks = truth["kinds"]
         got = [any(a in names(truth, k) for a in added) for k in ks]
+        # the gap closed: within the threshold `explained` is judged against (the gap
+        # threshold, or above it what re-estimating the added effects on simulations of
+        # the spec after leaves), when the JSON has it
+        thr = float(d.get("explained_threshold") or thr)
         ok_gap = after <= thr
         why = f"added={added} want={ks}; after {after:.3g} vs thr {thr:.3g}"
         return all(got) and ok_gap, why

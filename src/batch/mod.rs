@@ -505,6 +505,8 @@ fn run_task(
                     reestimate: opt_bool(task, "reestimate")?.unwrap_or(d.reestimate),
                     screen: opt_bool(task, "screen")?.unwrap_or(d.screen),
                     keep_events: opt_bool(task, "keep_events")?.unwrap_or(d.keep_events),
+                    explain_replicas: opt_usize(task, "explain_replicas")?
+                        .unwrap_or(d.explain_replicas),
                     ..d
                 },
             };

@@ -57,6 +57,13 @@ pub struct GapArgs {
     /// stretch before it and listed in `events_excluded`.
     #[arg(long)]
     pub keep_events: bool,
+    /// Simulations of the spec after diagnosed again (the added kinds estimated anew)
+    /// when the gap after is above the gap threshold: `explained` is judged against
+    /// 1.1 times their largest gap after, the spread that estimating the effects on
+    /// half the blocks leaves when the spec after is right; 0: against the gap
+    /// threshold.
+    #[arg(long, default_value_t = crate::diagnosis::EXPLAIN_REPLICAS, value_name = "N")]
+    pub explain_replicas: usize,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: Option<PathBuf>,
@@ -90,6 +97,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             reestimate: a.reestimate,
             screen: !a.no_screen,
             keep_events: a.keep_events,
+            explain_replicas: a.explain_replicas,
             ..GapParams::default()
         },
     };

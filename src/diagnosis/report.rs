@@ -39,6 +39,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "gap_threshold": d.gap_threshold,
         "significant": d.gap_before > d.gap_threshold,
         "explained": d.explained,
+        "explained_threshold": d.explained_threshold,
+        "explained_replica_gaps": d.explained_replica_gaps,
         "unexplained": if d.explained {
             Vec::new()
         } else {

@@ -646,6 +646,18 @@ pub fn propose_folds(
     cxs: [&Context; 2],
     sinks: [&mut dyn FnMut(Proposal); 2],
 ) -> Result<[Vec<NotTried>; 2]> {
+    propose_folds_of(cxs, None, sinks)
+}
+
+/// [`propose_folds`] with, when `only` is given, just the steps that estimate an
+/// effect of one of those kinds for either state: each state's sink is handed those
+/// kinds' proposals that [`propose_folds`] hands it (it may hand a step's other kinds
+/// too: the caller filters), in the same order.
+pub fn propose_folds_of(
+    cxs: [&Context; 2],
+    only: Option<&[String]>,
+    sinks: [&mut dyn FnMut(Proposal); 2],
+) -> Result<[Vec<NotTried>; 2]> {
     let [s0, s1] = sinks;
     let mut outs = [
         Found {
@@ -657,15 +669,15 @@ pub fn propose_folds(
             skipped: Vec::new(),
         },
     ];
-    run_folds(cxs, None, &mut outs)?;
+    run_folds(cxs, only, &mut outs)?;
     let [o0, o1] = outs;
     Ok([o0.skipped, o1.skipped])
 }
 
 /// The steps of [`propose_folds`] for both states, each step for `cxs[0]` then
 /// `cxs[1]`; with `only`, just the
-/// steps that estimate an effect of that kind for either state ([`step_kind`]).
-fn run_folds(cxs: [&Context; 2], only: Option<&str>, outs: &mut [Found; 2]) -> Result<()> {
+/// steps that estimate an effect of one of those kinds for either state ([`step_kind`]).
+fn run_folds(cxs: [&Context; 2], only: Option<&[String]>, outs: &mut [Found; 2]) -> Result<()> {
     let trs = cxs.map(Training::new);
     let comps = cxs.map(|cx| cx.spec.channels[cx.channel].components.as_slice());
     let n_comps = comps.iter().map(|c| c.len()).max().unwrap_or(0);
@@ -675,7 +687,7 @@ fn run_folds(cxs: [&Context; 2], only: Option<&str>, outs: &mut [Found; 2]) -> R
                 .iter()
                 .all(|c| step_kind(&step, c).as_deref() != Some(kind))
         };
-        if only.is_some_and(skip) {
+        if only.is_some_and(|ks| ks.iter().all(|k| skip(k))) {
             continue;
         }
         for f in 0..2 {
@@ -741,7 +753,7 @@ pub fn propose_kind_folds(
             skipped: Vec::new(),
         },
     ];
-    run_folds(cxs, Some(kind), &mut outs)
+    run_folds(cxs, Some(&[kind.to_string()]), &mut outs)
 }
 
 #[cfg(test)]
