@@ -288,7 +288,7 @@ pub fn diagnose_with_progress(
     };
     if found.is_empty() {
         let mut d = diagnose_log(real, spec, prm, pb)?;
-        explain_by_replicas(real, spec, prm, &mut d, pb)?;
+        explain_or_note(real, spec, prm, &mut d, pb);
         return Ok(d);
     }
     // the diagnosed and cross-axis channels with the spans replaced
@@ -307,7 +307,7 @@ pub fn diagnose_with_progress(
         ..real.clone()
     };
     let mut d = diagnose_log(&clean, spec, prm, pb)?;
-    explain_by_replicas(&clean, spec, prm, &mut d, pb)?;
+    explain_or_note(&clean, spec, prm, &mut d, pb);
     let seconds: f64 = found.iter().map(|e| e.end_s - e.start_s).sum();
     d.notes.insert(
         0,
@@ -320,6 +320,22 @@ pub fn diagnose_with_progress(
     );
     d.events_excluded = found;
     Ok(d)
+}
+
+/// [`explain_by_replicas`], or, when the spec after cannot be simulated and diagnosed
+/// again, a note saying so (`explained` stays judged against the gap threshold).
+fn explain_or_note(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    d: &mut Diagnosis,
+    pb: &ProgressBar,
+) {
+    if let Err(e) = explain_by_replicas(real, spec, prm, d, pb) {
+        d.notes.push(format!(
+            "the spec after could not be simulated and diagnosed again ({e}): `explained` is judged against the gap threshold"
+        ));
+    }
 }
 
 /// The threshold of `explained` that accounts for estimating the added effects on the
