@@ -17,7 +17,8 @@ Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
   "accept") AND gap_after <= 2 x noise_floor;
 - pair: right if both withheld kinds are among added AND gap_after <= threshold (the
   JSON's explained_threshold when present: the gap threshold, or above it 1.1 x the
-  largest gap after of simulations of the spec after diagnosed again);
+  largest gap after of simulations of the spec after diagnosed again, at most 2 x the
+  noise floor);
 - non_candidate: right if the diagnosis does not declare it explained: the JSON's
   `explained` when present (right if false); otherwise right if nothing was added or
   gap_after > threshold;

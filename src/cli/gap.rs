@@ -59,9 +59,9 @@ pub struct GapArgs {
     pub keep_events: bool,
     /// Simulations of the spec after diagnosed again (the added kinds estimated anew)
     /// when the gap after is above the gap threshold: `explained` is judged against
-    /// 1.1 times their largest gap after, the spread that estimating the effects on
-    /// half the blocks leaves when the spec after is right; 0: against the gap
-    /// threshold.
+    /// 1.1 times their largest gap after (at most twice the noise floor), the spread
+    /// that estimating the effects on half the blocks leaves when the spec after is
+    /// right; 0: against the gap threshold.
     #[arg(long, default_value_t = crate::diagnosis::EXPLAIN_REPLICAS, value_name = "N")]
     pub explain_replicas: usize,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.

@@ -64,6 +64,16 @@ pub const EXPLAIN_REPLICAS: usize = 4;
 /// ([`explain_by_replicas`]), so that none of them is a replica of the ensemble.
 pub const EXPLAIN_SEED: u64 = 0x005E_ED0F_AF7E;
 
+/// The most the threshold of [`explain_by_replicas`] may be, in noise floors (unless
+/// the gap threshold is more): a closed gap is one within twice the floor, however
+/// widely the re-diagnoses of a spec after spread (a few heavy-tailed spikes, a random
+/// walk's wander).
+pub const EXPLAIN_CAP: f64 = 2.0;
+
+/// The `min_shrink` of the re-diagnoses of [`explain_by_replicas`]: below any shrink
+/// or share, so that each adds every kind asked for that its search can estimate.
+pub const FORCED_SHRINK: f64 = -1e9;
+
 /// What a not-tried reason adds when the other fold did estimate the candidate.
 const ONE_FOLD_ONLY: &str = "the other fold estimated it, not scored (what one half of \
     the blocks shows and the other does not)";
@@ -346,10 +356,11 @@ fn explain_or_note(
 /// says. When the gap after is above the gap threshold, `prm.explain_replicas` logs
 /// are simulated from the spec after (on the real log's time base and temperature,
 /// seeds apart from the ensemble's) and each is diagnosed against the spec with only
-/// the added kinds as candidates: the whole estimate-and-score pipeline on data for
-/// which the spec after is right. The threshold is the gap threshold or 1.1 times the
-/// largest of their gaps after (the gap threshold's own rule over its leave-one-out
-/// gaps), whichever is larger, and the verdict ([`verdict`]) is judged against it.
+/// the added kinds as candidates, every one of them added: the whole
+/// estimate-and-score pipeline on data for which the spec after is right. The
+/// threshold is 1.1 times the largest of their gaps after (the gap threshold's own rule
+/// over its leave-one-out gaps), at least the gap threshold and at most
+/// [`EXPLAIN_CAP`] noise floors, and the verdict ([`verdict`]) is judged against it.
 fn explain_by_replicas(
     real: &RealLog,
     spec: &Spec,
@@ -364,10 +375,14 @@ fn explain_by_replicas(
     let names: Vec<String> = std::iter::once(real.channel.clone())
         .chain(real.others.iter().map(|(s, _)| s.clone()))
         .collect();
+    // every added kind estimated on each simulation: no shrink is too small to add
+    // one, nor a share too small to keep it (what is measured is the estimation's
+    // spread, not whether the search would stop early)
     let p = GapParams {
         explain_replicas: 0,
         only_kinds: Some(kinds.clone()),
         max_added: kinds.len(),
+        min_shrink: FORCED_SHRINK,
         keep_events: true,
         seed: Some(d.seed),
         ..prm.clone()
@@ -412,12 +427,13 @@ fn explain_by_replicas(
         gaps.push(dr.gap_after);
     }
     let largest = gaps.iter().copied().fold(0.0, f64::max);
-    let threshold = d.gap_threshold.max(1.1 * largest);
+    let cap = d.gap_threshold.max(EXPLAIN_CAP * d.noise_floor);
+    let threshold = d.gap_threshold.max(1.1 * largest).min(cap);
     let (explained, why_not) = verdict(d.gap_after, threshold, &d.support);
     d.notes
         .retain(|n| !n.starts_with("unexplained:") && !n.starts_with("not explained:"));
     d.notes.push(format!(
-        "the gap after {:.3} is above the gap threshold {:.3}: {} simulations of the spec after, each diagnosed again with the added kinds estimated anew, end at gaps {}; `explained` is judged against {threshold:.3} (1.1 x the largest, or the gap threshold)",
+        "the gap after {:.3} is above the gap threshold {:.3}: {} simulations of the spec after, each diagnosed again with the added kinds estimated anew, end at gaps {}; `explained` is judged against {threshold:.3} (1.1 x the largest, at least the gap threshold, at most {EXPLAIN_CAP} x the noise floor)",
         d.gap_after,
         d.gap_threshold,
         gaps.len(),

@@ -1297,13 +1297,13 @@ fn screening_the_candidates_on_a_quarter_of_the_replicas_keeps_the_search_as_it_
 /// candidates: the search adds what it can and ends above the gap threshold, so the
 /// spec after is simulated and diagnosed again; `explained` is judged against 1.1 times the largest gap after of
 /// those diagnoses (or the gap threshold), the first of which is what `diagnose` gives
-/// on the spec after simulated with seed + EXPLAIN_SEED and only the added kinds as
-/// candidates. With `explain_replicas` 0 the search is the same and the threshold is the
+/// on the spec after simulated with seed + EXPLAIN_SEED, only the added kinds as
+/// candidates and every one of them added. With `explain_replicas` 0 the search is the same and the threshold is the
 /// gap threshold.
 #[test]
 fn explained_is_judged_against_the_spec_after_simulated_and_diagnosed_again() {
     use farma::diagnosis::ensemble::SimBase;
-    use farma::diagnosis::{EXPLAIN_REPLICAS, EXPLAIN_SEED};
+    use farma::diagnosis::{EXPLAIN_REPLICAS, EXPLAIN_SEED, FORCED_SHRINK};
     let spec = bank::base_spec(10.0, false);
     let case = Case {
         expect: String::new(),
@@ -1335,7 +1335,11 @@ fn explained_is_judged_against_the_spec_after_simulated_and_diagnosed_again() {
     );
     assert_eq!(d.explained_replica_gaps.len(), EXPLAIN_REPLICAS);
     let largest = d.explained_replica_gaps.iter().copied().fold(0.0, f64::max);
-    assert_eq!(d.explained_threshold, d.gap_threshold.max(1.1 * largest));
+    let cap = d.gap_threshold.max(2.0 * d.noise_floor);
+    assert_eq!(
+        d.explained_threshold,
+        d.gap_threshold.max(1.1 * largest).min(cap)
+    );
     assert!(!d.explained || d.gap_after <= d.explained_threshold);
     // the first simulation of the spec after, diagnosed by hand
     let sim = SimBase {
@@ -1359,6 +1363,7 @@ fn explained_is_judged_against_the_spec_after_simulated_and_diagnosed_again() {
         &GapParams {
             only_kinds: Some(kinds.clone()),
             max_added: kinds.len(),
+            min_shrink: FORCED_SHRINK,
             explain_replicas: 0,
             keep_events: true,
             seed: Some(d.seed),
