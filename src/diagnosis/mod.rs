@@ -57,20 +57,20 @@ pub use distance::{Calibration, EnsembleStats, Region};
 pub use features::{FeatureDef, Layout, Statistic, Temperature};
 pub use path::PathStage;
 
-/// Simulations of the spec after diagnosed again by default ([`explain_by_replicas`]).
+/// Simulations of the spec after diagnosed again by default (`explain_by_replicas`).
 pub const EXPLAIN_REPLICAS: usize = 4;
 
 /// Added to the ensemble's seed for the simulations of the spec after
-/// ([`explain_by_replicas`]), so that none of them is a replica of the ensemble.
+/// (`explain_by_replicas`), so that none of them is a replica of the ensemble.
 pub const EXPLAIN_SEED: u64 = 0x005E_ED0F_AF7E;
 
-/// The most the threshold of [`explain_by_replicas`] may be, in noise floors (unless
+/// The most the threshold of `explain_by_replicas` may be, in noise floors (unless
 /// the gap threshold is more): a closed gap is one within twice the floor, however
 /// widely the re-diagnoses of a spec after spread (a few heavy-tailed spikes, a random
 /// walk's wander).
 pub const EXPLAIN_CAP: f64 = 2.0;
 
-/// The `min_shrink` of the re-diagnoses of [`explain_by_replicas`]: below any shrink
+/// The `min_shrink` of the re-diagnoses of `explain_by_replicas`: below any shrink
 /// or share, so that each adds every kind asked for that its search can estimate.
 pub const FORCED_SHRINK: f64 = -1e9;
 
@@ -109,7 +109,7 @@ pub struct GapParams {
     pub keep_events: bool,
     /// Simulations of the spec after that are diagnosed again, the added kinds
     /// estimated anew on each, for the threshold `explained` is judged against when
-    /// the gap after is above the gap threshold ([`explain_by_replicas`]); 0: none.
+    /// the gap after is above the gap threshold (`explain_by_replicas`); 0: none.
     pub explain_replicas: usize,
     /// Only these kinds are candidates (None: every kind): what the re-diagnosis of a
     /// simulation of the spec after estimates.
@@ -226,7 +226,7 @@ pub struct Diagnosis {
     pub steps: Vec<Step>,
     /// The threshold `explained` was judged against: `gap_threshold`, or above it
     /// what estimating the added effects again on simulations of the spec after leaves
-    /// ([`explain_by_replicas`]).
+    /// (`explain_by_replicas`).
     pub explained_threshold: f64,
     /// The gaps after of those simulations' diagnoses (empty when none ran).
     pub explained_replica_gaps: Vec<f64>,
@@ -332,7 +332,7 @@ pub fn diagnose_with_progress(
     Ok(d)
 }
 
-/// [`explain_by_replicas`], or, when the spec after cannot be simulated and diagnosed
+/// `explain_by_replicas`, or, when the spec after cannot be simulated and diagnosed
 /// again, a note saying so (`explained` stays judged against the gap threshold).
 fn explain_or_note(
     real: &RealLog,
