@@ -353,7 +353,8 @@ fn explain_or_note(
 /// its ensemble with every parameter known; a gap after the search also carries each
 /// fold's estimation error, scored on the other fold's blocks, so a right model with
 /// estimated parameters lands above it more often than the threshold's test level
-/// says. When the gap after is above the gap threshold, `prm.explain_replicas` logs
+/// says. When the gap after is above the gap threshold (and within [`EXPLAIN_CAP`]
+/// noise floors, above which nothing can be explained), `prm.explain_replicas` logs
 /// are simulated from the spec after (on the real log's time base and temperature,
 /// seeds apart from the ensemble's) and each is diagnosed against the spec with only
 /// the added kinds as candidates, every one of them added: the whole
@@ -368,7 +369,14 @@ fn explain_by_replicas(
     d: &mut Diagnosis,
     pb: &ProgressBar,
 ) -> Result<()> {
-    if prm.explain_replicas == 0 || d.added.is_empty() || d.gap_after <= d.gap_threshold {
+    // the threshold can be neither below the gap threshold nor above the cap: outside
+    // the two, re-diagnoses change nothing
+    let cap = d.gap_threshold.max(EXPLAIN_CAP * d.noise_floor);
+    if prm.explain_replicas == 0
+        || d.added.is_empty()
+        || d.gap_after <= d.gap_threshold
+        || d.gap_after > cap
+    {
         return Ok(());
     }
     let kinds: Vec<String> = d.added.iter().map(|e| e.kind.clone()).collect();
@@ -427,7 +435,6 @@ fn explain_by_replicas(
         gaps.push(dr.gap_after);
     }
     let largest = gaps.iter().copied().fold(0.0, f64::max);
-    let cap = d.gap_threshold.max(EXPLAIN_CAP * d.noise_floor);
     let threshold = d.gap_threshold.max(1.1 * largest).min(cap);
     let (explained, why_not) = verdict(d.gap_after, threshold, &d.support);
     d.notes
