@@ -415,7 +415,10 @@ fn explain_by_replicas(
             .pop()
             .unwrap_or_default();
         if chans.len() != names.len() {
-            return Ok(());
+            return Err(Error::Usage(format!(
+                "the spec after does not simulate all of {}",
+                names.join(", ")
+            )));
         }
         let x = chans.remove(0);
         let log = RealLog {
@@ -919,10 +922,9 @@ fn diagnose_log(
         let [mut skipped, mut skipped1] =
             candidates::propose_folds_of([&cx(1), &cx(0)], only, [&mut hold, &mut pair])?;
         // the output path's candidates, unless only other kinds are asked for
-        let path_kinds = [Kind::OutputFilter, Kind::Saturation, Kind::OutputResolution];
         if only.is_none_or(|ks| {
             ks.iter()
-                .any(|k| path_kinds.iter().any(|p| p.as_str() == k.as_str()))
+                .any(|k| Kind::from_name(k).is_some_and(Kind::is_output_path))
         }) {
             skipped.extend(candidates::output_path::proposals(
                 &cx(1),
