@@ -619,7 +619,7 @@ impl Layout {
         // the order statistics of |d| at the ranks of p = 0.5, 0.999, 0.9999
         let len = d.len();
         let rank = |p: f64| ((p * (len - 1) as f64).round() as usize).min(len - 1);
-        let q = order_statistics(&mut d, &[rank(0.5), rank(0.999), rank(0.9999)]);
+        let q = order_statistics(&d, &[rank(0.5), rank(0.999), rank(0.9999)]);
         let med = q[0].max(f64::MIN_POSITIVE * 1e10);
         let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
         // values in one cell of a grid of 1e-9 of the largest magnitude are one value:
@@ -716,7 +716,7 @@ impl Layout {
             u.extend_from_slice(&x[r.start..r.end - 1]);
         }
         let ranks: Vec<usize> = (1..N_BINS).map(|k| (k * (u.len() - 1)) / N_BINS).collect();
-        let edges = order_statistics(&mut u, &ranks);
+        let edges = order_statistics(&u, &ranks);
         // per bin: sums for the slope of x_t on x_{t-1}
         let mut s = [[0.0f64; 5]; N_BINS]; // n, su, sy, suu, suy
         for r in &self.ranges {
@@ -745,24 +745,107 @@ impl Layout {
 }
 
 /// The values at ranks `ranks` (ascending, 0-based) of `v` in the order of
-/// [`f64::total_cmp`]: what `v` sorted would hold there, found by successive selection
-/// (Hoare's quickselect, expected O(n) each, instead of an O(n log n) sort); `v` is
-/// left partitioned. [`order_statistics_by_sort`] is its slow twin.
-pub fn order_statistics(v: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+/// [`f64::total_cmp`]: what `v` sorted would hold there. An MSD radix selection on
+/// the order-preserving 64-bit keys of the values (`total_order_key`), 16 bits a
+/// level: one pass counts the keys' top digit, a second gathers the keys of the digits
+/// that hold a wanted rank, and the gathered keys go to the next digit the same way
+/// until at most `SELECT_SORTED` (4096) are left, which are sorted. Each level reads its
+/// input in order (no partitioning's data-dependent branches), and the gathered part
+/// of a level is the share of one digit: a few per cent of `v` for a spread of values.
+/// [`order_statistics_by_sort`] is its slow twin.
+pub fn order_statistics(v: &[f64], ranks: &[usize]) -> Vec<f64> {
     debug_assert!(ranks.windows(2).all(|w| w[0] <= w[1]));
+    debug_assert!(ranks.last().is_none_or(|&r| r < v.len()));
     let mut out = Vec::with_capacity(ranks.len());
-    // everything before `lo` is at most the last value selected
-    let mut lo = 0;
-    for &k in ranks {
-        if k < lo {
-            out.push(v[k]);
-            continue;
-        }
-        let (_, at, _) = v[lo..].select_nth_unstable_by(k - lo, f64::total_cmp);
-        out.push(*at);
-        lo = k + 1;
+    select_level(v, total_order_key, ranks, 64 - SELECT_DIGIT_BITS, &mut out);
+    out.into_iter().map(from_total_order_key).collect()
+}
+
+/// Bits of key a level of [`order_statistics`] counts.
+const SELECT_DIGIT_BITS: u32 = 16;
+/// At most this many keys, [`order_statistics`] sorts instead of counting digits.
+const SELECT_SORTED: usize = 4096;
+
+/// The key of `v` in [`f64::total_cmp`]'s order as an unsigned integer: a non-negative
+/// value's bits with the sign bit set, a negative value's bits inverted (the standard
+/// trick `total_cmp` itself rests on).
+fn total_order_key(v: f64) -> u64 {
+    let b = v.to_bits();
+    if b >> 63 == 1 { !b } else { b | 1 << 63 }
+}
+
+/// The value of a key of [`total_order_key`].
+fn from_total_order_key(k: u64) -> f64 {
+    f64::from_bits(if k >> 63 == 1 { k & !(1 << 63) } else { !k })
+}
+
+/// One level of [`order_statistics`]: pushes onto `out` the keys at `ranks` among the
+/// keys `key(items[i])`, which agree in every bit above `shift + SELECT_DIGIT_BITS`;
+/// the digit counted is bits `shift..shift + SELECT_DIGIT_BITS`.
+fn select_level<T: Copy>(
+    items: &[T],
+    key: impl Fn(T) -> u64 + Copy,
+    ranks: &[usize],
+    shift: u32,
+    out: &mut Vec<u64>,
+) {
+    const DIGITS: usize = 1 << SELECT_DIGIT_BITS;
+    // a group per distinct digit that holds a wanted rank, told apart by a u8 tag
+    if items.len() <= SELECT_SORTED || ranks.len() >= u8::MAX as usize {
+        let mut keys: Vec<u64> = items.iter().map(|&t| key(t)).collect();
+        keys.sort_unstable();
+        out.extend(ranks.iter().map(|&r| keys[r]));
+        return;
     }
-    out
+    let digit = |k: u64| ((k >> shift) as usize) & (DIGITS - 1);
+    let mut count = vec![0u32; DIGITS];
+    for &t in items {
+        count[digit(key(t))] += 1;
+    }
+    // the digit of each rank and the rank within it, walking the counts once
+    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
+    let (mut d, mut start) = (0usize, 0usize);
+    for &r in ranks {
+        while start + count[d] as usize <= r {
+            start += count[d] as usize;
+            d += 1;
+        }
+        match groups.last_mut() {
+            Some((gd, rs)) if *gd == d => rs.push(r - start),
+            _ => groups.push((d, vec![r - start])),
+        }
+    }
+    let mut tag = vec![u8::MAX; DIGITS];
+    for (g, (d, _)) in groups.iter().enumerate() {
+        tag[*d] = g as u8;
+    }
+    let mut gathered: Vec<Vec<u64>> = groups
+        .iter()
+        .map(|(d, _)| Vec::with_capacity(count[*d] as usize))
+        .collect();
+    for &t in items {
+        let k = key(t);
+        let g = tag[digit(k)];
+        if g != u8::MAX {
+            gathered[g as usize].push(k);
+        }
+    }
+    drop((count, tag));
+    for ((_, rs), keys) in groups.iter().zip(gathered) {
+        // the keys of one lowest digit are all one key; so are the many copies of one
+        // value in a series on a grid (a quantized output's increments)
+        if shift == 0 || keys.iter().all(|&k| k == keys[0]) {
+            out.extend(rs.iter().map(|_| keys[0]));
+        } else {
+            select_level(
+                &keys,
+                std::convert::identity,
+                rs,
+                shift - SELECT_DIGIT_BITS,
+                out,
+            );
+        }
+    }
 }
 
 /// The values at ranks `ranks` of `v` sorted by [`f64::total_cmp`] (the slow twin of
@@ -818,11 +901,10 @@ pub fn distinct_count_of(x: impl Iterator<Item = f64>, n: usize) -> usize {
 /// 1e15 for every finite `v` (the features' grid: 1e-9 of the largest magnitude).
 ///
 /// The finite cells are integers: up to 4096 distinct ones are counted in a small hash
-/// set; more, by an LSD radix sort (8-bit digits,
-/// as many passes as the span of the cells needs: four for a span of 2e9 cells) and a
-/// count of the runs, which reads memory in order where a hash set probes it at random
-/// (several times faster on 1e6 values). [`distinct_count_by_sort`] of the rounded
-/// values is its slow twin.
+/// set; more (a span of up to 2^32 cells), in a bitmap by `distinct_count_u32`, which
+/// reads the cells in order a fixed number of times where a hash set probes memory at
+/// random and a sort makes passes by the span's digits. [`distinct_count_by_sort`] of
+/// the rounded values is its slow twin.
 pub fn distinct_count_on_grid(x: impl Iterator<Item = f64>, cell: f64, n: usize) -> usize {
     let mut keys: Vec<i64> = Vec::with_capacity(n);
     let (mut nans, mut pos_inf, mut neg_inf) = (0usize, false, false);
@@ -866,13 +948,11 @@ pub fn distinct_count_on_grid(x: impl Iterator<Item = f64>, cell: f64, n: usize)
         return 1 + a.windows(2).filter(|w| w[0] != w[1]).count() + extra;
     }
     RADIX_SCRATCH.with(|cell| {
-        let (a, b) = &mut *cell.borrow_mut();
+        let (a, b, seen) = &mut *cell.borrow_mut();
         a.clear();
         a.extend(keys.iter().map(|&k| (k - lo) as u32));
         drop(keys);
-        b.resize(a.len(), 0);
-        radix_sort_u32(a, b, span as u32);
-        1 + a.windows(2).filter(|w| w[0] != w[1]).count() + extra
+        distinct_count_u32(a, b, seen, span as u32) + extra
     })
 }
 
@@ -902,38 +982,65 @@ fn few_levels(keys: &[i64]) -> Option<usize> {
 }
 
 thread_local! {
-    /// The two buffers of [`radix_sort_u32`], kept per thread between calls (a fresh
+    /// The buffers of [`distinct_count_u32`], kept per thread between calls (a fresh
     /// allocation of a few MB pays a page fault for each of its pages).
-    static RADIX_SCRATCH: std::cell::RefCell<(Vec<u32>, Vec<u32>)> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    static RADIX_SCRATCH: std::cell::RefCell<(Vec<u32>, Vec<u32>, Vec<u64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new(), Vec::new())) };
 }
 
-/// `a` sorted ascending by an LSD radix sort of 8-bit digits (only the digits below the
-/// highest set bit of `max`, every value of `a` being at most `max`), `b` a buffer of
-/// `a`'s length; the digit counts of every pass are taken in one read of `a`.
-fn radix_sort_u32(a: &mut Vec<u32>, b: &mut Vec<u32>, max: u32) {
-    let passes = (32 - max.leading_zeros()).div_ceil(8) as usize;
-    let mut count = [[0usize; 256]; 4];
-    for &k in a.iter() {
-        for (p, c) in count.iter_mut().enumerate().take(passes) {
-            c[((k >> (8 * p)) & 0xff) as usize] += 1;
-        }
+/// Bits of a key [`distinct_count_u32`] marks in its bitmap: 2^20 bits, 128 kB (a
+/// level-2 cache holds it).
+const BITMAP_BITS: u32 = 20;
+
+/// How many distinct values `a` holds, every value at most `max`: marked in a bitmap
+/// of 2^[`BITMAP_BITS`] bits, after one counting pass and one scatter of `a` into `b`
+/// by the bits above those (at most 2^12 buckets) when `max` needs more. Each value is
+/// read a fixed number of times (no sort), and the bitmap's bits are cleared bucket by
+/// bucket as they were set, so `seen` (grown to the bitmap's words once) stays zero
+/// between calls. [`distinct_count_by_sort`] is its slow twin.
+fn distinct_count_u32(a: &[u32], b: &mut Vec<u32>, seen: &mut Vec<u64>, max: u32) -> usize {
+    let bits = 32 - max.leading_zeros();
+    let low = bits.min(BITMAP_BITS);
+    let mask = (1u32 << low) - 1;
+    if seen.len() < (1usize << low).div_ceil(64) {
+        seen.resize((1usize << low).div_ceil(64), 0);
     }
-    for (p, c) in count.iter_mut().enumerate().take(passes) {
-        let mut at = 0;
-        for v in c.iter_mut() {
-            let here = *v;
-            *v = at;
-            at += here;
+    // the values of one bucket marked, counted as they are first set, then cleared
+    let mut count_bucket = |vals: &[u32]| -> usize {
+        let mut n = 0;
+        for &k in vals {
+            let i = (k & mask) as usize;
+            let (w, bit) = (i >> 6, 1u64 << (i & 63));
+            n += usize::from(seen[w] & bit == 0);
+            seen[w] |= bit;
         }
-        let shift = 8 * p;
-        for &k in a.iter() {
-            let d = ((k >> shift) & 0xff) as usize;
-            b[c[d]] = k;
-            c[d] += 1;
+        for &k in vals {
+            seen[((k & mask) as usize) >> 6] = 0;
         }
-        std::mem::swap(a, b);
+        n
+    };
+    if bits <= BITMAP_BITS {
+        return count_bucket(a);
     }
+    let shift = BITMAP_BITS;
+    let n_buckets = 1usize << (bits - shift);
+    let mut start = vec![0usize; n_buckets + 1];
+    for &k in a {
+        start[(k >> shift) as usize + 1] += 1;
+    }
+    for i in 0..n_buckets {
+        start[i + 1] += start[i];
+    }
+    b.resize(a.len(), 0);
+    let mut at = start.clone();
+    for &k in a {
+        let d = (k >> shift) as usize;
+        b[at[d]] = k;
+        at[d] += 1;
+    }
+    (0..n_buckets)
+        .map(|d| count_bucket(&b[start[d]..start[d + 1]]))
+        .sum()
 }
 
 /// The count of [`distinct_count`] by sorting and `dedup` (its slow twin).
@@ -1168,16 +1275,48 @@ mod selection_tests {
                 .map(|p| ((p * (n - 1) as f64).round() as usize).min(n - 1))
                 .collect();
             let want = order_statistics_by_sort(&x, &ranks);
-            let mut y = x.clone();
-            let got = order_statistics(&mut y, &ranks);
+            let got = order_statistics(&x, &ranks);
             let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&got), bits(&want), "n {n}");
         }
     }
 
     #[test]
+    fn selection_of_narrow_tied_and_special_values_gives_the_sorted_values_bit_for_bit() {
+        let n = 30_011;
+        let base = series(n, 9);
+        // values that share their top digits (every level of the radix is used), many
+        // copies of a few values (groups whose keys are one key), and the specials
+        let narrow: Vec<f64> = base.iter().map(|u| 1.0 + u * 1e-12).collect();
+        let tied: Vec<f64> = (0..n).map(|i| ((i * 7919) % 5) as f64 * 0.25).collect();
+        let mut special = base.clone();
+        for (i, v) in [
+            f64::NAN,
+            -f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            -0.0,
+            0.0,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for k in 0..50 {
+                special[(k * 601 + i * 97) % n] = v;
+            }
+        }
+        for x in [narrow, tied, special] {
+            let ranks: Vec<usize> = (0..=20).map(|k| k * (n - 1) / 20).collect();
+            let want = order_statistics_by_sort(&x, &ranks);
+            let got = order_statistics(&x, &ranks);
+            let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want));
+        }
+    }
+
+    #[test]
     fn the_distinct_count_is_the_stable_sort_and_dedup_count() {
-        for (n, seed) in [(1usize, 1u64), (50, 2), (10_000, 3)] {
+        for (n, seed) in [(1usize, 1u64), (50, 2), (10_000, 3), (200_003, 4)] {
             let mut x = series(n, seed);
             x.push(f64::NAN);
             x.push(f64::NAN);
@@ -1193,7 +1332,7 @@ mod selection_tests {
             // the cells of the features' grid, NaNs and infinities among the values
             let mut y = x.clone();
             y.extend([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, -0.0, 0.0]);
-            for cell in [1e-9, 1e-3, 0.1, 7.0] {
+            for cell in [1e-9, 1e-7, 1e-6, 1e-4, 1e-3, 0.1, 7.0] {
                 let rounded = y.iter().map(|v| crate::num::round_half_away(v / cell));
                 assert_eq!(
                     distinct_count_on_grid(y.iter().copied(), cell, y.len()),

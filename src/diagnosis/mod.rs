@@ -780,6 +780,10 @@ fn diagnose_log(
         feats: &feats_refit,
         score: &score,
     };
+    // each replica's features without slot i, as the last backward steps computed
+    // them: (steps.len() then, i, features). Every change of the states records a
+    // step, so while steps.len() is the same they are the features of the states now.
+    let mut without_kept: Vec<(usize, usize, Vec<Vec<f64>>)> = Vec::new();
     // forward steps add the best candidate; after each, the earlier effects are
     // estimated again with it in place, then backward steps take back an earlier
     // effect whose share in the joint model fell below min_shrink
@@ -1126,6 +1130,7 @@ fn diagnose_log(
         // below min_shrink
         while added.len() >= 2 {
             let mut best: Option<(usize, f64, EnsembleStats)> = None;
+            without_kept.clear();
             for i in 0..added.len() - 1 {
                 if !removable(&slots, i) {
                     continue;
@@ -1135,6 +1140,7 @@ fn diagnose_log(
                 if best.as_ref().is_none_or(|b| g < b.1) {
                     best = Some((i, g, e));
                 }
+                without_kept.push((steps.len(), i, f));
             }
             let Some((i, g, e)) = best else { break };
             let share = 1.0 - gap_now / g;
@@ -1242,7 +1248,13 @@ fn diagnose_log(
     });
     let mut support = Vec::with_capacity(added.len());
     for i in 0..added.len() {
-        let f = feats_without(&sts, &slots[i]);
+        let kept = without_kept
+            .iter()
+            .position(|(at, j, _)| *at == steps.len() && *j == i);
+        let f = match kept {
+            Some(k) => without_kept.swap_remove(k).2,
+            None => feats_without(&sts, &slots[i]),
+        };
         let (g, _, _) = score(&f);
         added[i].contribution = Some(1.0 - gap_now / g);
         let sd = f_final

@@ -568,7 +568,7 @@ fn estimate_heteroskedastic(
         heteroskedastic_floor_form(&d2, &dt, (total - v).max(0.0), &ranges)
     };
     let mut chosen: Option<(Option<f64>, HeteroFit)> = fit_about(tm).map(|f| (None, f));
-    let mut train_t: Vec<f64> = ranges
+    let train_t: Vec<f64> = ranges
         .iter()
         .flat_map(|r| tp.t_c[r.clone()].iter().copied())
         .collect();
@@ -578,7 +578,7 @@ fn estimate_heteroskedastic(
             .iter()
             .map(|q| ((q * (n_t - 1) as f64).round() as usize).min(n_t - 1))
             .collect();
-        for r in crate::diagnosis::features::order_statistics(&mut train_t, &ranks) {
+        for r in crate::diagnosis::features::order_statistics(&train_t, &ranks) {
             let Some(f) = fit_about(r) else { continue };
             let better = match &chosen {
                 None => f.floor > 0.0,
