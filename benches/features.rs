@@ -2,7 +2,7 @@
 //! family on one withheld part of a 1e6-sample series (white noise plus a random walk,
 //! 100 Hz, a temperature channel), the cost each candidate's replicas pay.
 //!
-//!     cargo bench --bench features        (FARMA_BENCH_N=1000000 FARMA_BENCH_REPS=5)
+//!     cargo bench --bench features        (FARMA_BENCH_N=1000000 FARMA_BENCH_REPS=5 FARMA_BENCH_GRID=0)
 
 use farma::diagnosis::{Blocks, Layout, Temperature};
 use rand::{Rng, SeedableRng};
@@ -25,6 +25,17 @@ fn main() {
             walk + (rng.random::<f64>() - 0.5)
         })
         .collect();
+    // FARMA_BENCH_GRID=Q: the series rounded to multiples of Q (a printed or quantized
+    // log, as ADIS16405's 0.01 deg/s text output)
+    let grid: f64 = std::env::var("FARMA_BENCH_GRID")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.0);
+    let x: Vec<f64> = if grid > 0.0 {
+        x.iter().map(|v| (v / grid).round() * grid).collect()
+    } else {
+        x
+    };
     let t_c: Vec<f64> = (0..n)
         .map(|i| 25.0 + 10.0 * (i as f64 / n as f64 * 6.0).sin())
         .collect();

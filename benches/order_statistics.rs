@@ -3,12 +3,14 @@
 //! selection against `select_nth_unstable_by(f64::total_cmp)` (the selection the
 //! features used before), on the absolute increments of 5e5 samples (the
 //! `distribution` ranks 0.5, 0.999, 0.9999) and on the samples themselves (the `state`
-//! quintiles), continuous and on a grid; best of `FARMA_BENCH_REPS` runs each.
+//! quintiles), continuous and on a grid; the distinct cells against the former LSD
+//! radix sort, and the largest finite magnitude against one running `f64::max`; best
+//! of `FARMA_BENCH_REPS` runs each.
 //!
 //!     cargo bench --bench order_statistics        (FARMA_BENCH_REPS=20)
 
 use farma::diagnosis::features::{
-    distinct_count_by_sort, distinct_count_on_grid, order_statistics,
+    distinct_count_by_sort, distinct_count_on_grid, largest_finite_magnitude, order_statistics,
 };
 use rand::{Rng, SeedableRng};
 
@@ -115,7 +117,24 @@ fn main() {
                 t_peer / t_ours
             );
         }
-        let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut largest = 0.0;
+        let t_ours = best(reps, || {
+            largest = largest_finite_magnitude(std::hint::black_box(x))
+        });
+        let mut peer = 0.0;
+        let t_peer = best(reps, || {
+            peer = std::hint::black_box(x)
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |m, v| m.max(v.abs()))
+        });
+        assert_eq!(largest, peer);
+        println!(
+            "{name}, largest finite |x|: 8 lanes {:.3} ms, one running f64::max {:.3} ms, ratio {:.2}",
+            1e3 * t_ours,
+            1e3 * t_peer,
+            t_peer / t_ours
+        );
         let cell = 1e-9 * largest;
         let mut ours = 0;
         let t_ours = best(reps, || {

@@ -625,14 +625,11 @@ impl Layout {
         // values in one cell of a grid of 1e-9 of the largest magnitude are one value:
         // a rate computed as a difference of rounded angles carries float noise in its
         // last digits (0.22904528993991607 and 0.2290452899399163), not more levels
-        let mut largest = 0.0f64;
-        for r in &self.ranges {
-            for v in &x[r.clone()] {
-                if v.is_finite() {
-                    largest = largest.max(v.abs());
-                }
-            }
-        }
+        let largest = self
+            .ranges
+            .iter()
+            .map(|r| largest_finite_magnitude(&x[r.clone()]))
+            .fold(0.0f64, f64::max);
         let cell = 1e-9 * largest;
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         let distinct = if cell > 0.0 {
@@ -742,6 +739,36 @@ impl Layout {
             })
             .collect()
     }
+}
+
+/// The largest |v| over the finite values of `x` (0 when there are none), in eight
+/// lanes: a maximum does not depend on the order its values are taken in, and lanes
+/// break the chain of dependent compares that one running maximum makes.
+/// `x.iter().filter(|v| v.is_finite()).fold(0.0, |m, v| m.max(v.abs()))` is its slow
+/// twin.
+pub fn largest_finite_magnitude(x: &[f64]) -> f64 {
+    const LANES: usize = 8;
+    let mut lane = [0.0f64; LANES];
+    let (chunks, rest) = x.as_chunks::<LANES>();
+    for c in chunks {
+        for l in 0..LANES {
+            let a = c[l].abs();
+            // NaN and infinity fail the first compare
+            lane[l] = if a < f64::INFINITY && a > lane[l] {
+                a
+            } else {
+                lane[l]
+            };
+        }
+    }
+    let mut m = lane.iter().copied().fold(0.0f64, f64::max);
+    for v in rest {
+        let a = v.abs();
+        if a < f64::INFINITY && a > m {
+            m = a;
+        }
+    }
+    m
 }
 
 /// The values at ranks `ranks` (ascending, 0-based) of `v` in the order of
@@ -1243,8 +1270,8 @@ mod printed_tests {
 #[cfg(test)]
 mod selection_tests {
     use super::{
-        distinct_count, distinct_count_by_sort, distinct_count_on_grid, order_statistics,
-        order_statistics_by_sort,
+        distinct_count, distinct_count_by_sort, distinct_count_on_grid, largest_finite_magnitude,
+        order_statistics, order_statistics_by_sort,
     };
 
     /// A reproducible series with ties, signed zeros, a grid and wide tails.
@@ -1312,6 +1339,44 @@ mod selection_tests {
             let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&got), bits(&want));
         }
+    }
+
+    #[test]
+    fn the_largest_finite_magnitude_is_the_running_maximum_of_the_finite_values() {
+        let slow = |x: &[f64]| {
+            x.iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |m, v| m.max(v.abs()))
+        };
+        for (n, seed) in [
+            (0usize, 1u64),
+            (1, 2),
+            (7, 3),
+            (8, 4),
+            (1001, 5),
+            (100_003, 6),
+        ] {
+            let mut x = series(n, seed);
+            assert_eq!(largest_finite_magnitude(&x).to_bits(), slow(&x).to_bits());
+            // specials larger than every finite value, at the start, inside and in the tail
+            for (i, v) in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -f64::NAN]
+                .into_iter()
+                .enumerate()
+            {
+                if n > 0 {
+                    x[(i * 7919) % n] = v;
+                }
+            }
+            if n > 0 {
+                x[n - 1] = -1e6;
+            }
+            assert_eq!(
+                largest_finite_magnitude(&x).to_bits(),
+                slow(&x).to_bits(),
+                "n {n}"
+            );
+        }
+        assert_eq!(largest_finite_magnitude(&[f64::NAN; 9]), 0.0);
     }
 
     #[test]
