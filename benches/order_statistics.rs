@@ -66,6 +66,18 @@ fn by_lsd_radix(x: &[f64], cell: f64) -> usize {
     1 + a.windows(2).filter(|w| w[0] != w[1]).count()
 }
 
+/// One line of the report: `what`, ours and the peer in ms, the peer's time over ours.
+fn report(what: &str, ours: (&str, f64), peer: (&str, f64)) {
+    println!(
+        "{what}: {} {:.3} ms, {} {:.3} ms, ratio {:.2}",
+        ours.0,
+        1e3 * ours.1,
+        peer.0,
+        1e3 * peer.1,
+        peer.1 / ours.1
+    );
+}
+
 /// Best seconds of `reps` runs of `f`.
 fn best(reps: usize, mut f: impl FnMut()) -> f64 {
     (0..reps)
@@ -110,11 +122,10 @@ fn main() {
             let mut ours = Vec::new();
             let t_ours = best(reps, || ours = order_statistics(v, ranks));
             assert_eq!(peer, ours);
-            println!(
-                "{name}, {what}: radix {:.2} ms, select_nth_unstable {:.2} ms (the copy it needs included), ratio {:.2}",
-                1e3 * t_ours,
-                1e3 * t_peer,
-                t_peer / t_ours
+            report(
+                &format!("{name}, {what}"),
+                ("radix", t_ours),
+                ("select_nth_unstable (the copy it needs included)", t_peer),
             );
         }
         let mut largest = 0.0;
@@ -129,11 +140,10 @@ fn main() {
                 .fold(0.0f64, |m, v| m.max(v.abs()))
         });
         assert_eq!(largest, peer);
-        println!(
-            "{name}, largest finite |x|: 8 lanes {:.3} ms, one running f64::max {:.3} ms, ratio {:.2}",
-            1e3 * t_ours,
-            1e3 * t_peer,
-            t_peer / t_ours
+        report(
+            &format!("{name}, largest finite |x|"),
+            ("8 lanes", t_ours),
+            ("one running f64::max", t_peer),
         );
         let cell = 1e-9 * largest;
         let mut ours = 0;
@@ -149,11 +159,10 @@ fn main() {
             let mut peer = 0;
             let t_peer = best(reps, || peer = by_lsd_radix(x, cell));
             assert_eq!(ours, peer);
-            println!(
-                "{name}, distinct cells ({ours}): bitmap {:.2} ms, LSD radix sort {:.2} ms, ratio {:.2}",
-                1e3 * t_ours,
-                1e3 * t_peer,
-                t_peer / t_ours
+            report(
+                &format!("{name}, distinct cells ({ours})"),
+                ("bitmap", t_ours),
+                ("LSD radix sort", t_peer),
             );
         } else {
             // few cells: counted in a small hash set, as before

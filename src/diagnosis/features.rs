@@ -817,7 +817,7 @@ fn select_level<T: Copy>(
     out: &mut Vec<u64>,
 ) {
     const DIGITS: usize = 1 << SELECT_DIGIT_BITS;
-    // a group per distinct digit that holds a wanted rank, told apart by a u8 tag
+    // few keys are sorted; so are the keys for more ranks than a u8 tags groups by
     if items.len() <= SELECT_SORTED || ranks.len() >= u8::MAX as usize {
         let mut keys: Vec<u64> = items.iter().map(|&t| key(t)).collect();
         keys.sort_unstable();
@@ -842,6 +842,7 @@ fn select_level<T: Copy>(
             _ => groups.push((d, vec![r - start])),
         }
     }
+    // a group per distinct digit that holds a wanted rank, told apart by a u8 tag
     let mut tag = vec![u8::MAX; DIGITS];
     for (g, (d, _)) in groups.iter().enumerate() {
         tag[*d] = g as u8;
@@ -1029,8 +1030,9 @@ fn distinct_count_u32(a: &[u32], b: &mut Vec<u32>, seen: &mut Vec<u64>, max: u32
     let bits = 32 - max.leading_zeros();
     let low = bits.min(BITMAP_BITS);
     let mask = (1u32 << low) - 1;
-    if seen.len() < (1usize << low).div_ceil(64) {
-        seen.resize((1usize << low).div_ceil(64), 0);
+    let words = (1usize << low).div_ceil(64);
+    if seen.len() < words {
+        seen.resize(words, 0);
     }
     // the values of one bucket marked, counted as they are first set, then cleared
     let mut count_bucket = |vals: &[u32]| -> usize {
