@@ -1066,10 +1066,16 @@ fn diagnose_log(
             // one with fewer free parameters is added: the withheld score shows no
             // evidence for the other's extra ones. A stochastic process's freedom is
             // not its parameter count (a random walk of one parameter follows any slow
-            // wander), so ties that involve one stay with the better gap.
+            // wander), so ties that involve one stay with the better gap. Two
+            // deterministic effects that each bring the gap within the spread of the
+            // spec's own simulations are judged alike: once either leaves nothing
+            // significant, the data shows no evidence for the other's extra freedom.
+            let both_within = second_eff.as_ref().is_some_and(|r| {
+                r.gap_after <= cal.gap_threshold && eff.gap_after <= cal.gap_threshold
+            });
             let simpler = match &second_eff {
                 Some(r)
-                    if tie
+                    if (tie || both_within)
                         && r.gap_after <= floor_gap
                         && free_params(r) < free_params(&eff)
                         && ensemble::is_deterministic(&r.component)
@@ -1077,10 +1083,26 @@ fn diagnose_log(
                 {
                     refit
                         .simpler(&search, r, (&eff.kind, eff.gap_after))?
-                        .filter(|a| a.1.gap_after <= floor_gap)
+                        .filter(|a| {
+                            a.1.gap_after <= floor_gap
+                                && (tie || a.1.gap_after <= cal.gap_threshold)
+                        })
                 }
                 _ => None,
             };
+            if !tie && let Some(a) = &simpler {
+                notes.push(format!(
+                    "{} and {} both bring the gap within the spread of the spec's own simulations (gaps {:.3} and {:.3}, threshold {:.3}): {} was added, the simpler explanation (free parameters: {} against {})",
+                    label(&eff),
+                    runner_up_label.as_deref().unwrap_or(""),
+                    eff.gap_after,
+                    runner_up_gap_after.unwrap_or(f64::NAN),
+                    cal.gap_threshold,
+                    label(&a.1),
+                    free_params(&a.1),
+                    free_params(&eff)
+                ));
+            }
             if tie {
                 let (added_label, why) = match &simpler {
                     Some(a) => (
@@ -1107,7 +1129,7 @@ fn diagnose_log(
             if let Some((props, r_eff, r_e, mut r_step)) = simpler {
                 r_step.gap_before = gap_was;
                 r_step.difference_sd = difference_sd;
-                r_step.tie = true;
+                r_step.tie = tie;
                 refit.add(&mut search, (props, r_eff, r_e, r_step))?;
             } else {
                 let step = Step {
