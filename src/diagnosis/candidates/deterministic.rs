@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::lsq::{golden_min, log_grid, ls};
+use super::lsq::{golden_min, log_grid, ls_w};
 use super::params::flag_edge;
 use super::{Context, Found, Training};
 use crate::error::Result;
@@ -15,11 +15,23 @@ use crate::simulator::Component;
 /// constant_bias: the mean of the training residual.
 pub(super) fn constant_bias(cx: &Context, tr: &Training, out: &mut Found) {
     let (res, ranges, n) = (&tr.res, &tr.ranges, tr.n);
-    let s: f64 = ranges
-        .iter()
-        .map(|r| res[r.clone()].iter().sum::<f64>())
-        .sum();
-    let v = s / cx.n_train() as f64;
+    let v = match tr.w() {
+        None => {
+            let s: f64 = ranges
+                .iter()
+                .map(|r| res[r.clone()].iter().sum::<f64>())
+                .sum();
+            s / cx.n_train() as f64
+        }
+        // the weighted mean, sum w r / sum w
+        Some(w) => {
+            let (swr, sw) = ranges
+                .iter()
+                .flat_map(|r| r.clone())
+                .fold((0.0, 0.0), |(a, b), t| (a + w[t] * res[t], b + w[t]));
+            if sw > 0.0 { swr / sw } else { 0.0 }
+        }
+    };
     let c = Component::ConstantBias { value: v };
     out.same(
         "constant_bias",
@@ -33,7 +45,7 @@ pub(super) fn constant_bias(cx: &Context, tr: &Training, out: &mut Found) {
 pub(super) fn rate_ramp(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
     let u = cx.unit(Component::RateRamp { r: 1.0 })?;
-    if let Some((b, _)) = ls(res, &[&u], true, ranges) {
+    if let Some((b, _)) = ls_w(res, &[&u], true, ranges, tr.w()) {
         let sig: Vec<f64> = u.iter().map(|v| v * b[0]).collect();
         out.same(
             "rate_ramp",
@@ -55,7 +67,7 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
             amplitude: 1.0,
             tau_s: tau,
         })?;
-        Ok(ls(res, &[&u], true, ranges).map(|(b, rss)| (b[0], rss, u)))
+        Ok(ls_w(res, &[&u], true, ranges, tr.w()).map(|(b, rss)| (b[0], rss, u)))
     };
     let grid = log_grid(5.0 / fs.min(1.0), duration_s / 2.0, 24);
     // the grid's fits in parallel (each keeps only its RSS), the best chosen in order

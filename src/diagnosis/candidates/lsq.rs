@@ -45,6 +45,36 @@ pub(super) fn ls_full(
     intercept: bool,
     ranges: &[Range<usize>],
 ) -> Option<(Vec<f64>, f64)> {
+    ls_weighted(y, regs, intercept, ranges, None)
+}
+
+/// [`ls`] weighted by `w` (None: every sample alike): with the noise's variance v_t
+/// known up to a factor, w_t = 1 / v_t gives the best linear unbiased estimate
+/// (Aitken 1935); the RSS returned is the weighted one, sum w_t (y_t - f_t)^2.
+pub(super) fn ls_w(
+    y: &[f64],
+    regs: &[&[f64]],
+    intercept: bool,
+    ranges: &[Range<usize>],
+    w: Option<&[f64]>,
+) -> Option<(Vec<f64>, f64)> {
+    ls_weighted(y, regs, intercept, ranges, w).map(|(mut beta, rss)| {
+        if intercept {
+            beta.remove(0);
+        }
+        (beta, rss)
+    })
+}
+
+/// [`ls_w`] with every coefficient: the intercept first (when fitted), then the
+/// regressors'.
+pub(super) fn ls_weighted(
+    y: &[f64],
+    regs: &[&[f64]],
+    intercept: bool,
+    ranges: &[Range<usize>],
+    w: Option<&[f64]>,
+) -> Option<(Vec<f64>, f64)> {
     let k = regs.len() + usize::from(intercept);
     let mut ata = vec![0.0; k * k];
     let mut aty = vec![0.0; k];
@@ -60,10 +90,11 @@ pub(super) fn ls_full(
                 row[j] = g[t];
                 j += 1;
             }
+            let wt = w.map_or(1.0, |w| w[t]);
             for a in 0..k {
-                aty[a] += row[a] * y[t];
+                aty[a] += wt * row[a] * y[t];
                 for b in 0..k {
-                    ata[a * k + b] += row[a] * row[b];
+                    ata[a * k + b] += wt * row[a] * row[b];
                 }
             }
         }
@@ -76,7 +107,7 @@ pub(super) fn ls_full(
             for (j, g) in regs.iter().enumerate() {
                 f += beta[j + usize::from(intercept)] * g[t];
             }
-            rss += (y[t] - f).powi(2);
+            rss += w.map_or(1.0, |w| w[t]) * (y[t] - f).powi(2);
         }
     }
     Some((beta, rss))
@@ -187,5 +218,34 @@ mod tests {
         // at an end of the bracket it converges to that end
         let y = golden_min(0.0, 1.0, 60, |v| v);
         assert!(y < 1e-9, "{y}");
+    }
+
+    #[test]
+    fn weighted_least_squares_is_ordinary_least_squares_on_rows_scaled_by_root_weights() {
+        let n = 400;
+        let u: Vec<f64> = (0..n).map(|t| (t as f64 * 0.01).sin()).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|t| 0.3 + 2.0 * u[t] + ((t * 7919) % 13) as f64 * 0.01)
+            .collect();
+        let w: Vec<f64> = (0..n).map(|t| 0.5 + (t % 5) as f64).collect();
+        let ranges = [0..150, 200..400];
+        // no weights: the unweighted fit, bit for bit
+        assert_eq!(
+            ls_weighted(&y, &[&u], true, &ranges, None),
+            ls_full(&y, &[&u], true, &ranges)
+        );
+        // the twin: every row (the intercept's column too) times sqrt(w), no intercept
+        let r: Vec<f64> = w.iter().map(|v| v.sqrt()).collect();
+        let ys: Vec<f64> = (0..n).map(|t| r[t] * y[t]).collect();
+        let us: Vec<f64> = (0..n).map(|t| r[t] * u[t]).collect();
+        let (b_twin, rss_twin) = ls_full(&ys, &[&r, &us], false, &ranges).unwrap();
+        let (b, rss) = ls_weighted(&y, &[&u], true, &ranges, Some(&w)).unwrap();
+        for (a, b) in b.iter().zip(&b_twin) {
+            assert!((a - b).abs() < 1e-10 * b.abs().max(1.0), "{a} {b}");
+        }
+        assert!((rss - rss_twin).abs() < 1e-9 * rss_twin, "{rss} {rss_twin}");
+        // ls_w drops the intercept as ls does
+        let (b1, _) = ls_w(&y, &[&u], true, &ranges, Some(&w)).unwrap();
+        assert_eq!(b1, vec![b[1]]);
     }
 }

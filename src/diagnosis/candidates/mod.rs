@@ -74,7 +74,7 @@ mod resolution;
 mod temperature;
 
 use std::ops::Range;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use rayon::prelude::*;
 use serde_json::Value;
@@ -374,6 +374,9 @@ struct Training {
     ms: Vec<usize>,
     /// A(m) - E(m), E the ensemble's mean training AVAR.
     excess: Vec<f64>,
+    /// Each sample's weight in the deterministic fits ([`noise_weights`]) when the
+    /// spec's channel has a heteroskedastic noise; None: every sample alike.
+    weights: Option<Vec<f64>>,
     /// The training residual's largest line ([`Training::line`]), found on first use.
     line: OnceLock<Option<deterministic::Line>>,
     /// What the noise fits read ([`Training::noise_avar`]), computed on first use.
@@ -423,6 +426,7 @@ impl Training {
         let a_ens = cx.mean_avar(cx.target.iter().map(|v| v.as_slice()));
         let ms = cx.train.adev_factors().to_vec();
         let excess: Vec<f64> = a_real.iter().zip(&a_ens).map(|(a, e)| a - e).collect();
+        let weights = heteroskedastic_in(cx).then(|| noise_weights(cx.target, &ranges));
         Training {
             n,
             fs,
@@ -432,9 +436,15 @@ impl Training {
             a_real,
             ms,
             excess,
+            weights,
             line: OnceLock::new(),
             noise: OnceLock::new(),
         }
+    }
+
+    /// The weights of the deterministic fits ([`Training::weights`]), if any.
+    fn w(&self) -> Option<&[f64]> {
+        self.weights.as_deref()
     }
 
     /// The largest line of the training residual ([`deterministic::find_sinusoid`]),
@@ -480,6 +490,63 @@ impl Training {
                 },
             })
     }
+}
+
+/// Whether the channel of `cx`'s spec has a heteroskedastic noise component.
+fn heteroskedastic_in(cx: &Context) -> bool {
+    cx.spec.channels[cx.channel]
+        .components
+        .iter()
+        .any(|c| matches!(c, Component::Heteroskedastic { .. }))
+}
+
+/// Samples on each side of a sample in the window [`noise_weights`] averages over.
+const WEIGHT_HALF_WINDOW: usize = 128;
+
+/// Each sample's weight w_t = 1 / v_t for least squares under the ensemble's noise,
+/// scaled to mean 1 over `ranges`: v_t is the mean over the replicas and over the
+/// samples within [`WEIGHT_HALF_WINDOW`] of t of the squared first difference
+/// (x_s - x_{s-1})^2. A first difference holds the white part of the noise (twice its
+/// variance) and almost none of the slow parts (a random walk's or a flicker's
+/// increments are far smaller per sample), so v_t follows a noise level that changes
+/// with temperature (a heteroskedastic white noise) and not the spread of the slow
+/// parts, whose samples are correlated and which a weight per sample cannot describe.
+fn noise_weights(target: &[Arc<Vec<f64>>], ranges: &[Range<usize>]) -> Vec<f64> {
+    let n = target.first().map_or(0, |t| t.len());
+    let m = target.len().max(1) as f64;
+    // mean squared first difference per sample (the first sample takes the second's)
+    let mut d2 = vec![0.0; n];
+    for x in target {
+        for t in 1..n {
+            d2[t] += (x[t] - x[t - 1]).powi(2) / m;
+        }
+    }
+    if n > 1 {
+        d2[0] = d2[1];
+    }
+    let mut prefix = vec![0.0; n + 1];
+    for t in 0..n {
+        prefix[t + 1] = prefix[t] + d2[t];
+    }
+    let mut w: Vec<f64> = (0..n)
+        .map(|t| {
+            let lo = t.saturating_sub(WEIGHT_HALF_WINDOW);
+            let hi = (t + WEIGHT_HALF_WINDOW + 1).min(n);
+            let v = (prefix[hi] - prefix[lo]) / (hi - lo) as f64;
+            if v > 0.0 { 1.0 / v } else { 0.0 }
+        })
+        .collect();
+    let (sum, count) = ranges
+        .iter()
+        .flat_map(|r| r.clone())
+        .fold((0.0, 0usize), |(s, c), t| (s + w[t], c + 1));
+    if sum > 0.0 && count > 0 {
+        let k = count as f64 / sum;
+        w.iter_mut().for_each(|v| *v *= k);
+    } else {
+        w.iter_mut().for_each(|v| *v = 1.0);
+    }
+    w
 }
 
 /// The candidates found so far: each proposal handed to the caller's sink as soon as
@@ -781,6 +848,41 @@ mod tests {
                 },
             ],
         }
+    }
+
+    #[test]
+    fn noise_weights_follow_the_white_noise_level_and_not_a_slow_part() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let n = 20_000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        // white noise of sd 1 in the first half, 2 in the second, plus a random walk
+        // whose spread across replicas grows along the log
+        let target: Vec<Arc<Vec<f64>>> = (0..20)
+            .map(|_| {
+                let mut walk = 0.0;
+                Arc::new(
+                    (0..n)
+                        .map(|t| {
+                            let e: f64 = StandardNormal.sample(&mut rng);
+                            let d: f64 = StandardNormal.sample(&mut rng);
+                            walk += 0.01 * d;
+                            walk + if t < n / 2 { e } else { 2.0 * e }
+                        })
+                        .collect(),
+                )
+            })
+            .collect();
+        let ranges = [0..n / 2, n / 2..n];
+        let w = noise_weights(&target, &ranges);
+        let mean = w.iter().sum::<f64>() / n as f64;
+        assert!((mean - 1.0).abs() < 1e-12, "{mean}");
+        // away from the change, 1 / v: 4 times less weight where the sd is twice
+        let (a, b) = (w[n / 4], w[3 * n / 4]);
+        assert!((a / b / 4.0 - 1.0).abs() < 0.1, "{a} {b}");
+        // the level 1 / v: v = 2 sd^2 (a difference of white noise) within 10 %
+        let early: f64 = w[1000..4000].iter().sum::<f64>() / 3000.0;
+        assert!((early / mean / 1.6 - 1.0).abs() < 0.1, "{early}");
     }
 
     /// What a sink is handed, bit for bit: the component, the parameters, the

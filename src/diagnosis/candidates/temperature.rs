@@ -13,7 +13,7 @@
 //!   likelihood in its level and slope, profiled over the temperature of the clamp's
 //!   kink ([`heteroskedastic_floor_form`]).
 
-use super::lsq::{golden_argmin, ls, ls_full, refine_on_log_grid, shrink_ranges};
+use super::lsq::{golden_argmin, ls_full, ls_w, ls_weighted, refine_on_log_grid, shrink_ranges};
 use super::params::{flag_edge, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
@@ -45,13 +45,12 @@ pub(super) fn temperature_bias(
         coeffs: vec![0.0, 1.0],
         reference_c: Some(tm),
     })?;
-    let quadratic =
-        ls_full(res, &[&u1, &u2], true, ranges).and_then(|(b, _)| with_reference(b[0], b[1], b[2]));
+    let quadratic = ls_weighted(res, &[&u1, &u2], true, ranges, tr.w())
+        .and_then(|(b, _)| with_reference(b[0], b[1], b[2]));
     let form = match quadratic {
         Some(f) => Some(f),
-        None => {
-            ls_full(res, &[&u1], true, ranges).and_then(|(b, _)| with_reference(b[0], b[1], 0.0))
-        }
+        None => ls_weighted(res, &[&u1], true, ranges, tr.w())
+            .and_then(|(b, _)| with_reference(b[0], b[1], 0.0)),
     };
     let Some((coeffs, delta)) = form else {
         return Ok(());
@@ -131,7 +130,7 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     // (coefficient, rss, unit signal) of one (smoothing, lag)
     let fit = |sm: f64, lag: f64| -> Result<Option<(f64, f64, Vec<f64>)>> {
         let u = unit(sm, lag)?;
-        Ok(ls(res, &[&u], true, ranges).map(|(b, rss)| (b[0], rss, u)))
+        Ok(ls_w(res, &[&u], true, ranges, tr.w()).map(|(b, rss)| (b[0], rss, u)))
     };
     let mut best: Option<(f64, f64, f64, f64, Vec<f64>)> = None;
     for &sm in &smoothings {
@@ -665,6 +664,7 @@ fn estimate_heteroskedastic(
 
 #[cfg(test)]
 mod tests {
+    use super::super::lsq::ls;
     use super::{heteroskedastic_floor_form, heteroskedastic_form, with_reference};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -712,7 +712,7 @@ mod tests {
                 "phi {phi} g {g}: level {v_mod} vs {want}"
             );
             // the first-order form: intercept = mean d^2 - c1 mean dT
-            let (b, _) = super::ls(&d2, &[&dt], true, &ranges).unwrap();
+            let (b, _) = ls(&d2, &[&dt], true, &ranges).unwrap();
             let mean = |v: &[f64]| v[1..].iter().sum::<f64>() / (n - 1) as f64;
             let a = mean(&d2) - b[0] * mean(&dt);
             let first_order = b[0] / (2.0 * (a - 2.0 * (1.0 - phi)));
