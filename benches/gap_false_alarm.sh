@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The gap diagnosis's false-alarm rate (issue 27): logs simulated from a spec and
 # diagnosed against that same spec, over SEEDS seeds; counts the runs declared
-# significant and those that added an effect. Two specs: the ADIS16405 datasheet
+# significant, those that added an effect and those not `explained`. Two specs: the ADIS16405 datasheet
 # (100 Hz, gyro_x_dps) and a MEMS-like gyro with a warm-up, a ramp and a Gauss-Markov
 # term at 10 Hz written below. The diagnosis runs with its defaults and a seed of its
 # own, so that its ensemble never shares the log's noise. Also prints, per spec, the
@@ -40,7 +40,7 @@ TOML
 for pair in "$root/fixtures/specs/adis16405_datasheet.toml:gyro_x_dps" "$work/mems.toml:rate"; do
   spec=${pair%%:*}; ch=${pair##*:}
   name=$(basename "$spec" .toml)
-  sig=0; add=0; runs=0
+  sig=0; add=0; unexp=0; runs=0
   for s in $(seq 1 "$seeds"); do
     log="$work/$name-$s.parquet"
     "$farma" simulate "$spec" --duration "$dur" --seed "$((1000 + s))" -o "$log" >/dev/null 2>&1 \
@@ -50,10 +50,11 @@ for pair in "$root/fixtures/specs/adis16405_datasheet.toml:gyro_x_dps" "$work/me
     runs=$((runs + 1))
     if echo "$out" | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)["significant"] else 1)'; then sig=$((sig + 1)); fi
     if echo "$out" | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)["added"] else 1)'; then add=$((add + 1)); fi
+    if echo "$out" | python3 -c 'import json,sys; sys.exit(1 if json.load(sys.stdin)["explained"] else 0)'; then unexp=$((unexp + 1)); fi
     echo "$out" | python3 -c 'import json,sys; d=json.load(sys.stdin); print(d["gap_before"] / d["gap_threshold"])' >> "$work/$name-ratio.txt"
     rm -f "$log"
   done
-  echo "$name ($ch, $dur s): $runs runs, significant $sig, added an effect $add"
+  echo "$name ($ch, $dur s): $runs runs, significant $sig, added an effect $add, not explained $unexp"
   # how near the threshold the correct spec's gaps come: gap_before / gap_threshold
   python3 - "$work/$name-ratio.txt" <<'PY'
 import sys

@@ -57,7 +57,7 @@ ACCEPT = {
 CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 
 PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021,
-             "dev3": 30_017_003}
+             "dev3": 30_017_003, "dev4": 31_204_011}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -516,13 +516,17 @@ PAIRS = {
              [("outliers", ""), ("rate_random_walk", "")],
              [("sinusoid", ""), ("rate_random_walk", "")],
              [("warmup", "short"), ("temperature_bias", "lin")]],
+    # a fourth development draw (nineteenth session): non-candidates only
+    "dev4": [],
 }
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")],
            "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")],
-           "dev3": []}
+           "dev3": [],
+           # a development part of non-candidates only, at sizes from small to large
+           "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -536,19 +540,22 @@ GRID = {
     # the outside cases are 4 h at 10 Hz with a chamber temperature channel
     "heldout2": [(10, 4 * 3600), (10, 5 * 3600), (100, 2 * 3600), (10, 4 * 3600), (100, 2700)],
     "dev3": [(10, 3600), (10, 3 * 3600), (100, 1800), (10, 2 * 3600), (100, 1200)],
+    "dev4": [(10, 2 * 3600), (10, 3 * 3600), (100, 1200), (10, 5400), (100, 1800)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
             "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
-            "dev3": ["steps", "drift", "ramp"]}
+            "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
           "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
-          "dev3": [(-15, 45), (0, 40), (10, 55)]}
+          "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)]}
 
 
 def size_for(part, rng, category="single"):
     if part == "dev3":
         return float(rng.uniform(2.5, 4.0))
+    if part == "dev4":
+        return float(rng.uniform(0.6, 4.0))
     if part == "heldout2":
         # a pair's members share one size: the held-out's larger sizes only, so that
         # each member can show beside the other (the first held-out part's small pairs
@@ -568,13 +575,13 @@ def size_for(part, rng, category="single"):
 def make_part(part):
     rng = np.random.default_rng(PART_SEED[part])
     plan = []
-    for k, v in (SINGLES if part != "dev3" else []):
+    for k, v in (SINGLES if part not in ("dev3", "dev4") else []):
         plan.append(("single", [(k, v)], f"single_{k}" + (f"_{v}" if v else "")))
     for pr in PAIRS[part]:
         plan.append(("pair", pr, "pair_" + "+".join(k for k, _ in pr)))
     for i, (k, v) in enumerate(NONCAND[part]):
         plan.append(("non_candidate", [(k, v)], f"noncand_{k}_{i}"))
-    for i, eff in enumerate(CORRECT if part != "dev3" else []):
+    for i, eff in enumerate(CORRECT if part not in ("dev3", "dev4") else []):
         plan.append(("correct", eff, f"correct_{i}" + ("_" + "+".join(k for k, _ in eff) if eff else "")))
     cases = []
     khz_left = KHZ[part]
@@ -599,10 +606,10 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "heldout", "heldout2", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "heldout", "heldout2", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
-    parts = ["dev", "dev2", "dev3", "heldout", "heldout2"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "dev3", "dev4", "heldout", "heldout2"] if a.part == "all" else [a.part]
     for part in parts:
         cases = make_part(part)
         index = []

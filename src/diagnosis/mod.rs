@@ -37,6 +37,7 @@ pub mod distance;
 pub mod ensemble;
 pub mod events;
 pub mod features;
+pub mod jumps;
 pub mod path;
 mod reestimate;
 pub mod report;
@@ -232,6 +233,9 @@ pub struct Diagnosis {
     pub explained_replica_gaps: Vec<f64>,
     /// What each added effect brings to the final model, for the verdict.
     support: Vec<Support>,
+    /// Level jumps of the real log that the simulations of the spec after do not make
+    /// ([`jumps::level_jumps`]): `explained` is then false.
+    jumps: Option<jumps::Jumps>,
     /// The gap after is within the threshold: the spec, with the effects added,
     /// matches the log on the withheld part (true also when nothing was significant).
     pub explained: bool,
@@ -439,7 +443,7 @@ fn explain_by_replicas(
     }
     let largest = gaps.iter().copied().fold(0.0, f64::max);
     let threshold = d.gap_threshold.max(1.1 * largest).min(cap);
-    let (explained, why_not) = verdict(d.gap_after, threshold, &d.support);
+    let (explained, why_not) = verdict(d.gap_after, threshold, &d.support, d.jumps.as_ref());
     d.notes
         .retain(|n| !n.starts_with("unexplained:") && !n.starts_with("not explained:"));
     d.notes.push(format!(
@@ -1290,7 +1294,14 @@ fn diagnose_log(
             at_edge: added[i].at_edge.clone(),
         });
     }
-    let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support);
+    // the level's changes of the real log against those of every simulation of the
+    // spec after (both folds' estimates)
+    let sims: Vec<&[f64]> = sts
+        .iter()
+        .flat_map(|st| st.target.iter().map(|v| v.as_slice()))
+        .collect();
+    let level = jumps::level_jumps(real.x, &sims, rate_hz);
+    let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support, level.as_ref());
     if let Some(w) = why_not {
         notes.push(w);
     }
@@ -1320,6 +1331,7 @@ fn diagnose_log(
         explained_threshold: cal.gap_threshold,
         explained_replica_gaps: Vec::new(),
         support,
+        jumps: level,
         not_tried,
         spec_after: sts[0].spec.clone(),
         defs,
@@ -1406,7 +1418,12 @@ struct Support {
 /// correlation time at the longest Allan cluster, standing in for a random telegraph
 /// bias), so an effect outside the candidates is as likely. An effect the gap does not
 /// need (the gap within the threshold without it) is not judged.
-fn verdict(gap: f64, threshold: f64, support: &[Support]) -> (bool, Option<String>) {
+fn verdict(
+    gap: f64,
+    threshold: f64,
+    support: &[Support],
+    jumps: Option<&jumps::Jumps>,
+) -> (bool, Option<String>) {
     if gap > threshold {
         return (
             false,
@@ -1435,6 +1452,9 @@ fn verdict(gap: f64, threshold: f64, support: &[Support]) -> (bool, Option<Strin
                 )),
             );
         }
+    }
+    if let Some(j) = jumps {
+        return (false, Some(j.note()));
     }
     (true, None)
 }
@@ -1992,35 +2012,54 @@ mod tests {
         }
     }
 
+    /// [`verdict`] without level jumps.
+    fn verdict_of(gap: f64, threshold: f64, support: &[Support]) -> (bool, Option<String>) {
+        verdict(gap, threshold, support, None)
+    }
+
     #[test]
     fn the_verdict_needs_every_effect_the_gap_rests_on_established() {
         // above the threshold: not explained whatever the effects
-        assert!(!verdict(1.5, 1.3, &[support(4.0, 0.1, &[])]).0);
+        assert!(!verdict_of(1.5, 1.3, &[support(4.0, 0.1, &[])]).0);
         // nothing added, within the threshold
-        assert_eq!(verdict(1.0, 1.3, &[]), (true, None));
+        assert_eq!(verdict_of(1.0, 1.3, &[]), (true, None));
         // a clear share
-        assert!(verdict(1.2, 1.3, &[support(4.0, 0.3, &[])]).0);
+        assert!(verdict_of(1.2, 1.3, &[support(4.0, 0.3, &[])]).0);
         // needed (1.36 > 1.3) but within 2 sd (0.09 <= 0.107): not established
-        let (ok, why) = verdict(
+        let (ok, why) = verdict_of(
             1.27,
             1.3,
             &[support(4.0, 0.3, &[]), support(1.36, 0.0535, &[])],
         );
         assert!(!ok && why.unwrap().contains("jackknife"));
         // within 2 sd but not needed (the gap within the threshold without it)
-        assert!(verdict(1.2, 1.3, &[support(1.25, 0.1, &[])]).0);
+        assert!(verdict_of(1.2, 1.3, &[support(1.25, 0.1, &[])]).0);
         // needed, clear, but its parameter is a bound
-        let (ok, why) = verdict(1.34, 1.37, &[support(2.15, 0.1, &["tau_s"])]);
+        let (ok, why) = verdict_of(1.34, 1.37, &[support(2.15, 0.1, &["tau_s"])]);
         assert!(!ok && why.unwrap().contains("tau_s"));
         // a bound on an effect the gap does not need is not judged
         assert!(
-            verdict(
+            verdict_of(
                 1.0,
                 1.37,
                 &[support(4.0, 0.3, &[]), support(1.1, 0.1, &["tau_s"])]
             )
             .0
         );
+        // level jumps the spec after does not make: not explained, even within the
+        // threshold with every effect established
+        let j = jumps::Jumps {
+            window_s: 56.0,
+            real: 12.0,
+            sims_max: 4.1,
+            sims_mean: 3.0,
+            sims_sd: 0.4,
+        };
+        let (ok, why) = verdict(1.2, 1.3, &[support(4.0, 0.3, &[])], Some(&j));
+        assert!(!ok && why.unwrap().contains("jumps"));
+        // above the threshold the gap says it first
+        let (_, why) = verdict(1.5, 1.3, &[], Some(&j));
+        assert!(why.unwrap().starts_with("unexplained"));
     }
 
     #[test]
