@@ -8,7 +8,9 @@
 //! the noises. The statistic is their kurtosis, K = N sum (d_j - dbar)^4 /
 //! (sum (d_j - dbar)^2)^2 (3 for a Gaussian sample, about N for a single jump among N
 //! windows; Pearson's beta_2), at a few window lengths, compared with the kurtosis of
-//! each simulation of the spec after.
+//! each simulation of the spec after. The simulations are read before their output
+//! path (a filter or a rounding changes a window mean by far less than a jump), and a
+//! tail shorter than a window is left out.
 
 /// The numbers of windows the log is cut into: each window length is the log's length
 /// over one of them.

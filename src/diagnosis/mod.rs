@@ -1094,31 +1094,30 @@ fn diagnose_log(
                 }
                 _ => None,
             };
-            if !tie && let Some(a) = &simpler {
+            // the simpler one's label, and why it was added
+            let simpler_why = simpler.as_ref().map(|a| {
+                (
+                    label(&a.1),
+                    format!(
+                        "the simpler explanation (free parameters: {} against {})",
+                        free_params(&a.1),
+                        free_params(&eff)
+                    ),
+                )
+            });
+            if !tie && let Some((simpler_label, why)) = &simpler_why {
                 notes.push(format!(
-                    "{} and {} both bring the gap within the spread of the spec's own simulations (gaps {:.3} and {:.3}, threshold {:.3}): {} was added, the simpler explanation (free parameters: {} against {})",
+                    "{} and {} both bring the gap within the spread of the spec's own simulations (gaps {:.3} and {:.3}, threshold {:.3}): {simpler_label} was added, {why}",
                     label(&eff),
                     runner_up_label.as_deref().unwrap_or(""),
                     eff.gap_after,
                     runner_up_gap_after.unwrap_or(f64::NAN),
                     cal.gap_threshold,
-                    label(&a.1),
-                    free_params(&a.1),
-                    free_params(&eff)
                 ));
             }
             if tie {
-                let (added_label, why) = match &simpler {
-                    Some(a) => (
-                        label(&a.1),
-                        format!(
-                            "the simpler explanation (free parameters: {} against {})",
-                            free_params(&a.1),
-                            free_params(&eff)
-                        ),
-                    ),
-                    None => (label(&eff), "the other is as good an explanation".into()),
-                };
+                let (added_label, why) = simpler_why
+                    .unwrap_or_else(|| (label(&eff), "the other is as good an explanation".into()));
                 notes.push(format!(
                     "{} and {} are a tie (gaps {:.3} and {:.3}, the difference within 2 jackknife sd {:.3} of the replicas): {} was added, {}",
                     label(&eff),

@@ -29,12 +29,7 @@ pub(super) fn ls(
     intercept: bool,
     ranges: &[Range<usize>],
 ) -> Option<(Vec<f64>, f64)> {
-    ls_full(y, regs, intercept, ranges).map(|(mut beta, rss)| {
-        if intercept {
-            beta.remove(0);
-        }
-        (beta, rss)
-    })
+    ls_w(y, regs, intercept, ranges, None)
 }
 
 /// [`ls`] with every coefficient: the intercept first (when fitted), then the
