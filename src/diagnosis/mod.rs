@@ -189,7 +189,9 @@ pub struct Effect {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
     /// `add`, `remove`, or `reestimate` (a kept effect estimated again with the
-    /// later ones in place, replacing the old estimate: the module `reestimate`).
+    /// later ones in place, replacing the old estimate: the module `reestimate`); an
+    /// exchange (module `reestimate`, `Refit::exchange`) is a `remove` and the `add` of
+    /// another kind in its place.
     pub action: &'static str,
     pub kind: String,
     pub gap_before: f64,
@@ -794,6 +796,7 @@ fn diagnose_log(
     for round_no in 1..=max_rounds {
         pb.set_position(round_no as u64);
         pb.set_message(format!("round {round_no}"));
+        let steps_at_start = steps.len();
         feature_s.set(0.0);
         feature_n.set(0);
         let stop_floor = gap_now <= cal.gap_threshold;
@@ -1249,6 +1252,33 @@ fn diagnose_log(
                     "the effects estimated at the edge of a search range were not estimated again: a copy of both folds' states (about {:.1} GB) would exceed the memory limit",
                     copy_bytes / 1e9
                 ));
+            }
+        }
+        // exchange steps: an earlier deterministic effect replaced by another kind
+        // estimated with the round's addition in place
+        if let Some(newest) = steps
+            .iter()
+            .rposition(|s| s.action == "add")
+            .map(|i| i + 1)
+            .filter(|&id| id > steps_at_start && added.iter().any(|e| e.step == Some(id)))
+            && added.iter().any(|e| {
+                e.step != Some(newest) && reestimate::EXCHANGE_KINDS.contains(&e.kind.as_str())
+            })
+        {
+            let copy_bytes = 8.0
+                * n as f64
+                * prm.replicas as f64
+                * (2 * (sts[0].spec.channels[channel].components.len() + 1)) as f64;
+            if ensemble_bytes + copy_bytes <= crate::workflow::budget::memory_limit_bytes() {
+                let mut search = reestimate::Search {
+                    sts: &mut sts,
+                    slots: &mut slots,
+                    added: &mut added,
+                    gap_now: &mut gap_now,
+                    ens_now: &mut ens_now,
+                    steps: &mut steps,
+                };
+                notes.extend(refit.exchange(&mut search, newest, prm.min_shrink)?);
             }
         }
         lap(&format!("round {round_no}: backward steps"));

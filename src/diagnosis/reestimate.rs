@@ -22,10 +22,21 @@ use super::candidates::{self, Context, Proposal};
 use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
-    Effect, EnsembleStats, Round, Slot, State, Statistic, Step, apply, form, pair_key, removable,
-    take_back,
+    Effect, EnsembleStats, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply, form,
+    pair_key, removable, take_back,
 };
 use crate::error::Result;
+
+/// The kinds an exchange step ([`Refit::exchange`]) takes out and puts in: the
+/// deterministic biases, regressions on time and temperature.
+pub(super) const EXCHANGE_KINDS: [&str; 6] = [
+    "constant_bias",
+    "rate_ramp",
+    "warmup",
+    "sinusoid",
+    "temperature_bias",
+    "thermal_rate",
+];
 
 /// Most candidates besides a round's best tried with the earlier effects re-estimated
 /// (each costs a copy of both folds' ensembles and one re-estimation per kept effect).
@@ -371,6 +382,168 @@ impl Refit<'_> {
             target: &st.target,
             parts: &st.parts,
         }
+    }
+
+    /// Exchange steps (sequential replacement: Miller 2002, "Subset Selection in
+    /// Regression", 2nd ed., chapter 3): after a round's addition (step `newest`), each
+    /// earlier kept bias of [`EXCHANGE_KINDS`] (not a recalibration or a replacement)
+    /// is taken out of both folds' states and every other kind of [`EXCHANGE_KINDS`]
+    /// the channel then lacks is estimated in its place, with the later effects in the
+    /// residual. The best of these, when its gap is within [`SCREEN_RATIO`] times the
+    /// gap now, is made on a copy of the search, the other kept effects are estimated
+    /// again beside it ([`Refit::one`]) and the newcomer again when any of them changed;
+    /// the copy replaces the search when its joint withheld gap is below the gap now by
+    /// at least `min_shrink` (the margin a forward step needs). A forward step
+    /// estimates an effect against a residual that still holds the effects added after
+    /// it: a rate ramp that ties with a temperature bias (and wins the tie by having
+    /// fewer parameters) while a warm-up is still in the residual gives way to the
+    /// temperature bias once the warm-up is in. Each exchange is two steps, a `remove`
+    /// and an `add`; returns a note for each.
+    pub fn exchange(&self, s: &mut Search, newest: usize, min_shrink: f64) -> Result<Vec<String>> {
+        let ids: Vec<usize> = s
+            .added
+            .iter()
+            .filter(|e| {
+                e.step != Some(newest)
+                    && e.replaces.is_none()
+                    && EXCHANGE_KINDS.contains(&e.kind.as_str())
+            })
+            .filter_map(|e| e.step)
+            .collect();
+        let mut notes = Vec::new();
+        for id in ids {
+            let Some(i) = s.added.iter().position(|e| e.step == Some(id)) else {
+                continue;
+            };
+            if !removable(s.slots, i) || s.slots[i][0].path || s.slots[i][1].path {
+                continue;
+            }
+            let kind = s.added[i].kind.clone();
+            let mut trial = s.sts.clone();
+            let mut trial_slots = s.slots.clone();
+            let [s0, s1] = trial_slots.remove(i);
+            take_back(
+                &mut trial[0],
+                self.channel,
+                s0,
+                trial_slots.iter_mut().map(|x| &mut x[0]),
+            );
+            take_back(
+                &mut trial[1],
+                self.channel,
+                s1,
+                trial_slots.iter_mut().map(|x| &mut x[1]),
+            );
+            let present = |k: &str| {
+                trial.iter().any(|st| {
+                    st.spec.channels[self.channel]
+                        .components
+                        .iter()
+                        .any(|c| c.kind().as_str() == k)
+                })
+            };
+            let others: Vec<&str> = EXCHANGE_KINDS
+                .iter()
+                .copied()
+                .filter(|&k| k != kind && !present(k))
+                .collect();
+            if others.is_empty() {
+                continue;
+            }
+            let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+            let mut round = Round::default();
+            for k in others {
+                let mut props: [Vec<Proposal>; 2] = Default::default();
+                {
+                    let [p0, p1] = &mut props;
+                    candidates::propose_kind_folds(
+                        [&self.cx(&trial[0], 0), &self.cx(&trial[1], 1)],
+                        k,
+                        [&mut |p| p0.push(p), &mut |p| p1.push(p)],
+                    )?;
+                }
+                let [ps0, mut ps1] = props;
+                for mut p in ps0 {
+                    let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
+                        continue;
+                    };
+                    let mut q = ps1.remove(j);
+                    p.restore(&self.cx(&trial[0], 0));
+                    q.restore(&self.cx(&trial[1], 1));
+                    let d0: Vec<&[f64]> = (0..self.replicas).map(|r| p.delta.get(r)).collect();
+                    let d1: Vec<&[f64]> = (0..self.replicas).map(|r| q.delta.get(r)).collect();
+                    let f = (self.feats)(&trial, [Some(&d0), Some(&d1)]);
+                    let scored = (self.score)(&f);
+                    round.offer([p, q], f, scored, gap_without);
+                }
+            }
+            let Some((mut eff, e, [p0, p1], _)) = round.best else {
+                continue;
+            };
+            if eff.gap_after >= SCREEN_RATIO * *s.gap_now {
+                continue;
+            }
+            // the exchange made on a copy of the search, then the other kept effects
+            // estimated again beside the newcomer, and the newcomer again when any of
+            // them changed
+            let gap_was = *s.gap_now;
+            let mut t = Trial::of(s);
+            trial_slots.push([
+                apply(&mut trial[0], self.channel, p0),
+                apply(&mut trial[1], self.channel, p1),
+            ]);
+            t.sts = trial;
+            t.slots = trial_slots;
+            t.steps.push(Step {
+                action: "remove",
+                kind: kind.clone(),
+                gap_before: gap_was,
+                gap_after: gap_without,
+                runner_up: None,
+                runner_up_gap_after: None,
+                difference_sd: None,
+                tie: false,
+            });
+            t.steps.push(Step {
+                action: "add",
+                kind: eff.kind.clone(),
+                gap_before: gap_without,
+                gap_after: eff.gap_after,
+                runner_up: None,
+                runner_up_gap_after: None,
+                difference_sd: None,
+                tie: false,
+            });
+            let new_id = t.steps.len();
+            eff.step = Some(new_id);
+            let new_kind = eff.kind.clone();
+            t.gap_now = eff.gap_after;
+            t.ens_now = e;
+            t.added.remove(i);
+            t.added.push(eff);
+            let others: Vec<usize> = t
+                .added
+                .iter()
+                .filter_map(|e| e.step)
+                .filter(|&o| o != new_id)
+                .collect();
+            let mut changed = false;
+            for o in others {
+                changed |= self.one(&mut t.search(), o)?;
+            }
+            if changed {
+                self.one(&mut t.search(), new_id)?;
+            }
+            if t.gap_now >= gap_was * (1.0 - min_shrink) {
+                continue;
+            }
+            notes.push(format!(
+                "{kind} exchanged for {new_kind}: with the later effects in place and estimated again beside it, {new_kind} in its stead brings the gap from {gap_was:.3} to {:.3}",
+                t.gap_now
+            ));
+            t.write_back(s);
+        }
+        Ok(notes)
     }
 
     /// After an addition (the last of `s.added`): each earlier effect re-estimated in

@@ -1385,3 +1385,98 @@ fn explained_is_judged_against_the_spec_after_simulated_and_diagnosed_again() {
     assert_eq!(off.explained_threshold, off.gap_threshold);
     assert!(!off.explained);
 }
+
+/// The log of the test below: a warm-up of 0.15 (110 s) and a temperature bias
+/// 0.0011 (T - 25 degC) beside the bank's base spec, over three hours at 10 Hz of a
+/// chamber temperature that climbs from 12 to 52 degC with a slow wave on top:
+/// (rate, temperature, spec).
+fn warmup_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
+    use farma::simulator::{SimRequest, simulate};
+    let rate_hz = 10.0;
+    let n = 108_000;
+    let temp: Vec<f64> = (0..n)
+        .map(|k| {
+            let u = k as f64 / n as f64;
+            12.0 + 40.0 * u + 3.0 * (std::f64::consts::TAU * 1.5 * u).sin()
+        })
+        .collect();
+    let spec = bank::base_spec(rate_hz, true);
+    let mut truth = spec.clone();
+    truth.channels[0].components.extend([
+        Component::Warmup {
+            amplitude: 0.15,
+            tau_s: 110.0,
+        },
+        Component::TemperatureBias {
+            coeffs: vec![0.0011],
+            reference_c: Some(25.0),
+        },
+    ]);
+    let mut req = SimRequest::new(n, rate_hz);
+    req.temperature_c = Some(&temp);
+    req.seed = Some(909);
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    (x, temp, spec)
+}
+
+/// A temperature that climbs nearly linearly makes a temperature bias and a rate ramp
+/// a tie while a warm-up is still in the residual, and the tie goes to the ramp (fewer
+/// free parameters). Once the warm-up is in, the exchange step takes the ramp out and
+/// puts the temperature bias in its place (1.43 -> 0.83 against the threshold 1.41):
+/// the search ends with the two true effects and no ramp.
+#[test]
+fn a_ramp_added_in_a_tie_is_exchanged_for_the_temperature_bias_once_the_warm_up_is_in() {
+    let (x, temp, spec) = warmup_beside_bias_log();
+    let real = RealLog {
+        channel: CHANNEL.into(),
+        x: &x,
+        rate_hz: 10.0,
+        temperature_c: Some(&temp),
+        others: vec![],
+        spec_dir: None,
+        scan: Vec::new(),
+    };
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    let steps: Vec<(&str, &str)> = d
+        .steps
+        .iter()
+        .map(|s| (s.action, s.kind.as_str()))
+        .collect();
+    assert_first_step(&d, "rate_ramp");
+    // the exchange: the ramp taken out, the temperature bias added in its place
+    let at = steps
+        .windows(2)
+        .position(|w| w == [("remove", "rate_ramp"), ("add", "temperature_bias")]);
+    assert!(at.is_some(), "{steps:?}");
+    assert!(
+        d.notes
+            .iter()
+            .any(|n| n.starts_with("rate_ramp exchanged for temperature_bias")),
+        "{:?}",
+        d.notes
+    );
+    let mut kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    kinds.sort();
+    assert_eq!(kinds, ["temperature_bias", "warmup"]);
+    assert!(
+        d.gap_after <= d.gap_threshold,
+        "gap {} -> {} ({kinds:?})",
+        d.gap_before,
+        d.gap_after
+    );
+    let tb = d
+        .added
+        .iter()
+        .find(|e| e.kind == "temperature_bias")
+        .unwrap();
+    let c1 = tb.params["coeffs"][0].as_f64().unwrap();
+    assert!((0.0008..0.0014).contains(&c1), "{}", tb.params);
+}
