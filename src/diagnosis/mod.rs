@@ -1254,13 +1254,20 @@ fn diagnose_log(
                 ));
             }
         }
-        // exchange steps: an earlier deterministic effect replaced by another kind
-        // estimated with the round's addition in place
+        // exchange steps: an earlier bias replaced by another kind estimated with the
+        // round's addition in place, when that addition is a bias too (a noise or
+        // output-path effect leaves the residual's mean, which the biases are fitted
+        // to, as it was)
         if let Some(newest) = steps
             .iter()
             .rposition(|s| s.action == "add")
             .map(|i| i + 1)
-            .filter(|&id| id > steps_at_start && added.iter().any(|e| e.step == Some(id)))
+            .filter(|&id| {
+                id > steps_at_start
+                    && added
+                        .iter()
+                        .any(|e| e.step == Some(id) && ensemble::is_deterministic(&e.component))
+            })
             && added.iter().any(|e| {
                 e.step != Some(newest) && reestimate::EXCHANGE_KINDS.contains(&e.kind.as_str())
             })

@@ -385,7 +385,9 @@ impl Refit<'_> {
     }
 
     /// Exchange steps (sequential replacement: Miller 2002, "Subset Selection in
-    /// Regression", 2nd ed., chapter 3): after a round's addition (step `newest`), each
+    /// Regression", 2nd ed., chapter 3): after a round's addition (step `newest`; the
+    /// caller asks only when it is a bias itself, the one kind of addition that changes
+    /// the residual's mean, which the biases are fitted to), each
     /// earlier kept bias of [`EXCHANGE_KINDS`] (not a recalibration or a replacement)
     /// is taken out of both folds' states and every other kind of [`EXCHANGE_KINDS`]
     /// the channel then lacks is estimated in its place, with the later effects in the
