@@ -1405,7 +1405,7 @@ fn warmup_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
     truth.channels[0].components.extend([
         Component::Warmup {
             amplitude: 0.15,
-            tau_s: 160.0,
+            tau_s: 200.0,
         },
         Component::TemperatureBias {
             coeffs: vec![0.0011],
