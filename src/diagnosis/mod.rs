@@ -207,6 +207,22 @@ pub struct Step {
     pub tie: bool,
 }
 
+impl Step {
+    /// A step with no runner-up: a re-estimation, a removal, or an exchange's two.
+    fn plain(action: &'static str, kind: String, gap_before: f64, gap_after: f64) -> Step {
+        Step {
+            action,
+            kind,
+            gap_before,
+            gap_after,
+            runner_up: None,
+            runner_up_gap_after: None,
+            difference_sd: None,
+            tie: false,
+        }
+    }
+}
+
 /// The outcome of a diagnosis.
 #[derive(Clone, Debug)]
 pub struct Diagnosis {
@@ -790,6 +806,13 @@ fn diagnose_log(
     // them: (steps.len() then, i, features). Every change of the states records a
     // step, so while steps.len() is the same they are the features of the states now.
     let mut without_kept: Vec<(usize, usize, Vec<Vec<f64>>)> = Vec::new();
+    // bytes of a copy of both folds' sums and parts (what re-estimating a kept effect
+    // on a copy of the states can take)
+    let states_copy_bytes = |sts: &[State; 2]| {
+        8.0 * n as f64
+            * prm.replicas as f64
+            * (2 * (sts[0].spec.channels[channel].components.len() + 1)) as f64
+    };
     // forward steps add the best candidate; after each, the earlier effects are
     // estimated again with it in place, then backward steps take back an earlier
     // effect whose share in the joint model fell below min_shrink
@@ -1181,16 +1204,7 @@ fn diagnose_log(
                 100.0 * share,
                 100.0 * prm.min_shrink
             ));
-            steps.push(Step {
-                action: "remove",
-                kind: added[i].kind.clone(),
-                gap_before: gap_now,
-                gap_after: g,
-                runner_up: None,
-                runner_up_gap_after: None,
-                difference_sd: None,
-                tie: false,
-            });
+            steps.push(Step::plain("remove", added[i].kind.clone(), gap_now, g));
             let [s0, s1] = slots.remove(i);
             take_back(
                 &mut sts[0],
@@ -1214,10 +1228,7 @@ fn diagnose_log(
             && let Some(newest) = steps.iter().rposition(|s| s.action == "add").map(|i| i + 1)
             && !reestimate::bounds(&added, newest).is_empty()
         {
-            let copy_bytes = 8.0
-                * n as f64
-                * prm.replicas as f64
-                * (2 * (sts[0].spec.channels[channel].components.len() + 1)) as f64;
+            let copy_bytes = states_copy_bytes(&sts);
             if ensemble_bytes + copy_bytes <= crate::workflow::budget::memory_limit_bytes() {
                 let mut search = reestimate::Search {
                     sts: &mut sts,
@@ -1272,10 +1283,7 @@ fn diagnose_log(
                 e.step != Some(newest) && reestimate::EXCHANGE_KINDS.contains(&e.kind.as_str())
             })
         {
-            let copy_bytes = 8.0
-                * n as f64
-                * prm.replicas as f64
-                * (2 * (sts[0].spec.channels[channel].components.len() + 1)) as f64;
+            let copy_bytes = states_copy_bytes(&sts);
             if ensemble_bytes + copy_bytes <= crate::workflow::budget::memory_limit_bytes() {
                 let mut search = reestimate::Search {
                     sts: &mut sts,
@@ -1286,6 +1294,11 @@ fn diagnose_log(
                     steps: &mut steps,
                 };
                 notes.extend(refit.exchange(&mut search, newest, prm.min_shrink)?);
+            } else {
+                notes.push(format!(
+                    "no earlier bias was tried in exchange for another: a copy of both folds' states (about {:.1} GB) would exceed the memory limit",
+                    copy_bytes / 1e9
+                ));
             }
         }
         lap(&format!("round {round_no}: backward steps"));

@@ -421,21 +421,7 @@ impl Refit<'_> {
                 continue;
             }
             let kind = s.added[i].kind.clone();
-            let mut trial = s.sts.clone();
-            let mut trial_slots = s.slots.clone();
-            let [s0, s1] = trial_slots.remove(i);
-            take_back(
-                &mut trial[0],
-                self.channel,
-                s0,
-                trial_slots.iter_mut().map(|x| &mut x[0]),
-            );
-            take_back(
-                &mut trial[1],
-                self.channel,
-                s1,
-                trial_slots.iter_mut().map(|x| &mut x[1]),
-            );
+            let (mut trial, mut trial_slots) = self.without(s, i);
             let present = |k: &str| {
                 trial.iter().any(|st| {
                     st.spec.channels[self.channel]
@@ -455,29 +441,7 @@ impl Refit<'_> {
             let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
             let mut round = Round::default();
             for k in others {
-                let mut props: [Vec<Proposal>; 2] = Default::default();
-                {
-                    let [p0, p1] = &mut props;
-                    candidates::propose_kind_folds(
-                        [&self.cx(&trial[0], 0), &self.cx(&trial[1], 1)],
-                        k,
-                        [&mut |p| p0.push(p), &mut |p| p1.push(p)],
-                    )?;
-                }
-                let [ps0, mut ps1] = props;
-                for mut p in ps0 {
-                    let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
-                        continue;
-                    };
-                    let mut q = ps1.remove(j);
-                    p.restore(&self.cx(&trial[0], 0));
-                    q.restore(&self.cx(&trial[1], 1));
-                    let d0: Vec<&[f64]> = (0..self.replicas).map(|r| p.delta.get(r)).collect();
-                    let d1: Vec<&[f64]> = (0..self.replicas).map(|r| q.delta.get(r)).collect();
-                    let f = (self.feats)(&trial, [Some(&d0), Some(&d1)]);
-                    let scored = (self.score)(&f);
-                    round.offer([p, q], f, scored, gap_without);
-                }
+                self.offer_kind(&trial, k, gap_without, &mut round)?;
             }
             let Some((mut eff, e, [p0, p1], _)) = round.best else {
                 continue;
@@ -496,26 +460,14 @@ impl Refit<'_> {
             ]);
             t.sts = trial;
             t.slots = trial_slots;
-            t.steps.push(Step {
-                action: "remove",
-                kind: kind.clone(),
-                gap_before: gap_was,
-                gap_after: gap_without,
-                runner_up: None,
-                runner_up_gap_after: None,
-                difference_sd: None,
-                tie: false,
-            });
-            t.steps.push(Step {
-                action: "add",
-                kind: eff.kind.clone(),
-                gap_before: gap_without,
-                gap_after: eff.gap_after,
-                runner_up: None,
-                runner_up_gap_after: None,
-                difference_sd: None,
-                tie: false,
-            });
+            t.steps
+                .push(Step::plain("remove", kind.clone(), gap_was, gap_without));
+            t.steps.push(Step::plain(
+                "add",
+                eff.kind.clone(),
+                gap_without,
+                eff.gap_after,
+            ));
             let new_id = t.steps.len();
             eff.step = Some(new_id);
             let new_kind = eff.kind.clone();
@@ -567,18 +519,9 @@ impl Refit<'_> {
         Ok(())
     }
 
-    /// Re-estimates the kept effect added at step `id` (when it can be taken back and
-    /// is not an output-path effect, whose estimation depends on the path); returns
-    /// whether it was replaced.
-    fn one(&self, s: &mut Search, id: usize) -> Result<bool> {
-        let Some(i) = s.added.iter().position(|e| e.step == Some(id)) else {
-            return Ok(false);
-        };
-        if !removable(s.slots, i) || s.slots[i][0].path || s.slots[i][1].path {
-            return Ok(false);
-        }
-        let kind = s.added[i].kind.clone();
-        // both folds' states with the effect taken out, the others in
+    /// Both folds' states and slots of `s` with kept slot `i` taken back (the others
+    /// in place).
+    fn without(&self, s: &Search, i: usize) -> ([State; 2], Vec<[Slot; 2]>) {
         let mut trial = s.sts.clone();
         let mut trial_slots = s.slots.clone();
         let [s0, s1] = trial_slots.remove(i);
@@ -594,18 +537,29 @@ impl Refit<'_> {
             s1,
             trial_slots.iter_mut().map(|x| &mut x[1]),
         );
-        let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+        (trial, trial_slots)
+    }
+
+    /// Every candidate of kind `kind` estimated on both folds' states `trial` (fold
+    /// 1's and fold 2's estimates paired by [`pair_key`]), scored and offered to
+    /// `round`, each against the gap `gap_ref` of `trial`.
+    fn offer_kind(
+        &self,
+        trial: &[State; 2],
+        kind: &str,
+        gap_ref: f64,
+        round: &mut Round,
+    ) -> Result<()> {
         let mut props: [Vec<Proposal>; 2] = Default::default();
         {
             let [p0, p1] = &mut props;
             candidates::propose_kind_folds(
                 [&self.cx(&trial[0], 0), &self.cx(&trial[1], 1)],
-                &kind,
+                kind,
                 [&mut |p| p0.push(p), &mut |p| p1.push(p)],
             )?;
         }
         let [ps0, mut ps1] = props;
-        let mut round = Round::default();
         for mut p in ps0 {
             let Some(j) = ps1.iter().position(|q| pair_key(q) == pair_key(&p)) else {
                 continue;
@@ -615,10 +569,29 @@ impl Refit<'_> {
             q.restore(&self.cx(&trial[1], 1));
             let d0: Vec<&[f64]> = (0..self.replicas).map(|r| p.delta.get(r)).collect();
             let d1: Vec<&[f64]> = (0..self.replicas).map(|r| q.delta.get(r)).collect();
-            let f = (self.feats)(&trial, [Some(&d0), Some(&d1)]);
+            let f = (self.feats)(trial, [Some(&d0), Some(&d1)]);
             let scored = (self.score)(&f);
-            round.offer([p, q], f, scored, gap_without);
+            round.offer([p, q], f, scored, gap_ref);
         }
+        Ok(())
+    }
+
+    /// Re-estimates the kept effect added at step `id` (when it can be taken back and
+    /// is not an output-path effect, whose estimation depends on the path); returns
+    /// whether it was replaced.
+    fn one(&self, s: &mut Search, id: usize) -> Result<bool> {
+        let Some(i) = s.added.iter().position(|e| e.step == Some(id)) else {
+            return Ok(false);
+        };
+        if !removable(s.slots, i) || s.slots[i][0].path || s.slots[i][1].path {
+            return Ok(false);
+        }
+        let kind = s.added[i].kind.clone();
+        // both folds' states with the effect taken out, the others in
+        let (mut trial, mut trial_slots) = self.without(s, i);
+        let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+        let mut round = Round::default();
+        self.offer_kind(&trial, &kind, gap_without, &mut round)?;
         let Some((mut eff, e, [p0, p1], _)) = round.best else {
             return Ok(false);
         };
@@ -632,16 +605,12 @@ impl Refit<'_> {
         ]);
         *s.sts = trial;
         *s.slots = trial_slots;
-        s.steps.push(Step {
-            action: "reestimate",
-            kind: eff.kind.clone(),
-            gap_before: *s.gap_now,
-            gap_after: eff.gap_after,
-            runner_up: None,
-            runner_up_gap_after: None,
-            difference_sd: None,
-            tie: false,
-        });
+        s.steps.push(Step::plain(
+            "reestimate",
+            eff.kind.clone(),
+            *s.gap_now,
+            eff.gap_after,
+        ));
         eff.step = Some(s.steps.len());
         *s.gap_now = eff.gap_after;
         *s.ens_now = e;

@@ -1124,8 +1124,6 @@ fn cli_excludes_a_knock_seen_on_every_channel_and_keep_events_keeps_it() {
 /// a temperature bias -0.002 (T - 25 degC) beside the bank's base spec over a soak, a
 /// ramp from 15 to 45 degC and a soak (two hours at 10 Hz): (rate, temperature, spec).
 fn thermal_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
-    use farma::simulator::{SimRequest, simulate};
-    let rate_hz = 10.0;
     let n = 72_000;
     let temp: Vec<f64> = (0..n)
         .map(|k| {
@@ -1133,22 +1131,39 @@ fn thermal_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
             15.0 + 30.0 * ((u - 0.1) / 0.8).clamp(0.0, 1.0)
         })
         .collect();
+    with_effects(
+        temp,
+        [
+            Component::ThermalRate {
+                coeff: 20.0,
+                smoothing_s: 150.0,
+                lag_s: 300.0,
+            },
+            Component::TemperatureBias {
+                coeffs: vec![-0.002],
+                reference_c: Some(25.0),
+            },
+        ],
+        717,
+    )
+}
+
+/// The bank's base spec at 10 Hz with a temperature channel, and a log simulated over
+/// the temperature `temp` (seed `seed`) from it with `extra` added: (rate,
+/// temperature, spec).
+fn with_effects(
+    temp: Vec<f64>,
+    extra: impl IntoIterator<Item = Component>,
+    seed: u64,
+) -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
+    use farma::simulator::{SimRequest, simulate};
+    let rate_hz = 10.0;
     let spec = bank::base_spec(rate_hz, true);
     let mut truth = spec.clone();
-    truth.channels[0].components.extend([
-        Component::ThermalRate {
-            coeff: 20.0,
-            smoothing_s: 150.0,
-            lag_s: 300.0,
-        },
-        Component::TemperatureBias {
-            coeffs: vec![-0.002],
-            reference_c: Some(25.0),
-        },
-    ]);
-    let mut req = SimRequest::new(n, rate_hz);
+    truth.channels[0].components.extend(extra);
+    let mut req = SimRequest::new(temp.len(), rate_hz);
     req.temperature_c = Some(&temp);
-    req.seed = Some(717);
+    req.seed = Some(seed);
     let x = simulate(&truth, &req)
         .unwrap()
         .channel(CHANNEL)
@@ -1391,8 +1406,6 @@ fn explained_is_judged_against_the_spec_after_simulated_and_diagnosed_again() {
 /// chamber temperature that climbs from 12 to 52 degC with a slow wave on top:
 /// (rate, temperature, spec).
 fn warmup_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
-    use farma::simulator::{SimRequest, simulate};
-    let rate_hz = 10.0;
     let n = 108_000;
     let temp: Vec<f64> = (0..n)
         .map(|k| {
@@ -1400,27 +1413,20 @@ fn warmup_beside_bias_log() -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
             12.0 + 40.0 * u + 3.0 * (std::f64::consts::TAU * 1.5 * u).sin()
         })
         .collect();
-    let spec = bank::base_spec(rate_hz, true);
-    let mut truth = spec.clone();
-    truth.channels[0].components.extend([
-        Component::Warmup {
-            amplitude: 0.15,
-            tau_s: 200.0,
-        },
-        Component::TemperatureBias {
-            coeffs: vec![0.0011],
-            reference_c: Some(25.0),
-        },
-    ]);
-    let mut req = SimRequest::new(n, rate_hz);
-    req.temperature_c = Some(&temp);
-    req.seed = Some(909);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
-    (x, temp, spec)
+    with_effects(
+        temp,
+        [
+            Component::Warmup {
+                amplitude: 0.15,
+                tau_s: 200.0,
+            },
+            Component::TemperatureBias {
+                coeffs: vec![0.0011],
+                reference_c: Some(25.0),
+            },
+        ],
+        909,
+    )
 }
 
 /// A temperature that climbs nearly linearly makes a temperature bias and a rate ramp
