@@ -11,11 +11,14 @@
 //! no part of the log goes unscored and no sample is scored by an estimate that saw it.
 //!
 //! The start of a log is where a warm-up lives, often shorter than L (a 120 s warm-up
-//! in a 900 s block). Block 0 is therefore cut into up to [`MAX_START_HALVINGS`] + 1
-//! pieces by halving from the end, [0, L/2^k), [L/2^k, L/2^(k-1)), ..., [L/2, L),
-//! k the most halvings that keep the first piece at least [`MIN_PIECE`] samples, and
+//! in a 900 s block). Block 0 is therefore cut into pieces by halving from the end,
+//! [0, L/2^k), [L/2^k, L/2^(k-1)), ..., [L/2, L), k the most halvings that keep the
+//! first piece at least [`MIN_PIECE`] samples (at most [`MAX_START_HALVINGS`]), and
 //! the pieces alternate between the parts (the last piece keeps block 0's role), so
-//! that both folds train on, and withhold, a share of the first minutes. The main blocks
+//! that both folds train on, and withhold, a share of the first minutes: each fold's
+//! training part starts within two pieces of the log's start, and a warm-up is fitted
+//! from its first seconds in both folds, not extrapolated back to t = 0 from its tail
+//! by the fold whose training part begins later. The main blocks
 //! stay long for the Allan deviation at long averaging times, which is pooled over the
 //! blocks long enough for each averaging factor (contracts.md section 3). Statistics
 //! never cross a block boundary.
@@ -24,8 +27,10 @@ use std::ops::Range;
 
 use crate::error::{Error, Result};
 
-/// Most halvings of block 0 (it is cut into at most this many + 1 pieces).
-pub const MAX_START_HALVINGS: usize = 4;
+/// Most halvings of block 0 (it is cut into at most this many + 1 pieces): a bound
+/// that only a block 0 of more than 2^24 samples reaches; [`MIN_PIECE`] sets where
+/// the halving stops.
+pub const MAX_START_HALVINGS: usize = 16;
 
 /// Fewest samples in a piece of block 0 (four time windows of 64 samples).
 pub const MIN_PIECE: usize = 256;
@@ -161,21 +166,39 @@ mod tests {
 
     #[test]
     fn block_0_is_cut_into_alternating_pieces_that_both_folds_train_on() {
-        // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s = 9000 samples, halved 4 times
+        // 7200 s at 10 Hz in 8 blocks: block 0 is 900 s = 9000 samples, halved 5 times
+        // (a sixth would leave 140 < MIN_PIECE samples)
         let b = Blocks::interleaved(72_000, 8, 0.5).unwrap();
-        let ends: Vec<usize> = b.ranges.iter().take(5).map(|r| r.end).collect();
-        assert_eq!(ends, vec![562, 1125, 2250, 4500, 9000]);
-        assert_eq!(b.ranges[5], 9000..18_000);
-        assert_eq!(b.train[..7], [true, false, true, false, true, false, true]);
-        // the first 2 minutes (1200 samples) are in both parts
-        for training in [true, false] {
-            let early: usize = b
-                .part(training)
-                .iter()
-                .map(|r| r.end.min(1200).saturating_sub(r.start))
-                .sum();
-            assert!(early >= 500, "{training} {early}");
+        let ends: Vec<usize> = b.ranges.iter().take(6).map(|r| r.end).collect();
+        assert_eq!(ends, vec![281, 562, 1125, 2250, 4500, 9000]);
+        assert_eq!(b.ranges[6], 9000..18_000);
+        assert_eq!(
+            b.train[..8],
+            [false, true, false, true, false, true, false, true]
+        );
+        // the last piece keeps block 0's role
+        assert!(b.train[5]);
+        // at least a quarter of the first minute (600 samples) and of the first 2
+        // minutes is in each part
+        for (span, least) in [(600, 150), (1200, 300)] {
+            for training in [true, false] {
+                let early: usize = b
+                    .part(training)
+                    .iter()
+                    .map(|r| r.end.min(span).saturating_sub(r.start))
+                    .sum();
+                assert!(early >= least, "{span} {training} {early}");
+            }
         }
+        // each part starts within two pieces of the log's start
+        for training in [true, false] {
+            assert!(b.part(training)[0].start <= 281, "{training}");
+        }
+        // a long block 0 is halved until its first piece would fall below MIN_PIECE
+        let b = Blocks::interleaved(12_000_000, 12, 0.5).unwrap();
+        let first = b.ranges[0].len();
+        assert!((MIN_PIECE..2 * MIN_PIECE).contains(&first), "{first}");
+        assert_eq!(b.ranges.len(), 12 + 11);
         // a short log: no piece below MIN_PIECE samples
         let b = Blocks::interleaved(12_000, 8, 0.5).unwrap();
         assert_eq!(b.ranges[0], 0..375);

@@ -178,6 +178,11 @@ pub struct Effect {
     /// range (`at_search_edge`): bounds, not estimates.
     #[serde(skip)]
     pub at_edge: Vec<String>,
+    /// Parameters of either fold's estimate that the data do not determine
+    /// (`undetermined`: a value at an end of the range that fits no better than one
+    /// inside it). Like a bound, such a value is estimated again beside later effects.
+    #[serde(skip)]
+    pub undetermined: Vec<String>,
     #[serde(skip)]
     pub component: Component,
     #[serde(skip)]
@@ -1238,19 +1243,30 @@ fn diagnose_log(
                     ens_now: &mut ens_now,
                     steps: &mut steps,
                 };
-                let edges: Vec<(String, Vec<String>)> = reestimate::bounds(search.added, newest)
-                    .into_iter()
-                    .filter_map(|id| search.added.iter().find(|e| e.step == Some(id)))
-                    .map(|e| (e.kind.clone(), e.at_edge.clone()))
-                    .collect();
+                let edges: Vec<(String, Vec<String>, Vec<String>)> =
+                    reestimate::bounds(search.added, newest)
+                        .into_iter()
+                        .filter_map(|id| search.added.iter().find(|e| e.step == Some(id)))
+                        .map(|e| (e.kind.clone(), e.at_edge.clone(), e.undetermined.clone()))
+                        .collect();
                 let before = search.steps.len();
                 refit.bounds_again(&mut search, newest)?;
                 for st in &steps[before..] {
                     let edge = edges
                         .iter()
-                        .find(|(k, _)| *k == st.kind)
-                        .map(|(_, a)| {
-                            format!(" (its {} at the edge of the search range)", a.join(", "))
+                        .find(|(k, _, _)| *k == st.kind)
+                        .map(|(_, a, u)| {
+                            let mut why = Vec::new();
+                            if !a.is_empty() {
+                                why.push(format!(
+                                    "{} at the edge of the search range",
+                                    a.join(", ")
+                                ));
+                            }
+                            if !u.is_empty() {
+                                why.push(format!("{} not determined by the data", u.join(", ")));
+                            }
+                            format!(" (its {})", why.join("; "))
                         })
                         .unwrap_or_default();
                     notes.push(format!(
@@ -1709,21 +1725,26 @@ impl Round {
             families,
             contribution: None,
             step: None,
-            at_edge: {
-                let mut v: Vec<String> = Vec::new();
-                for q in p {
-                    if let Some(Value::Array(a)) = q.params.get("at_search_edge") {
-                        v.extend(a.iter().filter_map(|x| x.as_str().map(String::from)));
-                    }
-                }
-                v.sort();
-                v.dedup();
-                v
-            },
+            at_edge: listed(p, "at_search_edge"),
+            undetermined: listed(p, "undetermined"),
             component: p0.component.clone(),
             replaces: p0.replaces,
         }
     }
+}
+
+/// The parameter names that either fold's estimate lists under `key` (an array of
+/// names in its params), sorted and without repeats.
+fn listed(p: &[Proposal], key: &str) -> Vec<String> {
+    let mut v: Vec<String> = Vec::new();
+    for q in p {
+        if let Some(Value::Array(a)) = q.params.get(key) {
+            v.extend(a.iter().filter_map(|x| x.as_str().map(String::from)));
+        }
+    }
+    v.sort();
+    v.dedup();
+    v
 }
 
 /// A round's candidate whose gap on the first [`screen_replicas`] replicas is this many
@@ -2507,6 +2528,7 @@ mod tests {
             contribution: None,
             step: None,
             at_edge: Vec::new(),
+            undetermined: Vec::new(),
             component,
             replaces: None,
         }

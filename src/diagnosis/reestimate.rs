@@ -79,7 +79,8 @@ pub(super) fn rivals<'e>(
 }
 
 /// The steps of the kept effects that [`Refit::bounds_again`] estimates again: those
-/// with a parameter at the edge of its search range, other than the round's addition
+/// with a parameter at the edge of its search range or not determined by the data
+/// (`undetermined`), other than the round's addition
 /// `newest`; none when `newest` was taken back.
 pub(super) fn bounds(added: &[Effect], newest: usize) -> Vec<usize> {
     if !added.iter().any(|e| e.step == Some(newest)) {
@@ -87,7 +88,7 @@ pub(super) fn bounds(added: &[Effect], newest: usize) -> Vec<usize> {
     }
     added
         .iter()
-        .filter(|e| !e.at_edge.is_empty())
+        .filter(|e| !e.at_edge.is_empty() || !e.undetermined.is_empty())
         .filter_map(|e| e.step)
         .filter(|&id| id != newest)
         .collect()
@@ -130,6 +131,11 @@ pub(super) struct Search<'s> {
     pub ens_now: &'s mut EnsembleStats,
     pub steps: &'s mut Vec<Step>,
 }
+
+/// The most passes over the kept effects, each estimated again in turn, after an
+/// effect is taken back ([`Refit::take_back_refitted`]): backfitting (Buja, Hastie and
+/// Tibshirani 1989), stopped early when a pass changes nothing.
+const BACKFIT_PASSES: usize = 3;
 
 /// An owned copy of the search's state ([`Search`]), for trying an addition.
 #[derive(Clone)]
@@ -389,18 +395,20 @@ impl Refit<'_> {
     /// caller asks only when it is a bias itself, the one kind of addition that changes
     /// the residual's mean, which the biases are fitted to), each
     /// earlier kept bias of [`EXCHANGE_KINDS`] (not a recalibration or a replacement)
-    /// is taken out of both folds' states and every other kind of [`EXCHANGE_KINDS`]
+    /// is first taken back outright with the others estimated again without it
+    /// ([`Refit::take_back_refitted`]); when that leaves it, it is taken out of both
+    /// folds' states and every other kind of [`EXCHANGE_KINDS`]
     /// the channel then lacks is estimated in its place, with the later effects in the
     /// residual. The best of these, when its gap is within [`SCREEN_RATIO`] times the
-    /// gap now, is made on a copy of the search, the other kept effects are estimated
-    /// again beside it ([`Refit::one`]) and the newcomer again when any of them changed;
+    /// gap now, is made on a copy of the search, and the kept effects are backfitted
+    /// beside it, the newcomer last ([`Refit::backfit`]);
     /// the copy replaces the search when its joint withheld gap is below the gap now by
     /// at least `min_shrink` (the margin a forward step needs). A forward step
     /// estimates an effect against a residual that still holds the effects added after
     /// it: a rate ramp that ties with a temperature bias (and wins the tie by having
     /// fewer parameters) while a warm-up is still in the residual gives way to the
     /// temperature bias once the warm-up is in. Each exchange is two steps, a `remove`
-    /// and an `add`; returns a note for each.
+    /// and an `add`, and each removal a `remove`; returns a note for each.
     pub fn exchange(&self, s: &mut Search, newest: usize, min_shrink: f64) -> Result<Vec<String>> {
         let ids: Vec<usize> = s
             .added
@@ -421,6 +429,10 @@ impl Refit<'_> {
                 continue;
             }
             let kind = s.added[i].kind.clone();
+            if let Some(note) = self.take_back_refitted(s, i, min_shrink)? {
+                notes.push(note);
+                continue;
+            }
             let (mut trial, mut trial_slots) = self.without(s, i);
             let present = |k: &str| {
                 trial.iter().any(|st| {
@@ -449,9 +461,8 @@ impl Refit<'_> {
             if eff.gap_after >= SCREEN_RATIO * *s.gap_now {
                 continue;
             }
-            // the exchange made on a copy of the search, then the other kept effects
-            // estimated again beside the newcomer, and the newcomer again when any of
-            // them changed
+            // the exchange made on a copy of the search, the kept effects backfitted
+            // beside the newcomer
             let gap_was = *s.gap_now;
             let mut t = Trial::of(s);
             trial_slots.push([
@@ -475,19 +486,7 @@ impl Refit<'_> {
             t.ens_now = e;
             t.added.remove(i);
             t.added.push(eff);
-            let others: Vec<usize> = t
-                .added
-                .iter()
-                .filter_map(|e| e.step)
-                .filter(|&o| o != new_id)
-                .collect();
-            let mut changed = false;
-            for o in others {
-                changed |= self.one(&mut t.search(), o)?;
-            }
-            if changed {
-                self.one(&mut t.search(), new_id)?;
-            }
+            self.backfit(&mut t, Some(new_id))?;
             if t.gap_now >= gap_was * (1.0 - min_shrink) {
                 continue;
             }
@@ -498,6 +497,80 @@ impl Refit<'_> {
             t.write_back(s);
         }
         Ok(notes)
+    }
+
+    /// Backfitting of the kept effects of `t` (Buja, Hastie and Tibshirani 1989): each
+    /// estimated again in turn ([`Refit::one`]), `last` (when given) after the others,
+    /// for up to [`BACKFIT_PASSES`] passes or until a pass changes nothing; a
+    /// re-estimate is kept only when it lowers the joint gap, so the gap never rises.
+    /// Returns whether any changed.
+    fn backfit(&self, t: &mut Trial, last: Option<usize>) -> Result<bool> {
+        let mut changed = false;
+        for _ in 0..BACKFIT_PASSES {
+            let ids: Vec<usize> = t
+                .added
+                .iter()
+                .filter_map(|e| e.step)
+                .filter(|&o| Some(o) != last)
+                .collect();
+            let mut this_pass = false;
+            for o in ids {
+                this_pass |= self.one(&mut t.search(), o)?;
+            }
+            // (once estimated again, `last` has a new step id and is one of the others)
+            if let Some(id) = last
+                && this_pass
+            {
+                self.one(&mut t.search(), id)?;
+            }
+            changed |= this_pass;
+            if !this_pass {
+                break;
+            }
+        }
+        Ok(changed)
+    }
+
+    /// Kept slot `i` taken back outright on a copy of the search, and the other kept
+    /// effects estimated again without it ([`Refit::one`]): the copy replaces the search
+    /// when the slot's share of the gap is then below `min_shrink`, the margin by which
+    /// a backward step takes an effect back (a backward step keeps the others as they
+    /// were, estimated beside the slot). Returns the note of a removal.
+    fn take_back_refitted(
+        &self,
+        s: &mut Search,
+        i: usize,
+        min_shrink: f64,
+    ) -> Result<Option<String>> {
+        let kind = s.added[i].kind.clone();
+        let (trial, trial_slots) = self.without(s, i);
+        let (gap_without, ens_without, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+        let gap_was = *s.gap_now;
+        let mut added = s.added.clone();
+        added.remove(i);
+        let mut steps = s.steps.clone();
+        steps.push(Step::plain("remove", kind.clone(), gap_was, gap_without));
+        let mut t = Trial {
+            sts: trial,
+            slots: trial_slots,
+            added,
+            gap_now: gap_without,
+            ens_now: ens_without,
+            steps,
+        };
+        let changed = self.backfit(&mut t, None)?;
+        let share = 1.0 - gap_was / t.gap_now;
+        if !changed || share >= min_shrink {
+            return Ok(None);
+        }
+        let note = format!(
+            "{kind} taken back: with the other kept effects estimated again without it, its share of the gap is {:.1} %, less than {:.0} % (gap {gap_was:.3} -> {:.3})",
+            100.0 * share,
+            100.0 * min_shrink,
+            t.gap_now
+        );
+        t.write_back(s);
+        Ok(Some(note))
     }
 
     /// After an addition (the last of `s.added`): each earlier effect re-estimated in

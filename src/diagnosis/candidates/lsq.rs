@@ -108,6 +108,64 @@ pub(super) fn ls_weighted(
     Some((beta, rss))
 }
 
+/// The weighted RSS of each of `ranges` for the fit `beta` (every coefficient, the
+/// intercept first when fitted, as [`ls_weighted`] returns them).
+pub(super) fn rss_by_range(
+    y: &[f64],
+    regs: &[&[f64]],
+    beta: &[f64],
+    intercept: bool,
+    ranges: &[Range<usize>],
+    w: Option<&[f64]>,
+) -> Vec<f64> {
+    let off = usize::from(intercept);
+    ranges
+        .iter()
+        .map(|r| {
+            r.clone()
+                .map(|t| {
+                    let mut f = if intercept { beta[0] } else { 0.0 };
+                    for (j, g) in regs.iter().enumerate() {
+                        f += beta[j + off] * g[t];
+                    }
+                    w.map_or(1.0, |w| w[t]) * (y[t] - f).powi(2)
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// The least z of [`clearly_better`]: the better fit's lower RSS must be this many
+/// standard errors of its spread over the ranges.
+pub(super) const BETTER_Z: f64 = 1.0;
+
+/// Whether the fit whose RSS by range is `better` lowers the RSS of the fit `worse` by
+/// more than its spread over the ranges, whose lengths are `lens`. With D_r the
+/// difference on range r (n_r samples, D and N their sums), the differences are taken
+/// as independent with variance s^2 n_r: s^2 = sum_r (D_r - n_r D / N)^2 / n_r / (R - 1)
+/// and z = D / sqrt(s^2 N), a block (batch-means) standard error that holds for
+/// residuals correlated within a range (Carlstein 1986). True when z > [`BETTER_Z`];
+/// with fewer than 4 ranges the spread is not estimated and any lower RSS counts.
+pub(super) fn clearly_better(worse: &[f64], better: &[f64], lens: &[usize]) -> bool {
+    let d: Vec<f64> = worse.iter().zip(better).map(|(a, b)| a - b).collect();
+    let total: f64 = d.iter().sum();
+    if d.len() < 4 {
+        return total > 0.0;
+    }
+    let n: f64 = lens.iter().map(|&l| l as f64).sum();
+    let s2 = d
+        .iter()
+        .zip(lens)
+        .filter(|(_, l)| **l > 0)
+        .map(|(dr, &l)| {
+            let l = l as f64;
+            (dr - l * total / n).powi(2) / l
+        })
+        .sum::<f64>()
+        / (d.len() - 1) as f64;
+    total > BETTER_Z * (s2 * n).sqrt()
+}
+
 /// `n` points from `lo` to `hi`, evenly spaced in ln.
 pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     (0..n)
@@ -213,6 +271,43 @@ mod tests {
         // at an end of the bracket it converges to that end
         let y = golden_min(0.0, 1.0, 60, |v| v);
         assert!(y < 1e-9, "{y}");
+    }
+
+    #[test]
+    fn rss_by_range_sums_to_the_fits_rss() {
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|t| (t as f64 * 0.03).cos()).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|t| -0.2 + 1.5 * u[t] + ((t * 104729) % 17) as f64 * 0.02)
+            .collect();
+        let ranges = [0..80, 100..190, 190..300];
+        let (b, rss) = ls_full(&y, &[&u], true, &ranges).unwrap();
+        let parts = rss_by_range(&y, &[&u], &b, true, &ranges, None);
+        assert_eq!(parts.len(), 3);
+        let sum: f64 = parts.iter().sum();
+        assert!((sum - rss).abs() < 1e-12 * rss, "{sum} {rss}");
+        // one range by hand
+        let r1: f64 = (100..190)
+            .map(|t| (y[t] - b[0] - b[1] * u[t]).powi(2))
+            .sum();
+        assert!((parts[1] - r1).abs() < 1e-12 * r1);
+    }
+
+    #[test]
+    fn a_lower_rss_counts_only_beyond_its_spread_over_the_ranges() {
+        let lens = [1000usize; 8];
+        let worse = [10.0; 8];
+        // the same lowering on every range: clearly better
+        assert!(clearly_better(&worse, &[9.9; 8], &lens));
+        // a lowering on one range and rises elsewhere: a total of +0.1 within the spread
+        let mixed = [8.0, 10.3, 10.2, 10.3, 10.3, 10.2, 10.3, 10.3];
+        let total: f64 = worse.iter().zip(&mixed).map(|(a, b)| a - b).sum();
+        assert!(total > 0.0, "{total}");
+        assert!(!clearly_better(&worse, &mixed, &lens));
+        // no lowering at all
+        assert!(!clearly_better(&worse, &worse, &lens));
+        // with fewer than 4 ranges any lowering counts
+        assert!(clearly_better(&[1.0, 1.0], &[0.99, 1.005], &[10, 10]));
     }
 
     #[test]

@@ -13,7 +13,10 @@
 //!   likelihood in its level and slope, profiled over the temperature of the clamp's
 //!   kink ([`heteroskedastic_floor_form`]).
 
-use super::lsq::{golden_argmin, ls_full, ls_w, ls_weighted, refine_on_log_grid, shrink_ranges};
+use super::lsq::{
+    clearly_better, golden_argmin, ls_full, ls_weighted, refine_on_log_grid, rss_by_range,
+    shrink_ranges,
+};
 use super::params::{flag_edge, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
@@ -100,13 +103,27 @@ const THERMAL_SMOOTHINGS_S: [f64; 6] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
 /// 10 s to the largest of its range.
 const THERMAL_LAGS: usize = 7;
 
+/// One least-squares fit of [`thermal_rate`]: every coefficient (the intercept first),
+/// the smoothing and lag of its unit signal, the RSS and the unit signal.
+struct ThermalFit {
+    beta: Vec<f64>,
+    smoothing_s: f64,
+    lag_s: f64,
+    rss: f64,
+    unit: Vec<f64>,
+}
+
 /// thermal_rate: the coefficient by least squares of the training residual on the unit
 /// signal (with an intercept) for each smoothing of [`THERMAL_SMOOTHINGS_S`] and each
 /// lag of none and a log grid of [`THERMAL_LAGS`] from 10 s to min(3000 s, an eighth of
 /// the log: a lag near the log's length turns dT/dt into a high-passed T, a stand-in
-/// for a temperature bias), the best by residual sum of squares; a lag found on the grid is refined by
-/// a golden-section search of ln lag_s between its grid neighbours. A lag or a
-/// smoothing at the top of its range is flagged (`at_search_edge`).
+/// for a temperature bias), the best by residual sum of squares; a lag found on the
+/// grid is refined by a golden-section search of ln lag_s between its grid neighbours.
+/// A lag or a smoothing at the top of its range is flagged (`at_search_edge`), but a
+/// top smoothing that a lesser one fits as well, the lower RSS within one standard
+/// error of its spread over the training ranges ([`clearly_better`]; the
+/// one-standard-error rule of Breiman et al. 1984, sec. 3.4.3), is marked
+/// `undetermined` instead: the range does not bind it.
 pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
     let top_s = (0.25 * tr.duration_s).min(3000.0);
@@ -127,37 +144,68 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
             lag_s: lag,
         })
     };
-    // (coefficient, rss, unit signal) of one (smoothing, lag)
-    let fit = |sm: f64, lag: f64| -> Result<Option<(f64, f64, Vec<f64>)>> {
+    // the fit at one (smoothing, lag)
+    let fit = |sm: f64, lag: f64| -> Result<Option<ThermalFit>> {
         let u = unit(sm, lag)?;
-        Ok(ls_w(res, &[&u], true, ranges, tr.w()).map(|(b, rss)| (b[0], rss, u)))
+        Ok(
+            ls_weighted(res, &[&u], true, ranges, tr.w()).map(|(beta, rss)| ThermalFit {
+                beta,
+                smoothing_s: sm,
+                lag_s: lag,
+                rss,
+                unit: u,
+            }),
+        )
     };
-    let mut best: Option<(f64, f64, f64, f64, Vec<f64>)> = None;
+    // each smoothing's best lag
+    let mut by_smoothing: Vec<ThermalFit> = Vec::new();
     for &sm in &smoothings {
+        let mut best: Option<ThermalFit> = None;
         for &lag in &lags {
-            if let Some((b, rss, u)) = fit(sm, lag)?
-                && best.as_ref().is_none_or(|x| rss < x.3)
+            if let Some(f) = fit(sm, lag)?
+                && best.as_ref().is_none_or(|x| f.rss < x.rss)
             {
-                best = Some((b, sm, lag, rss, u));
+                best = Some(f);
             }
         }
+        by_smoothing.extend(best);
     }
-    let Some((mut cf, sm, mut lag, rss, mut u)) = best else {
+    let Some(k) = (0..by_smoothing.len())
+        .min_by(|&a, &b| by_smoothing[a].rss.total_cmp(&by_smoothing[b].rss))
+    else {
         return Ok(());
     };
+    // a smoothing at the top of its range that does not clearly beat a lesser one (on a
+    // smooth temperature the smoothing trades off against the coefficient and the lag)
+    // is not bound by the range: the data do not determine it
+    let top_sm = smoothings[smoothings.len() - 1];
+    let undetermined_from = if by_smoothing[k].smoothing_s == top_sm && top_sm > 0.0 {
+        let lens: Vec<usize> = ranges.iter().map(|r| r.len()).collect();
+        let by_range =
+            |f: &ThermalFit| rss_by_range(res, &[&f.unit], &f.beta, true, ranges, tr.w());
+        let top = by_range(&by_smoothing[k]);
+        (0..k)
+            .find(|&i| !clearly_better(&by_range(&by_smoothing[i]), &top, &lens))
+            .map(|i| by_smoothing[i].smoothing_s)
+    } else {
+        None
+    };
+    let chosen = by_smoothing.swap_remove(k);
+    let (sm, mut lag, rss, mut u) = (chosen.smoothing_s, chosen.lag_s, chosen.rss, chosen.unit);
+    let mut cf = chosen.beta[1];
     if lag > 0.0 {
         // the lag's log grid (none left out), refined between its grid neighbours
         let grid = &lags[1..];
         let i = grid.iter().position(|&l| l == lag).unwrap_or(0);
         let rss_at = |v: f64| match fit(sm, v) {
-            Ok(Some((_, r, _))) => r,
+            Ok(Some(f)) => f.rss,
             _ => f64::INFINITY,
         };
         let refined = refine_on_log_grid(grid, i, rss, 30, [10.0, lag_top], rss_at);
         if refined != lag
-            && let Some((b2, _, u2)) = fit(sm, refined)?
+            && let Some(f) = fit(sm, refined)?
         {
-            (cf, lag, u) = (b2, refined, u2);
+            (cf, lag, u) = (f.beta[1], refined, f.unit);
         }
     }
     let sig: Vec<f64> = u.iter().map(|v| v * cf).collect();
@@ -179,9 +227,17 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
         flag_edge(&mut p.params, &mut p.note, "lag_s", lag, 10.0, lag_top);
     }
     // no smoothing (the bottom of its range) is a value, not a bound
-    if sm > 0.0 {
-        let top = smoothings[smoothings.len() - 1];
-        flag_edge(&mut p.params, &mut p.note, "smoothing_s", sm, 0.0, top);
+    if let Some(from) = undetermined_from {
+        if let serde_json::Value::Object(m) = &mut p.params {
+            m.insert("undetermined".into(), serde_json::json!(["smoothing_s"]));
+        }
+        p.note.push_str(&format!(
+            "; smoothing_s: {} s fits no better than {} s within one standard error over the training ranges, so the data do not determine it",
+            crate::fmt::num(sm),
+            crate::fmt::num(from)
+        ));
+    } else if sm > 0.0 {
+        flag_edge(&mut p.params, &mut p.note, "smoothing_s", sm, 0.0, top_sm);
     }
     out.push(p);
     Ok(())
