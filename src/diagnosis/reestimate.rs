@@ -429,11 +429,13 @@ impl Refit<'_> {
                 continue;
             }
             let kind = s.added[i].kind.clone();
-            if let Some(note) = self.take_back_refitted(s, i, min_shrink)? {
+            let (mut trial, mut trial_slots) = self.without(s, i);
+            let (gap_without, ens_without, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+            let taken_back = (trial.clone(), trial_slots.clone(), gap_without, ens_without);
+            if let Some(note) = self.take_back_refitted(s, i, taken_back, min_shrink)? {
                 notes.push(note);
                 continue;
             }
-            let (mut trial, mut trial_slots) = self.without(s, i);
             let present = |k: &str| {
                 trial.iter().any(|st| {
                     st.spec.channels[self.channel]
@@ -450,7 +452,6 @@ impl Refit<'_> {
             if others.is_empty() {
                 continue;
             }
-            let (gap_without, _, _) = (self.score)(&(self.feats)(&trial, [None, None]));
             let mut round = Round::default();
             for k in others {
                 self.offer_kind(&trial, k, gap_without, &mut round)?;
@@ -532,19 +533,21 @@ impl Refit<'_> {
     }
 
     /// Kept slot `i` taken back outright on a copy of the search, and the other kept
-    /// effects estimated again without it ([`Refit::one`]): the copy replaces the search
-    /// when the slot's share of the gap is then below `min_shrink`, the margin by which
-    /// a backward step takes an effect back (a backward step keeps the others as they
-    /// were, estimated beside the slot). Returns the note of a removal.
+    /// effects estimated again without it ([`Refit::backfit`]): the copy replaces the
+    /// search when the slot's share of the gap is then below `min_shrink`, the margin by
+    /// which a backward step takes an effect back (a backward step keeps the others as
+    /// they were, estimated beside the slot). `taken_back` is both folds' states and
+    /// slots without the slot ([`Refit::without`]), their gap and ensemble statistics.
+    /// Returns the note of a removal.
     fn take_back_refitted(
         &self,
         s: &mut Search,
         i: usize,
+        taken_back: ([State; 2], Vec<[Slot; 2]>, f64, EnsembleStats),
         min_shrink: f64,
     ) -> Result<Option<String>> {
         let kind = s.added[i].kind.clone();
-        let (trial, trial_slots) = self.without(s, i);
-        let (gap_without, ens_without, _) = (self.score)(&(self.feats)(&trial, [None, None]));
+        let (trial, trial_slots, gap_without, ens_without) = taken_back;
         let gap_was = *s.gap_now;
         let mut added = s.added.clone();
         added.remove(i);

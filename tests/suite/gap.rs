@@ -182,7 +182,7 @@ fn a_gauss_markov_beside_a_sinusoid_is_fitted_with_the_line_taken_out() {
     for reestimate in [false, true] {
         let d = diagnose_with(reestimate);
         assert_eq!(kinds(&d), ["gauss_markov", "sinusoid"], "{:?}", steps(&d));
-        let gm = d.added.iter().find(|e| e.kind == "gauss_markov").unwrap();
+        let gm = added(&d, "gauss_markov");
         let tau_s = gm.params["tau_s"].as_f64().unwrap();
         let sigma = gm.params["sigma"].as_f64().unwrap();
         assert!((10.0..22.5).contains(&tau_s), "tau_s {tau_s} (true 15)");
@@ -233,7 +233,7 @@ fn a_warm_up_inside_block_0_is_scored_added_first_and_the_gap_closed() {
         d.gap_after,
         d.gap_threshold
     );
-    let w = d.added.iter().find(|e| e.kind == "warmup").unwrap();
+    let w = added(&d, "warmup");
     let tau_s = w.params["tau_s"].as_f64().unwrap();
     assert!((60.0..240.0).contains(&tau_s), "tau_s {tau_s}");
     // the withheld score's time windows (both folds) tile the whole log
@@ -269,7 +269,7 @@ fn a_thermal_rate_behind_a_lagged_temperature_is_found_with_its_lag() {
     assert!(d.gap_before > d.gap_threshold, "not significant");
     assert_first_step(&d, "thermal_rate");
     assert_explained(&d);
-    let th = d.added.iter().find(|e| e.kind == "thermal_rate").unwrap();
+    let th = added(&d, "thermal_rate");
     let lag_s = th.params["lag_s"].as_f64().unwrap();
     assert!((100.0..400.0).contains(&lag_s), "lag_s {lag_s}");
     assert!(th.params.get("at_search_edge").is_none(), "{}", th.params);
@@ -354,11 +354,7 @@ fn a_noise_scale_clamped_at_the_mean_temperature_is_fitted_about_another_referen
         "added {kinds:?}, not tried {:?}",
         d.not_tried
     );
-    let h = d
-        .added
-        .iter()
-        .find(|e| e.kind == "heteroskedastic")
-        .unwrap();
+    let h = added(&d, "heteroskedastic");
     let p = &h.params;
     let reference = p["reference_c"]
         .as_f64()
@@ -410,11 +406,7 @@ fn a_heteroskedastic_noise_given_at_its_rms_level_is_added_with_its_level() {
         Some("heteroskedastic"),
         "added {kinds:?}"
     );
-    let h = d
-        .added
-        .iter()
-        .find(|e| e.kind == "heteroskedastic")
-        .unwrap();
+    let h = added(&d, "heteroskedastic");
     let f = h.params["level_factor"].as_f64().unwrap();
     let want = 1.0 / ms.sqrt();
     assert!((f - want).abs() < 0.05 * want, "level {f} vs {want}");
@@ -772,7 +764,7 @@ fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
     );
     let d = run(&case, 36_000, 8, 12);
     assert_first_step(&d, "output_filter");
-    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    let f = added(&d, "output_filter");
     assert_eq!(f.params["discretization"], "bilinear", "{}", f.params);
     let bw = f.params["bandwidth_hz"].as_f64().unwrap();
     // order 1 at 1.5 Hz, or the order-2 form that matches it as closely
@@ -804,7 +796,7 @@ fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
     };
     let d = run(&case, 36_000, 9, 12);
     assert_first_step(&d, "output_filter");
-    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    let f = added(&d, "output_filter");
     let n = f.params["white_noise_n"]
         .as_f64()
         .expect("the joint candidate");
@@ -848,7 +840,7 @@ fn a_log_through_an_ma1_fir_gets_the_fir_with_its_theta() {
         };
         let d = run(&case, 36_000, 21 + k, 12);
         assert_first_step(&d, "output_filter");
-        let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+        let f = added(&d, "output_filter");
         assert_eq!(f.params["form"], "fir", "{}", f.params);
         let taps: Vec<f64> = f.params["taps"]
             .as_array()
@@ -886,7 +878,7 @@ fn a_low_pass_log_does_not_get_the_fir() {
     );
     let d = run(&case, 36_000, 31, 12);
     assert_first_step(&d, "output_filter");
-    let f = d.added.iter().find(|e| e.kind == "output_filter").unwrap();
+    let f = added(&d, "output_filter");
     assert!(f.params.get("order").is_some(), "{}", f.params);
     assert!(
         d.effects
@@ -904,6 +896,22 @@ fn assert_explained(d: &farma::diagnosis::Diagnosis) {
         "gap {} -> {} (threshold {}); notes {:?}",
         d.gap_before, d.gap_after, d.gap_threshold, d.notes
     );
+}
+
+/// The kept effect of kind `kind` in `d` (panics when there is none).
+fn added<'d>(d: &'d farma::diagnosis::Diagnosis, kind: &str) -> &'d farma::diagnosis::Effect {
+    d.added
+        .iter()
+        .find(|e| e.kind == kind)
+        .unwrap_or_else(|| panic!("no {kind} among {:?}", d.steps))
+}
+
+/// The (action, kind) of each search step of `d`.
+fn step_kinds(d: &farma::diagnosis::Diagnosis) -> Vec<(&str, &str)> {
+    d.steps
+        .iter()
+        .map(|s| (s.action, s.kind.as_str()))
+        .collect()
 }
 
 /// The search's first step added `kind`.
@@ -946,7 +954,7 @@ fn few_heavy_tailed_spikes_get_both_amplitude_forms_scored_and_the_t_chosen() {
             .collect::<Vec<_>>()
     );
     assert_first_step(&d, "outliers");
-    let o = d.added.iter().find(|e| e.kind == "outliers").unwrap();
+    let o = added(&d, "outliers");
     let dof = o.params["dof"].as_f64().unwrap_or(f64::NAN);
     assert!((1.5..8.0).contains(&dof), "dof {dof}: {}", o.params);
     assert!(
@@ -1196,11 +1204,7 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
     };
     let d = diagnose(&real, &spec, &prm).unwrap();
     let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
-    let steps: Vec<(&str, &str)> = d
-        .steps
-        .iter()
-        .map(|s| (s.action, s.kind.as_str()))
-        .collect();
+    let steps = step_kinds(&d);
     // the first estimate: at the top of the smoothing's range, flagged as a bound or
     // (where a lesser smoothing fits within one standard error) as not determined
     assert_first_step(&d, "thermal_rate");
@@ -1219,7 +1223,7 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
     );
     // estimated again, and kept as an estimate
     assert!(steps.contains(&("reestimate", "thermal_rate")), "{steps:?}");
-    let th = d.added.iter().find(|e| e.kind == "thermal_rate").unwrap();
+    let th = added(&d, "thermal_rate");
     assert!(th.params.get("at_search_edge").is_none(), "{}", th.params);
     assert!(kinds.contains(&"temperature_bias"), "{kinds:?}");
     // the gap closes
@@ -1467,21 +1471,9 @@ fn assert_warmup_and_bias(d: &Diagnosis) {
         d.gap_before,
         d.gap_after
     );
-    let tb = d
-        .added
-        .iter()
-        .find(|e| e.kind == "temperature_bias")
-        .unwrap();
+    let tb = added(d, "temperature_bias");
     let c1 = tb.params["coeffs"][0].as_f64().unwrap();
     assert!((0.0008..0.0014).contains(&c1), "{}", tb.params);
-}
-
-/// The (action, kind) of each search step of `d`.
-fn step_kinds(d: &Diagnosis) -> Vec<(&str, &str)> {
-    d.steps
-        .iter()
-        .map(|s| (s.action, s.kind.as_str()))
-        .collect()
 }
 
 /// A temperature that climbs nearly linearly makes a temperature bias and a rate ramp

@@ -98,14 +98,27 @@ pub(super) fn ls_weighted(
     let mut rss = 0.0;
     for r in ranges {
         for t in r.clone() {
-            let mut f = if intercept { beta[0] } else { 0.0 };
-            for (j, g) in regs.iter().enumerate() {
-                f += beta[j + usize::from(intercept)] * g[t];
-            }
-            rss += w.map_or(1.0, |w| w[t]) * (y[t] - f).powi(2);
+            rss += weighted_sq_residual(y, regs, &beta, intercept, w, t);
         }
     }
     Some((beta, rss))
+}
+
+/// w_t (y_t - f_t)^2 for the fit f = `beta` (the intercept first when fitted) at
+/// sample t; w_t = 1 without weights.
+fn weighted_sq_residual(
+    y: &[f64],
+    regs: &[&[f64]],
+    beta: &[f64],
+    intercept: bool,
+    w: Option<&[f64]>,
+    t: usize,
+) -> f64 {
+    let mut f = if intercept { beta[0] } else { 0.0 };
+    for (j, g) in regs.iter().enumerate() {
+        f += beta[j + usize::from(intercept)] * g[t];
+    }
+    w.map_or(1.0, |w| w[t]) * (y[t] - f).powi(2)
 }
 
 /// The weighted RSS of each of `ranges` for the fit `beta` (every coefficient, the
@@ -118,18 +131,11 @@ pub(super) fn rss_by_range(
     ranges: &[Range<usize>],
     w: Option<&[f64]>,
 ) -> Vec<f64> {
-    let off = usize::from(intercept);
     ranges
         .iter()
         .map(|r| {
             r.clone()
-                .map(|t| {
-                    let mut f = if intercept { beta[0] } else { 0.0 };
-                    for (j, g) in regs.iter().enumerate() {
-                        f += beta[j + off] * g[t];
-                    }
-                    w.map_or(1.0, |w| w[t]) * (y[t] - f).powi(2)
-                })
+                .map(|t| weighted_sq_residual(y, regs, beta, intercept, w, t))
                 .sum()
         })
         .collect()

@@ -119,18 +119,40 @@ pub(super) fn flag_edge(
     } else {
         return false;
     };
-    if let Value::Object(m) = params {
-        let list = m
-            .entry("at_search_edge")
-            .or_insert_with(|| Value::Array(Vec::new()));
-        if let Value::Array(a) = list {
-            a.push(Value::String(name.to_string()));
-        }
-    }
+    list_param(params, "at_search_edge", name);
     note.push_str(&format!(
         "; {name} = {value:.4e} is the {side} end of its search range [{lo:.4e}, {hi:.4e}]: a bound, not an estimate"
     ));
     true
+}
+
+/// Marks parameter `name` of an estimate as not determined by the data: its value
+/// `value` is at an end of its search range, and the inner value `inner` fits as well
+/// (both in `unit`, e.g. " s"). `undetermined` lists such parameters in the params
+/// object, and the note says so.
+pub(super) fn flag_undetermined(
+    params: &mut Value,
+    note: &mut String,
+    name: &str,
+    [value, inner]: [f64; 2],
+    unit: &str,
+) {
+    list_param(params, "undetermined", name);
+    note.push_str(&format!(
+        "; {name}: {}{unit} fits no better than {}{unit} within one standard error over the training ranges, so the data do not determine it",
+        crate::fmt::num(value),
+        crate::fmt::num(inner)
+    ));
+}
+
+/// Appends `name` to the array `key` of the params object (created when absent).
+fn list_param(params: &mut Value, key: &str, name: &str) {
+    if let Value::Object(m) = params {
+        let list = m.entry(key).or_insert_with(|| Value::Array(Vec::new()));
+        if let Value::Array(a) = list {
+            a.push(Value::String(name.to_string()));
+        }
+    }
 }
 
 /// The parameters of a component as JSON (the keys of contracts.md section 2).
@@ -229,7 +251,7 @@ pub fn params_json(c: &Component) -> Value {
 
 #[cfg(test)]
 mod edge_tests {
-    use super::flag_edge;
+    use super::{flag_edge, flag_undetermined};
     use serde_json::json;
 
     #[test]
@@ -257,5 +279,19 @@ mod edge_tests {
         let mut note = String::new();
         assert!(!flag_edge(&mut r, &mut note, "tau_s", 3.0, 0.02, 400.0));
         assert!(r.get("at_search_edge").is_none() && note.is_empty());
+    }
+
+    #[test]
+    fn an_undetermined_value_is_listed_beside_a_bound_and_named_in_the_note() {
+        let mut p = json!({"lag_s": 10.0, "smoothing_s": 1000.0});
+        let mut note = String::from("fold 1");
+        assert!(flag_edge(&mut p, &mut note, "lag_s", 10.0, 10.0, 900.0));
+        flag_undetermined(&mut p, &mut note, "smoothing_s", [1000.0, 30.0], " s");
+        assert_eq!(p["at_search_edge"], json!(["lag_s"]));
+        assert_eq!(p["undetermined"], json!(["smoothing_s"]));
+        assert!(
+            note.ends_with("; smoothing_s: 1000 s fits no better than 30 s within one standard error over the training ranges, so the data do not determine it"),
+            "{note}"
+        );
     }
 }

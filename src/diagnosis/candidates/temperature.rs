@@ -17,7 +17,7 @@ use super::lsq::{
     clearly_better, golden_argmin, ls_full, ls_weighted, refine_on_log_grid, rss_by_range,
     shrink_ranges,
 };
-use super::params::{flag_edge, params_json, scaled};
+use super::params::{flag_edge, flag_undetermined, params_json, scaled};
 use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
 use crate::error::Result;
@@ -228,14 +228,7 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     }
     // no smoothing (the bottom of its range) is a value, not a bound
     if let Some(from) = undetermined_from {
-        if let serde_json::Value::Object(m) = &mut p.params {
-            m.insert("undetermined".into(), serde_json::json!(["smoothing_s"]));
-        }
-        p.note.push_str(&format!(
-            "; smoothing_s: {} s fits no better than {} s within one standard error over the training ranges, so the data do not determine it",
-            crate::fmt::num(sm),
-            crate::fmt::num(from)
-        ));
+        flag_undetermined(&mut p.params, &mut p.note, "smoothing_s", [sm, from], " s");
     } else if sm > 0.0 {
         flag_edge(&mut p.params, &mut p.note, "smoothing_s", sm, 0.0, top_sm);
     }
