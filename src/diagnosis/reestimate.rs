@@ -132,9 +132,9 @@ pub(super) struct Search<'s> {
     pub steps: &'s mut Vec<Step>,
 }
 
-/// The most passes over the kept effects, each estimated again in turn, after an
-/// effect is taken back ([`Refit::take_back_refitted`]): backfitting (Buja, Hastie and
-/// Tibshirani 1989), stopped early when a pass changes nothing.
+/// The most passes over the kept effects, each estimated again in turn, of
+/// [`Refit::backfit`] (after an earlier bias is taken back or exchanged): backfitting
+/// (Buja, Hastie and Tibshirani 1989), stopped early when a pass changes nothing.
 const BACKFIT_PASSES: usize = 3;
 
 /// An owned copy of the search's state ([`Search`]), for trying an addition.
