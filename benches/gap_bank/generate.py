@@ -57,7 +57,7 @@ ACCEPT = {
 CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 
 PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021,
-             "dev3": 30_017_003, "dev4": 31_204_011}
+             "dev3": 30_017_003, "dev4": 31_204_011, "dev5": 32_405_017}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -125,6 +125,9 @@ def temperature(rng, kind, t, fs, lo, hi):
     elif kind == "soak_ramp":  # cold soak, fast ramp, hot soak, partial cool
         c = np.where(u < 0.3, lo, np.where(u < 0.45, lo + (hi - lo) * (u - 0.3) / 0.15,
                      np.where(u < 0.8, hi, hi - 0.5 * (hi - lo) * np.clip((u - 0.8) / 0.1, 0, 1))))
+    elif kind == "sine":  # sinusoidal chamber cycles (dev5 only)
+        k = int(rng.integers(1, 4))
+        c = lo + (hi - lo) * (0.5 + 0.5 * np.sin(2 * np.pi * u * k + float(rng.uniform(0, 2 * np.pi))))
     elif kind == "rw_drift":  # ambient random drift (smoothed random walk)
         k = 400
         steps = rng.standard_normal(k).cumsum()
@@ -518,6 +521,8 @@ PAIRS = {
              [("warmup", "short"), ("temperature_bias", "lin")]],
     # a fourth development draw (nineteenth session): non-candidates only
     "dev4": [],
+    # a fifth development draw (twenty-second session): singles only, each kind twice
+    "dev5": [],
 }
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
@@ -526,7 +531,8 @@ NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst"
            "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")],
            "dev3": [],
            # a development part of non-candidates only, at sizes from small to large
-           "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4}
+           "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4,
+           "dev5": []}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -541,14 +547,18 @@ GRID = {
     "heldout2": [(10, 4 * 3600), (10, 5 * 3600), (100, 2 * 3600), (10, 4 * 3600), (100, 2700)],
     "dev3": [(10, 3600), (10, 3 * 3600), (100, 1800), (10, 2 * 3600), (100, 1200)],
     "dev4": [(10, 2 * 3600), (10, 3 * 3600), (100, 1200), (10, 5400), (100, 1800)],
+    # mostly the outside setting (4 h at 10 Hz with a chamber temperature)
+    "dev5": [(10, 4 * 3600), (10, 4 * 3600), (10, 4 * 3600), (100, 3600), (10, 9000)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
             "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
-            "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"]}
+            "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"],
+            "dev5": ["sine", "ramp", "steps"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
           "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
-          "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)]}
+          "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)],
+          "dev5": [(-20, 60), (0, 45), (-35, 75)]}
 
 
 def size_for(part, rng, category="single"):
@@ -556,6 +566,9 @@ def size_for(part, rng, category="single"):
         return float(rng.uniform(2.5, 4.0))
     if part == "dev4":
         return float(rng.uniform(0.6, 4.0))
+    if part == "dev5":
+        # each kind once small and once large (make_part passes which)
+        return float(rng.uniform(0.6, 0.9)) if category == "small" else float(rng.uniform(2.2, 4.0))
     if part == "heldout2":
         # a pair's members share one size: the held-out's larger sizes only, so that
         # each member can show beside the other (the first held-out part's small pairs
@@ -577,11 +590,13 @@ def make_part(part):
     plan = []
     for k, v in (SINGLES if part not in ("dev3", "dev4") else []):
         plan.append(("single", [(k, v)], f"single_{k}" + (f"_{v}" if v else "")))
+    if part == "dev5":
+        plan = [(c, e, n + "_" + sz) for sz in ("small", "large") for c, e, n in plan]
     for pr in PAIRS[part]:
         plan.append(("pair", pr, "pair_" + "+".join(k for k, _ in pr)))
     for i, (k, v) in enumerate(NONCAND[part]):
         plan.append(("non_candidate", [(k, v)], f"noncand_{k}_{i}"))
-    for i, eff in enumerate(CORRECT if part not in ("dev3", "dev4") else []):
+    for i, eff in enumerate(CORRECT if part not in ("dev3", "dev4", "dev5") else []):
         plan.append(("correct", eff, f"correct_{i}" + ("_" + "+".join(k for k, _ in eff) if eff else "")))
     cases = []
     khz_left = KHZ[part]
@@ -594,10 +609,10 @@ def make_part(part):
         else:
             fs, dur = GRID[part][int(rng.integers(len(GRID[part])))]
         need = bool(kinds & NEEDS_TEMP)
-        has_temp = need or rng.random() < 0.6
+        has_temp = need or rng.random() < 0.6 or part == "dev5"
         tprof = PROFILES[part][int(rng.integers(3))] if has_temp else None
         trange = TRANGE[part][int(rng.integers(3))]
-        size = size_for(part, rng, cat)
+        size = size_for(part, rng, name.rsplit("_", 1)[-1] if part == "dev5" else cat)
         seed = PART_SEED[part] * 1000 + i
         cases.append(Case(part, i, f"{i:02d}_{name}", cat, eff, fs, dur, tprof, size, trange, seed))
     return cases
@@ -606,10 +621,10 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "heldout", "heldout2", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
-    parts = ["dev", "dev2", "dev3", "dev4", "heldout", "heldout2"] if a.part == "all" else [a.part]
+    parts = ["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2"] if a.part == "all" else [a.part]
     for part in parts:
         cases = make_part(part)
         index = []

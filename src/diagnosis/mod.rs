@@ -751,6 +751,10 @@ fn diagnose_log(
         if s[0].path {
             let paths = [0, 1].map(|f| {
                 let mut comps = sts[f].spec.channels[channel].components.clone();
+                // an output-path component the slot changed beside its own, as it was
+                if let Some((k, old)) = &s[f].rescaled {
+                    comps[*k] = old.clone();
+                }
                 match &s[f].replaced {
                     Some((old, _)) => comps[s[f].comp] = old.clone(),
                     None => {
@@ -903,10 +907,7 @@ fn diagnose_log(
             pb.set_message(p.kind.clone());
             let xs = [&sts[0].target[..], &sts[1].target[..]];
             let f = if p.component.kind().is_output_path() {
-                let paths = [
-                    sts[0].path.with(&p.component),
-                    sts[1].path.with(&q.component),
-                ];
+                let paths = [path_with(&sts[0].path, p), path_with(&sts[1].path, q)];
                 // a joint candidate also changes a component's signal
                 match (p.also_change(&sts[0].parts), q.also_change(&sts[1].parts)) {
                     (Some((d0, c0)), Some((d1, c1))) => screened(&|reps| {
@@ -1565,8 +1566,23 @@ type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
 /// the form of an output-path component (a filter's order, a resolution on the rate
 /// or on the angle), so that the folds' estimates of one candidate meet.
 fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
-    let joint = if p.also.is_some() { " joint" } else { "" };
+    let joint = match (&p.also, &p.rescales) {
+        (Some(_), _) => " joint",
+        (None, Some((_, c))) if c.kind().is_output_path() => " with the path refitted",
+        _ => "",
+    };
     (p.kind.clone(), p.replaces, form(&p.component) + joint)
+}
+
+/// The path `path` with proposal `p`'s output-path component in it, and the
+/// output-path component `p` changes beside it ([`Proposal::rescales`]) when it changes
+/// one.
+fn path_with(path: &PathStage, p: &Proposal) -> PathStage {
+    let q = path.with(&p.component);
+    match &p.rescales {
+        Some((_, c)) if c.kind().is_output_path() => q.with(c),
+        _ => q,
+    }
 }
 
 /// [`pair_key`] without the form: what pairs the folds' estimates of one candidate

@@ -774,6 +774,89 @@ fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
     assert_explained(&d);
 }
 
+/// A FOG-like output path: the rate through a bilinear first-order low-pass, then the
+/// integrated angle rounded to a coarse quantum (a few rate levels). The PSD fit of the
+/// filter, which takes the rounding as additive white noise, cannot read such a log;
+/// once the resolution is in the spec, the filter fitted by simulation with it
+/// (candidates/path_fit.rs) is added, the rounding moved onto the angle.
+#[test]
+fn a_filter_before_a_coarse_angle_quantizer_is_fitted_by_simulation_with_the_rounding_form() {
+    use farma::simulator::Discretization;
+    let case = hidden(
+        "output_filter",
+        false,
+        [
+            Component::OutputFilter {
+                order: 1,
+                bandwidth_hz: 1.5,
+                damping: None,
+                discretization: Discretization::Bilinear,
+            },
+            Component::OutputResolution {
+                quantum: 0.08,
+                on_angle: true,
+            },
+        ],
+    );
+    let d = run(&case, 36_000, 9, 12);
+    let f = added(&d, "output_filter");
+    assert_eq!(f.params["order"], 1, "{}", f.params);
+    assert_eq!(f.params["discretization"], "bilinear", "{}", f.params);
+    let bw = f.params["bandwidth_hz"].as_f64().unwrap();
+    assert!((bw / 1.5 - 1.0).abs() < 0.15, "{}", f.params);
+    let comps = &d.spec_after.channels[0].components;
+    assert!(
+        comps.iter().any(|c| matches!(
+            c,
+            Component::OutputResolution { quantum, on_angle: true } if (quantum - 0.08).abs() < 1e-9
+        )),
+        "{comps:?}"
+    );
+    assert_explained(&d);
+}
+
+/// A MEMS-like output path: the rate through a second-order low-pass, then rounded to
+/// a coarse LSB. The PSD fit adds a filter first, in the form its additive-noise model
+/// reads; once the resolution is in, the filter fitted by simulation with it takes
+/// that filter's place (`recalibrate:output_filter`) and the gap closes.
+#[test]
+fn a_filter_read_before_a_coarse_rate_lsb_is_fitted_again_by_simulation_once_the_lsb_is_in() {
+    let case = hidden(
+        "output_filter",
+        false,
+        [
+            Component::OutputFilter {
+                order: 2,
+                bandwidth_hz: 2.0,
+                damping: None,
+                discretization: Default::default(),
+            },
+            Component::OutputResolution {
+                quantum: 0.05,
+                on_angle: false,
+            },
+        ],
+    );
+    let d = run(&case, 36_000, 10, 12);
+    let filters: Vec<&Component> = d.spec_after.channels[0]
+        .components
+        .iter()
+        .filter(|c| matches!(c, Component::OutputFilter { .. }))
+        .collect();
+    assert_eq!(filters.len(), 1, "{:?}", d.steps);
+    let Component::OutputFilter {
+        order,
+        bandwidth_hz,
+        ..
+    } = filters[0]
+    else {
+        unreachable!()
+    };
+    assert_eq!(*order, 2, "{filters:?}");
+    assert!((bandwidth_hz / 2.0 - 1.0).abs() < 0.15, "{filters:?}");
+    assert_explained(&d);
+}
+
 #[test]
 fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
     // the spec gives the white noise the sensor's filtered output shows (as a datasheet's

@@ -57,7 +57,8 @@
 //! and gauss_markov), `outliers.rs`, `cross_axis.rs`, then `recalibrate.rs`; `lsq.rs`
 //! holds the least squares and searches they share, `params.rs` a component's size and
 //! JSON parameters, `resolution.rs` the output resolution of a log. The output path's
-//! candidates (`output_path.rs`: output_filter, saturation, output_resolution) change
+//! candidates (`output_path.rs`: output_filter, saturation, output_resolution; and
+//! `path_fit.rs`, the filter fitted by simulation beside a coarse resolution) change
 //! the path every replica's sum goes through, not the sum; the diagnosis asks for
 //! them after [`propose`].
 
@@ -69,6 +70,7 @@ mod noise;
 mod outliers;
 pub mod output_path;
 mod params;
+pub mod path_fit;
 mod recalibrate;
 mod resolution;
 mod temperature;

@@ -58,6 +58,7 @@
 
 use super::lsq::golden_argmin;
 use super::{Also, Context, Delta, NotTried, Proposal, params_json};
+use crate::diagnosis::path::PathStage;
 use crate::error::Result;
 use crate::simulator::generate::output::LowPass;
 use crate::simulator::{Component, Discretization, Kind};
@@ -71,6 +72,10 @@ pub const FILTER_MIN_DEVIANCE: f64 = 50.0;
 /// Smallest further cost reduction for order 2 over order 1 (and for the angle form of
 /// the rounding noise over the rate form).
 pub const ORDER2_MIN_DEVIANCE: f64 = 10.0;
+
+/// The most the cost of the filter fitted by simulation ([`super::path_fit`]) may be, as
+/// a share of the cost without a filter, for it to be proposed.
+pub const PATH_FIT_MAX_COST_RATIO: f64 = 0.8;
 
 /// Smallest relative change of the white noise's n for the joint candidate (output
 /// filter with the white noise refitted) to be offered beside the filter alone.
@@ -797,6 +802,8 @@ pub fn proposals(
             );
         }
     }
+    // the filter fitted by simulation with the rounding, proposed last
+    let mut by_simulation: Option<Proposal> = None;
     if !has(Kind::OutputFilter) {
         let mut at_edge = None;
         let mut found = 0;
@@ -906,6 +913,64 @@ pub fn proposals(
             });
         }
     }
+    // a spec that rounds its output: a filter fitted by simulation with the rounding,
+    // whose form it may change (path_fit.rs), added, or in place of the spec's filter
+    if let Some((k, quantum, on_angle_now)) = comps.iter().enumerate().find_map(|(k, c)| match c {
+        Component::OutputResolution { quantum, on_angle } => Some((k, *quantum, *on_angle)),
+        _ => None,
+    }) && let now = PathStage::of(comps, fs)
+        && let Some(f) = super::path_fit::fit(cx, &now, quantum)
+        && !f.at_edge
+        && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now
+    {
+        let mut params = params_json(&f.filter);
+        if let serde_json::Value::Object(m) = &mut params {
+            m.insert("resolution_on_angle".into(), serde_json::json!(f.on_angle));
+        }
+        let form_now = |a: bool| {
+            if a {
+                "the integrated angle"
+            } else {
+                "the rate"
+            }
+        };
+        // the spec's filter, which the fit replaces
+        let replaces = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
+        by_simulation = Some(Proposal {
+            also: None,
+            kind: match replaces {
+                Some(_) => format!("recalibrate:{}", f.filter.kind()),
+                None => f.filter.kind().as_str().into(),
+            },
+            params,
+            component: f.filter.clone(),
+            replaces,
+            rescales: Some((
+                k,
+                Component::OutputResolution {
+                    quantum,
+                    on_angle: f.on_angle,
+                },
+            )),
+            delta: Delta::Same(Vec::new()),
+            note: format!(
+                "fitted by simulation with the output resolution, the rounding on {}{}: the training PSD in bands and the shares of steps of 0-3 quanta, cost {} against {} with the path as it is{}",
+                form_now(f.on_angle),
+                if f.on_angle == on_angle_now {
+                    String::new()
+                } else {
+                    format!(" (the spec's on {})", form_now(on_angle_now))
+                },
+                crate::fmt::num(f.cost),
+                crate::fmt::num(f.cost_now),
+                if replaces.is_some() {
+                    ", in place of the spec's filter"
+                } else {
+                    ""
+                }
+            ),
+        });
+    }
     if !has(Kind::Saturation)
         && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
     {
@@ -917,6 +982,9 @@ pub fn proposals(
             ),
             None,
         );
+    }
+    if let Some(p) = by_simulation {
+        sink(p);
     }
     Ok(skipped)
 }
