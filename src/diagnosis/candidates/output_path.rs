@@ -918,7 +918,8 @@ pub fn proposals(
     if let Some((k, quantum, on_angle_now)) = comps.iter().enumerate().find_map(|(k, c)| match c {
         Component::OutputResolution { quantum, on_angle } => Some((k, *quantum, *on_angle)),
         _ => None,
-    }) && let now = PathStage::of(comps, fs)
+    }) && super::path_fit::coarse(cx.real, cx.ranges(), quantum)
+        && let now = PathStage::of(comps, fs)
         && let Some(f) = super::path_fit::fit(cx, &now, quantum)
         && !f.at_edge
         && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now

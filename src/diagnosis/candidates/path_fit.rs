@@ -29,7 +29,8 @@
 //! the rounding on the rate and on the angle, the bandwidth over a log grid of
 //! [`GRID_POINTS`] from f_s / 500 to 0.45 f_s, the best refined by a golden-section
 //! search between its grid neighbours. A best bandwidth at an end of the grid is a
-//! bound, not an estimate ([`PathFit::at_edge`]).
+//! bound, not an estimate ([`PathFit::at_edge`]). The fit runs only when the rounding
+//! is coarse against the log's short-term noise ([`coarse`]).
 
 use std::ops::Range;
 
@@ -51,6 +52,31 @@ pub const SEGMENT: usize = 256;
 pub const N_BANDS: usize = 16;
 /// Bandwidths on the search grid of each form.
 pub const GRID_POINTS: usize = 20;
+
+/// The least quantum, in units of the training log's short-term noise level
+/// sigma = sqrt(mean (x_t - x_{t-1})^2 / 2), at which the fit runs ([`coarse`]).
+pub const COARSE_QUANTUM_SIGMAS: f64 = 0.5;
+
+/// Whether the rounding to `quantum` is coarse against the short-term noise of `x` on
+/// `ranges`: quantum > [`COARSE_QUANTUM_SIGMAS`] sigma, sigma the root mean square
+/// first difference over sqrt(2) (the sample's sd for white noise). Below that the
+/// rounding error is close to independent uniform noise of variance q^2 / 12, the
+/// model of the PSD fit (Widrow's quantization theorems hold approximately once the
+/// quantum is below the input's standard deviation: Widrow and Kollar 2008,
+/// "Quantization Noise", ch. 4-5), and the fit by simulation is not run.
+pub fn coarse(x: &[f64], ranges: &[Range<usize>], quantum: f64) -> bool {
+    let (mut ss, mut n) = (0.0, 0usize);
+    for r in ranges {
+        for w in x[r.clone()].windows(2) {
+            let d = w[1] - w[0];
+            if d.is_finite() {
+                ss += d * d;
+                n += 1;
+            }
+        }
+    }
+    n > 0 && quantum > COARSE_QUANTUM_SIGMAS * (ss / n as f64 / 2.0).sqrt()
+}
 
 /// The best trial path.
 #[derive(Clone, Debug, PartialEq)]
@@ -273,6 +299,22 @@ mod tests {
         // a range shorter than a PSD segment: no statistics
         let short = std::iter::once(0..100).collect::<Vec<_>>();
         assert!(moments(&y, &short, 10.0, 0.5).is_none());
+    }
+
+    #[test]
+    fn a_quantum_is_coarse_above_half_the_short_term_noise_level() {
+        // alternating +-1: differences of 2, sigma = sqrt(4 / 2) = sqrt(2)
+        let x: Vec<f64> = (0..100)
+            .map(|t| if t % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let r = std::iter::once(0..100).collect::<Vec<_>>();
+        let sigma = 2f64.sqrt();
+        assert!(coarse(&x, &r, 0.51 * sigma));
+        assert!(!coarse(&x, &r, 0.49 * sigma));
+        // a constant: no short-term noise, every quantum is coarse
+        let r10 = std::iter::once(0..10).collect::<Vec<_>>();
+        assert!(coarse(&[3.0; 10], &r10, 1e-9));
+        assert!(!coarse(&[3.0; 10], &[], 1.0));
     }
 
     #[test]
