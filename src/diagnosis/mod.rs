@@ -1566,12 +1566,22 @@ type Best = (Effect, EnsembleStats, [Proposal; 2], Vec<Vec<f64>>);
 /// the form of an output-path component (a filter's order, a resolution on the rate
 /// or on the angle), so that the folds' estimates of one candidate meet.
 fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
-    let joint = match (&p.also, &p.rescales) {
+    (
+        p.kind.clone(),
+        p.replaces,
+        form(&p.component) + joint_tag(p),
+    )
+}
+
+/// What a proposal changes beside its own component, as the pairing keys tell it: a
+/// second component's signal (a joint candidate), another output-path component (the
+/// filter fitted by simulation with the rounding), or nothing.
+fn joint_tag(p: &Proposal) -> &'static str {
+    match (&p.also, &p.rescales) {
         (Some(_), _) => " joint",
         (None, Some((_, c))) if c.kind().is_output_path() => " with the path refitted",
         _ => "",
-    };
-    (p.kind.clone(), p.replaces, form(&p.component) + joint)
+    }
 }
 
 /// The path `path` with proposal `p`'s output-path component in it, and the
@@ -1587,8 +1597,8 @@ fn path_with(path: &PathStage, p: &Proposal) -> PathStage {
 
 /// [`pair_key`] without the form: what pairs the folds' estimates of one candidate
 /// when the two halves chose different forms of it.
-fn loose_key(p: &Proposal) -> (String, Option<usize>, bool) {
-    (p.kind.clone(), p.replaces, p.also.is_some())
+fn loose_key(p: &Proposal) -> (String, Option<usize>, &'static str) {
+    (p.kind.clone(), p.replaces, joint_tag(p))
 }
 
 /// Fold 1's estimates `left` that met no fold-2 estimate of their form, each paired

@@ -74,7 +74,7 @@ pub const FILTER_MIN_DEVIANCE: f64 = 50.0;
 pub const ORDER2_MIN_DEVIANCE: f64 = 10.0;
 
 /// The most the cost of the filter fitted by simulation ([`super::path_fit`]) may be, as
-/// a share of the cost without a filter, for it to be proposed.
+/// a share of the cost of the fold's path as it is, for it to be proposed.
 pub const PATH_FIT_MAX_COST_RATIO: f64 = 0.8;
 
 /// Smallest relative change of the white noise's n for the joint candidate (output
@@ -802,8 +802,8 @@ pub fn proposals(
             );
         }
     }
-    // the filter fitted by simulation with the rounding, proposed last
-    let mut by_simulation: Option<Proposal> = None;
+    // the filters fitted by simulation with the rounding, proposed last
+    let mut by_simulation: Vec<Proposal> = Vec::new();
     if !has(Kind::OutputFilter) {
         let mut at_edge = None;
         let mut found = 0;
@@ -920,24 +920,26 @@ pub fn proposals(
         _ => None,
     }) && super::path_fit::coarse(cx.real, cx.ranges(), quantum)
         && let now = PathStage::of(comps, fs)
-        && let Some(f) = super::path_fit::fit(cx, &now, quantum)
-        && !f.at_edge
-        && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now
+        && let Some(fits) = super::path_fit::fit(cx, &now, quantum)
     {
-        let mut params = params_json(&f.filter);
-        if let serde_json::Value::Object(m) = &mut params {
-            m.insert("resolution_on_angle".into(), serde_json::json!(f.on_angle));
-        }
-        let form_now = |a: bool| {
-            if a {
-                "the integrated angle"
-            } else {
-                "the rate"
+        for f in fits
+            .into_iter()
+            .filter(|f| !f.at_edge && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now)
+        {
+            let mut params = params_json(&f.filter);
+            if let serde_json::Value::Object(m) = &mut params {
+                m.insert("resolution_on_angle".into(), serde_json::json!(f.on_angle));
             }
-        };
-        // the spec's filter, which the fit replaces
-        let replaces = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
-        by_simulation = Some(Proposal {
+            let form_now = |a: bool| {
+                if a {
+                    "the integrated angle"
+                } else {
+                    "the rate"
+                }
+            };
+            // the spec's filter, which the fit replaces
+            let replaces = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
+            by_simulation.push(Proposal {
             also: None,
             kind: match replaces {
                 Some(_) => format!("recalibrate:{}", f.filter.kind()),
@@ -971,6 +973,7 @@ pub fn proposals(
                 }
             ),
         });
+        }
     }
     if !has(Kind::Saturation)
         && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
@@ -984,7 +987,7 @@ pub fn proposals(
             None,
         );
     }
-    if let Some(p) = by_simulation {
+    for p in by_simulation {
         sink(p);
     }
     Ok(skipped)

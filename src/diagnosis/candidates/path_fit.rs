@@ -27,10 +27,11 @@
 //! mean, per family, the two families' means added. The trials: order 1 and order 2
 //! (Butterworth), each discretized by zero-order hold and by the bilinear transform,
 //! the rounding on the rate and on the angle, the bandwidth over a log grid of
-//! [`GRID_POINTS`] from f_s / 500 to 0.45 f_s, the best refined by a golden-section
-//! search between its grid neighbours. A best bandwidth at an end of the grid is a
-//! bound, not an estimate ([`PathFit::at_edge`]). The fit runs only when the rounding
-//! is coarse against the log's short-term noise ([`coarse`]).
+//! [`GRID_POINTS`] from f_s / 500 to 0.45 f_s; for each filter form (order and
+//! discretization) the best trial is refined by a golden-section search between its
+//! grid neighbours, and each form's best is a candidate. A best bandwidth at an end of
+//! the grid is a bound, not an estimate ([`PathFit::at_edge`]). The fit runs only when
+//! the rounding is coarse against the log's short-term noise ([`coarse`]).
 
 use std::ops::Range;
 
@@ -78,7 +79,7 @@ pub fn coarse(x: &[f64], ranges: &[Range<usize>], quantum: f64) -> bool {
     n > 0 && quantum > COARSE_QUANTUM_SIGMAS * (ss / n as f64 / 2.0).sqrt()
 }
 
-/// The best trial path.
+/// The best trial path of one filter form.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PathFit {
     /// The filter (an `output_filter` component).
@@ -183,10 +184,13 @@ fn filter(order: usize, disc: Discretization, bandwidth_hz: f64) -> Component {
 }
 
 /// The filter and rounding form fitted by simulation (module doc) for the fold of
-/// `cx`, whose output path `now` rounds to `quantum`, with or without a filter; each trial is `now` with the trial's
-/// filter and rounding in place of its own. None when the training part is shorter
-/// than a PSD segment.
-pub fn fit(cx: &Context, now: &PathStage, quantum: f64) -> Option<PathFit> {
+/// `cx`, whose output path `now` rounds to `quantum`, with or without a filter; each
+/// trial is `now` with the trial's filter and rounding in place of its own. One fit
+/// per filter form (order 1 and 2, each discretization), with the rounding form and
+/// bandwidth best for it: as with the PSD fit's forms, the withheld scoring chooses
+/// among them (half a log may not tell them apart). None when the training part is
+/// shorter than a PSD segment.
+pub fn fit(cx: &Context, now: &PathStage, quantum: f64) -> Option<Vec<PathFit>> {
     let fs = cx.rate_hz();
     let ranges = first_samples(cx.ranges(), FIT_SAMPLES);
     let end = ranges.last()?.end;
@@ -238,35 +242,51 @@ pub fn fit(cx: &Context, now: &PathStage, quantum: f64) -> Option<PathFit> {
             cost_of(&trial(a, o, d, bw(i)))
         })
         .collect();
-    let (best, &best_cost) = costs
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.is_finite())
-        .min_by(|a, b| a.1.total_cmp(b.1))?;
-    let (f, i) = trials[best];
-    let (on_angle, order, disc) = forms[f];
-    let at_edge = i == 0 || i == GRID_POINTS - 1;
-    let (bandwidth_hz, cost) = if at_edge {
-        (bw(i), best_cost)
-    } else {
-        let step = (hi - lo) / (GRID_POINTS - 1) as f64;
-        let u0 = bw(i).ln();
-        let (u, c) = golden_argmin(u0 - step, u0 + step, 12, |u| {
-            cost_of(&trial(on_angle, order, disc, u.exp()))
-        });
-        if c < best_cost {
-            (u.exp(), c)
-        } else {
+    // per filter form (order, discretization): its best rounding form and bandwidth
+    let mut fits = Vec::new();
+    for (order, disc) in [
+        (1, Discretization::Zoh),
+        (1, Discretization::Bilinear),
+        (2, Discretization::Zoh),
+        (2, Discretization::Bilinear),
+    ] {
+        let Some((best, &best_cost)) = costs
+            .iter()
+            .enumerate()
+            .filter(|(t, c)| {
+                let (_, o, d) = forms[trials[*t].0];
+                o == order && d == disc && c.is_finite()
+            })
+            .min_by(|a, b| a.1.total_cmp(b.1))
+        else {
+            continue;
+        };
+        let (f, i) = trials[best];
+        let on_angle = forms[f].0;
+        let at_edge = i == 0 || i == GRID_POINTS - 1;
+        let (bandwidth_hz, cost) = if at_edge {
             (bw(i), best_cost)
-        }
-    };
-    Some(PathFit {
-        filter: filter(order, disc, bandwidth_hz),
-        on_angle,
-        cost,
-        cost_now,
-        at_edge,
-    })
+        } else {
+            let step = (hi - lo) / (GRID_POINTS - 1) as f64;
+            let u0 = bw(i).ln();
+            let (u, c) = golden_argmin(u0 - step, u0 + step, 12, |u| {
+                cost_of(&trial(on_angle, order, disc, u.exp()))
+            });
+            if c < best_cost {
+                (u.exp(), c)
+            } else {
+                (bw(i), best_cost)
+            }
+        };
+        fits.push(PathFit {
+            filter: filter(order, disc, bandwidth_hz),
+            on_angle,
+            cost,
+            cost_now,
+            at_edge,
+        });
+    }
+    Some(fits)
 }
 
 #[cfg(test)]
