@@ -116,8 +116,10 @@ pub struct Proposal {
     pub component: Component,
     pub replaces: Option<usize>,
     /// A component of the spec put in place of component `.0` along with the one
-    /// added (a heteroskedastic scale's level on the noise it modulates); the change of
-    /// its signal is in `delta`, with the added component's.
+    /// added (a heteroskedastic scale's level on the noise it modulates; for a filter
+    /// fitted by simulation, the output resolution in the rounding form fitted with it,
+    /// which the diagnosis puts in the path beside the filter); the change of its
+    /// signal, if any, is in `delta`, with the added component's.
     pub rescales: Option<(usize, Component)>,
     pub params: Value,
     pub delta: Delta,

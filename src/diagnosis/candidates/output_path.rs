@@ -700,14 +700,14 @@ pub fn saturation(x: &[f64], quantum: Option<f64>) -> Finding<Clip> {
     })
 }
 
-/// The training blocks joined end to end, each shifted by a constant so that its first
-/// sample repeats the previous block's last: a junction then adds no step, whose
+/// The blocks `ranges` of `x` joined end to end, each shifted by a constant so that its
+/// first sample repeats the previous block's last: a junction then adds no step, whose
 /// 1/f^2 spectrum would fill a filter's roll-off at high frequencies (the shifts are a
 /// random walk at the blocks' scale, which the fit's red part takes).
-fn joined_without_steps(cx: &Context) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::new();
-    for r in cx.ranges() {
-        let block = &cx.real[r.clone()];
+pub(super) fn joined_without_steps(x: &[f64], ranges: &[std::ops::Range<usize>]) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(ranges.iter().map(|r| r.len()).sum());
+    for r in ranges {
+        let block = &x[r.clone()];
         let shift = match (out.last(), block.first()) {
             (Some(a), Some(b)) => a - b,
             _ => 0.0,
@@ -814,7 +814,7 @@ pub fn proposals(
             (Band::LOW, Discretization::Zoh),
             (Band::ALL, Discretization::Bilinear),
         ];
-        let joined = joined_without_steps(cx);
+        let joined = joined_without_steps(cx.real, cx.ranges());
         for (band, disc) in tries {
             let Ok(fits) = filter_fits(&joined, fs, grid.as_ref(), band, disc)? else {
                 continue;
@@ -913,67 +913,20 @@ pub fn proposals(
             });
         }
     }
-    // a spec that rounds its output: a filter fitted by simulation with the rounding,
-    // whose form it may change (path_fit.rs), added, or in place of the spec's filter
-    if let Some((k, quantum, on_angle_now)) = comps.iter().enumerate().find_map(|(k, c)| match c {
+    // a spec that rounds its output: the filters fitted by simulation with the
+    // rounding (path_fit.rs), added, or in place of the spec's filter
+    if let Some((k, quantum, on_angle)) = comps.iter().enumerate().find_map(|(k, c)| match c {
         Component::OutputResolution { quantum, on_angle } => Some((k, *quantum, *on_angle)),
         _ => None,
     }) && super::path_fit::coarse(cx.real, cx.ranges(), quantum)
-        && let now = PathStage::of(comps, fs)
-        && let Some(fits) = super::path_fit::fit(cx, &now, quantum)
+        && let Some(fits) = super::path_fit::fit(cx, &PathStage::of(comps, fs), quantum)
     {
-        for f in fits
-            .into_iter()
-            .filter(|f| !f.at_edge && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now)
-        {
-            let mut params = params_json(&f.filter);
-            if let serde_json::Value::Object(m) = &mut params {
-                m.insert("resolution_on_angle".into(), serde_json::json!(f.on_angle));
-            }
-            let form_now = |a: bool| {
-                if a {
-                    "the integrated angle"
-                } else {
-                    "the rate"
-                }
-            };
-            // the spec's filter, which the fit replaces
-            let replaces = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
-            by_simulation.push(Proposal {
-            also: None,
-            kind: match replaces {
-                Some(_) => format!("recalibrate:{}", f.filter.kind()),
-                None => f.filter.kind().as_str().into(),
-            },
-            params,
-            component: f.filter.clone(),
-            replaces,
-            rescales: Some((
-                k,
-                Component::OutputResolution {
-                    quantum,
-                    on_angle: f.on_angle,
-                },
-            )),
-            delta: Delta::Same(Vec::new()),
-            note: format!(
-                "fitted by simulation with the output resolution, the rounding on {}{}: the training PSD in bands and the shares of steps of 0-3 quanta, cost {} against {} with the path as it is{}",
-                form_now(f.on_angle),
-                if f.on_angle == on_angle_now {
-                    String::new()
-                } else {
-                    format!(" (the spec's on {})", form_now(on_angle_now))
-                },
-                crate::fmt::num(f.cost),
-                crate::fmt::num(f.cost_now),
-                if replaces.is_some() {
-                    ", in place of the spec's filter"
-                } else {
-                    ""
-                }
-            ),
-        });
-        }
+        let filter_now = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
+        by_simulation.extend(
+            fits.into_iter()
+                .filter(|f| !f.at_edge && f.cost < PATH_FIT_MAX_COST_RATIO * f.cost_now)
+                .map(|f| path_fit_proposal(f, (k, quantum, on_angle), filter_now)),
+        );
     }
     if !has(Kind::Saturation)
         && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
@@ -991,6 +944,63 @@ pub fn proposals(
         sink(p);
     }
     Ok(skipped)
+}
+
+/// The proposal of a filter fitted by simulation ([`super::path_fit`]): `f` beside the
+/// spec's output resolution `(index, quantum, on_angle)`, which it sets to its own
+/// rounding form (`Proposal::rescales`), as an `output_filter`, or as
+/// `recalibrate:output_filter` in place of the spec's filter at `filter_now`.
+fn path_fit_proposal(
+    f: super::path_fit::PathFit,
+    (k, quantum, on_angle_now): (usize, f64, bool),
+    filter_now: Option<usize>,
+) -> Proposal {
+    let mut params = params_json(&f.filter);
+    if let serde_json::Value::Object(m) = &mut params {
+        m.insert("resolution_on_angle".into(), serde_json::json!(f.on_angle));
+    }
+    let form = |a: bool| {
+        if a {
+            "the integrated angle"
+        } else {
+            "the rate"
+        }
+    };
+    let note = format!(
+        "fitted by simulation with the output resolution, the rounding on {}{}: the training PSD in bands and the shares of steps of 0-3 quanta, cost {} against {} with the path as it is{}",
+        form(f.on_angle),
+        if f.on_angle == on_angle_now {
+            String::new()
+        } else {
+            format!(" (the spec's on {})", form(on_angle_now))
+        },
+        crate::fmt::num(f.cost),
+        crate::fmt::num(f.cost_now),
+        if filter_now.is_some() {
+            ", in place of the spec's filter"
+        } else {
+            ""
+        }
+    );
+    Proposal {
+        also: None,
+        kind: match filter_now {
+            Some(_) => format!("recalibrate:{}", f.filter.kind()),
+            None => f.filter.kind().as_str().into(),
+        },
+        params,
+        component: f.filter,
+        replaces: filter_now,
+        rescales: Some((
+            k,
+            Component::OutputResolution {
+                quantum,
+                on_angle: f.on_angle,
+            },
+        )),
+        delta: Delta::Same(Vec::new()),
+        note,
+    }
 }
 
 /// The half width of the moving mean [`hp_lags`] removes (samples).

@@ -115,17 +115,10 @@ fn first_samples(ranges: &[Range<usize>], max: usize) -> Vec<Range<usize>> {
 /// The statistics of the module doc of `y` on `ranges`, for the grid step `quantum`;
 /// None when the joined samples are fewer than one PSD segment.
 fn moments(y: &[f64], ranges: &[Range<usize>], rate_hz: f64, quantum: f64) -> Option<Vec<f64>> {
-    // the blocks joined end to end, each shifted to start where the previous ended
-    let mut joined: Vec<f64> = Vec::with_capacity(ranges.iter().map(|r| r.len()).sum());
+    let joined = super::output_path::joined_without_steps(y, ranges);
     let mut steps = [0usize; 4];
     for r in ranges {
-        let b = &y[r.clone()];
-        let shift = match (joined.last(), b.first()) {
-            (Some(a), Some(v)) => a - v,
-            _ => 0.0,
-        };
-        joined.extend(b.iter().map(|v| v + shift));
-        for w in b.windows(2) {
+        for w in y[r.clone()].windows(2) {
             let k = ((w[1] - w[0]).abs() / quantum).round();
             steps[(k as usize).min(3)] += 1;
         }
