@@ -23,7 +23,8 @@
 //!   dT/dt bins (bin edges: quintiles of the real temperature over the part, the same
 //!   for every series), and ln variance of d in the five temperature bins;
 //! - `state`: state-dependent dynamics: the least-squares slope of x_t on x_{t-1} in
-//!   the five quintile bins of x_{t-1} (a linear model has one slope; a FARMA model's
+//!   the five quintile bins of x_{t-1}, values within 1e-9 of the largest magnitude of
+//!   an edge counted at the edge (a linear model has one slope; a FARMA model's
 //!   f_1(x_{t-1}) shows as slopes that vary across bins);
 //! - `cross_axis` (with other channels): correlation of the differences and of the
 //!   window means of x with each other channel.
@@ -714,12 +715,16 @@ impl Layout {
         }
         let ranks: Vec<usize> = (1..N_BINS).map(|k| (k * (u.len() - 1)) / N_BINS).collect();
         let edges = order_statistics(&u, &ranks);
+        // a value within 1e-9 of the largest magnitude of an edge is that edge's value,
+        // as the distinct values count them: a level of a discrete series carries float
+        // noise in its last digits, which must not split it across two bins
+        let tie = 1e-9 * largest_finite_magnitude(&u);
         // per bin: sums for the slope of x_t on x_{t-1}
         let mut s = [[0.0f64; 5]; N_BINS]; // n, su, sy, suu, suy
         for r in &self.ranges {
             for t in r.start + 1..r.end {
                 let (a, y) = (x[t - 1], x[t]);
-                let k = bin_of(&edges, a).min(N_BINS - 1);
+                let k = bin_of(&edges, a - tie).min(N_BINS - 1);
                 let b = &mut s[k];
                 b[0] += 1.0;
                 b[1] += a;
@@ -1453,6 +1458,56 @@ mod cross_axis_tests {
             }
             // a constant channel's differences have no spread: no correlation
             assert_eq!(tail[4], 0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod state_tests {
+    use super::Layout;
+    use crate::diagnosis::blocks::Blocks;
+
+    /// A rate on a grid of four levels whose values carry float noise in their last
+    /// digits (as a rate computed as `(k1 q - k0 q) / dt` from a rounded angle does):
+    /// the state features are those of the exact levels.
+    #[test]
+    fn float_noise_on_the_levels_of_a_discrete_series_leaves_the_state_features_as_they_are() {
+        let n = 40_000;
+        let lsb = 2.792_360_385_672_882;
+        let mut s = 7u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // the level index, a persistent chain: mostly 0 and 1, rarely -1 and 2
+        let mut k = 0i64;
+        let mut exact = Vec::with_capacity(n);
+        let mut noisy = Vec::with_capacity(n);
+        for _ in 0..n {
+            if next() > 0.7 {
+                k = match next() {
+                    u if u < 0.01 => -1,
+                    u if u < 0.5 => 0,
+                    u if u < 0.97 => 1,
+                    _ => 2,
+                };
+            }
+            let v = k as f64 * lsb;
+            exact.push(v);
+            // a few ulps either way
+            noisy.push(v * (1.0 + (next() - 0.5) * 8.0 * f64::EPSILON));
+        }
+        let names: Vec<String> = Vec::new();
+        let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
+        for training in [false, true] {
+            let l = Layout::new(&blocks, training, 10.0, None, &names);
+            let (a, b) = (l.state(&exact), l.state(&noisy));
+            assert!(a.iter().any(|v| *v != 0.0), "{a:?}");
+            for (x, y) in a.iter().zip(&b) {
+                assert!((x - y).abs() < 1e-9, "{a:?} against {b:?}");
+            }
         }
     }
 }

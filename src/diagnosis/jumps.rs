@@ -8,9 +8,10 @@
 //! the noises. The statistic is their kurtosis, K = N sum (d_j - dbar)^4 /
 //! (sum (d_j - dbar)^2)^2 (3 for a Gaussian sample, about N for a single jump among N
 //! windows; Pearson's beta_2), at a few window lengths, compared with the kurtosis of
-//! each simulation of the spec after. The simulations are read before their output
-//! path (a filter or a rounding changes a window mean by far less than a jump), and a
-//! tail shorter than a window is left out.
+//! each simulation of the spec after, read through its output path (a rounding coarse
+//! against the noise holds a slowly wandering level on one step of its grid and then
+//! moves it by a whole step: jumps of the path's own, which the real log shows too).
+//! A tail shorter than a window is left out.
 
 /// The numbers of windows the log is cut into: each window length is the log's length
 /// over one of them.
@@ -77,14 +78,39 @@ impl Jumps {
     }
 }
 
+/// The kurtosis of [`mean_step_kurtosis`] of `x` at each window count of
+/// [`WINDOW_COUNTS`] (windows of `n / count` samples, `n` the real log's length; NaN
+/// where a window would hold fewer than [`MIN_WINDOW`]).
+pub fn kurtoses(x: &[f64], n: usize) -> [f64; WINDOW_COUNTS.len()] {
+    WINDOW_COUNTS.map(|count| {
+        let window = n / count;
+        if window < MIN_WINDOW {
+            f64::NAN
+        } else {
+            mean_step_kurtosis(x, window)
+        }
+    })
+}
+
 /// The first window length (of [`WINDOW_COUNTS`], windows of at least [`MIN_WINDOW`]
 /// samples) at which the real log `x`'s kurtosis lies above every simulation's in
 /// `sims` and above their mean by [`JUMP_SD`] of their sd; None when there is none.
 pub fn level_jumps(x: &[f64], sims: &[&[f64]], rate_hz: f64) -> Option<Jumps> {
+    let ks: Vec<_> = sims.iter().map(|s| kurtoses(s, x.len())).collect();
+    level_jumps_of(x, &ks, rate_hz)
+}
+
+/// [`level_jumps`] from each simulation's [`kurtoses`] (`sims`), computed by the
+/// caller (through the simulation's output path, one at a time).
+pub fn level_jumps_of(
+    x: &[f64],
+    sims: &[[f64; WINDOW_COUNTS.len()]],
+    rate_hz: f64,
+) -> Option<Jumps> {
     if sims.len() < 2 {
         return None;
     }
-    for count in WINDOW_COUNTS {
+    for (i, count) in WINDOW_COUNTS.into_iter().enumerate() {
         let window = x.len() / count;
         if window < MIN_WINDOW {
             continue;
@@ -92,7 +118,7 @@ pub fn level_jumps(x: &[f64], sims: &[&[f64]], rate_hz: f64) -> Option<Jumps> {
         let real = mean_step_kurtosis(x, window);
         let ks: Vec<f64> = sims
             .iter()
-            .map(|s| mean_step_kurtosis(s, window))
+            .map(|s| s[i])
             .filter(|k| k.is_finite())
             .collect();
         if !real.is_finite() || ks.len() < 2 {

@@ -1074,7 +1074,25 @@ fn diagnose_log(
             ens_now: &mut ens_now,
             steps: &mut steps,
         };
-        if eff.gap_after > floor_gap {
+        // a coarse output resolution the round proposed, with the filter fitted by
+        // simulation beside it: the pair, when it beats the round's best
+        let pair_note = match all
+            .iter()
+            .filter(|e| e.kind == "output_resolution")
+            .min_by(|a, b| a.gap_after.total_cmp(&b.gap_after))
+        {
+            Some(res) => refit.path_pair(
+                &mut search,
+                res,
+                (&eff.kind, eff.gap_after),
+                eff.gap_after.min(floor_gap),
+                prm.min_shrink,
+            )?,
+            None => None,
+        };
+        if let Some(note) = pair_note {
+            notes.push(note);
+        } else if eff.gap_after > floor_gap {
             // a rival may still shrink it enough with the earlier effects re-estimated
             let instead =
                 refit.rival_instead(&mut search, &rivals, (&eff.kind, eff.gap_after), floor_gap)?;
@@ -1361,12 +1379,23 @@ fn diagnose_log(
         });
     }
     // the level's changes of the real log against those of every simulation of the
-    // spec after (both folds' estimates)
-    let sims: Vec<&[f64]> = sts
+    // spec after (both folds' estimates), each through its fold's output path
+    let all_samples = 0..n;
+    let whole = std::slice::from_ref(&all_samples);
+    let sim_ks: Vec<_> = sts
         .iter()
-        .flat_map(|st| st.target.iter().map(|v| v.as_slice()))
+        .flat_map(|st| st.target.iter().map(move |v| (v, &st.path)))
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(v, path)| {
+            let mut buf = SCRATCH.with(|s| s.take());
+            let y = path::part_output(v, None, path, printed, whole, &mut buf);
+            let k = jumps::kurtoses(y, n);
+            SCRATCH.with(|s| s.set(buf));
+            k
+        })
         .collect();
-    let level = jumps::level_jumps(real.x, &sims, rate_hz);
+    let level = jumps::level_jumps_of(real.x, &sim_ks, rate_hz);
     let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support, level.as_ref());
     if let Some(w) = why_not {
         notes.push(w);

@@ -23,9 +23,10 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply, form,
-    pair_key, removable, take_back,
+    joint_tag, loose_key, pair_key, removable, take_back,
 };
 use crate::error::Result;
+use crate::simulator::{Component, Kind};
 
 /// The kinds an exchange step ([`Refit::exchange`]) takes out and puts in: the
 /// deterministic biases, regressions on time and temperature.
@@ -298,6 +299,138 @@ impl Refit<'_> {
         );
         t.write_back(s);
         Ok(Some(note))
+    }
+
+    /// The pair of a coarse output resolution and the filter fitted by simulation with
+    /// it ([`candidates::path_fit`]), tried on a copy of the search when the round
+    /// proposed the resolution (`res`, the better of its rounding forms) and the spec
+    /// has none: with the rounding coarse against the log's short-term noise, neither
+    /// shows alone (the rounding of an unfiltered simulation leaves many more level
+    /// changes than the real log's few; a filter without the rounding leaves every
+    /// value off the grid), so a greedy step takes neither or another effect first. The
+    /// resolution is estimated again and added on the copy, then the filters fitted by
+    /// simulation beside it are scored, each with the rounding in its fitted form; the
+    /// best is kept when its joint gap is below `below` (the round's best single
+    /// effect's gap and the margin a forward step needs) and below the resolution's own
+    /// gap by `min_shrink`, the margin its own forward step would need. Two steps are
+    /// recorded, one per effect, and each can be taken back like any other (the
+    /// resolution only after the filter, which set its rounding form). Returns a note,
+    /// or None when the pair is not kept (or not tried: a rounding that is not
+    /// coarse, [`candidates::path_fit::coarse`], in either fold).
+    pub fn path_pair(
+        &self,
+        s: &mut Search,
+        res: &Effect,
+        best: (&str, f64),
+        below: f64,
+        min_shrink: f64,
+    ) -> Result<Option<String>> {
+        let Component::OutputResolution { quantum, .. } = res.component else {
+            return Ok(None);
+        };
+        let has = |st: &State, k: Kind| {
+            st.spec.channels[self.channel]
+                .components
+                .iter()
+                .any(|c| c.kind() == k)
+        };
+        if has(&s.sts[0], Kind::OutputResolution)
+            || !(0..2).all(|f| {
+                candidates::path_fit::coarse(self.real, self.withheld[1 - f].ranges(), quantum)
+            })
+        {
+            return Ok(None);
+        }
+        // fold 1's and fold 2's output-path proposals of `kind` on `sts` that `keep`
+        // keeps, paired by form, else by kind, each pair scored through the path it
+        // sets (applied to a copy of the states: a path component moves no sum, so the
+        // copy shares the sums) and offered to a round
+        let scored_pairs = |sts: &[State; 2],
+                            gap_ref: f64,
+                            kind: &str,
+                            keep: &dyn Fn(&Proposal) -> bool|
+         -> Result<Round> {
+            let mut props: [Vec<Proposal>; 2] = Default::default();
+            for (f, ps) in props.iter_mut().enumerate() {
+                candidates::output_path::proposals(&self.cx(&sts[f], f), true, &mut |p| {
+                    if p.kind == kind && keep(&p) {
+                        ps.push(p)
+                    }
+                })?;
+            }
+            let [ps0, mut ps1] = props;
+            let mut round = Round::default();
+            for p in ps0 {
+                let j = ps1
+                    .iter()
+                    .position(|q| pair_key(q) == pair_key(&p))
+                    .or_else(|| ps1.iter().position(|q| loose_key(q) == loose_key(&p)));
+                let Some(j) = j else { continue };
+                let q = ps1.remove(j);
+                let mut copy = sts.clone();
+                apply(&mut copy[0], self.channel, p.clone());
+                apply(&mut copy[1], self.channel, q.clone());
+                let f = (self.feats)(&copy, [None, None]);
+                let scored = (self.score)(&f);
+                round.offer([p, q], f, scored, gap_ref);
+            }
+            Ok(round)
+        };
+        let mut t = Trial::of(s);
+        let gap_was = t.gap_now;
+        // the resolution in the rounding form of `res`
+        let round = scored_pairs(&t.sts, gap_was, "output_resolution", &|p| {
+            form(&p.component) == form(&res.component)
+        })?;
+        let Some((res_eff, e, props, _)) = round.best else {
+            return Ok(None);
+        };
+        let gap_res = res_eff.gap_after;
+        let step = Step {
+            action: "add",
+            kind: res_eff.kind.clone(),
+            gap_before: gap_was,
+            gap_after: gap_res,
+            runner_up: Some(best.0.to_string()),
+            runner_up_gap_after: Some(best.1),
+            difference_sd: None,
+            tie: false,
+        };
+        self.add(&mut t.search(), (props, res_eff, e, step))?;
+        // the filters fitted by simulation with the rounding now in the spec (those
+        // that set the rounding's form, `Proposal::rescales`)
+        let kind = if has(&t.sts[0], Kind::OutputFilter) {
+            "recalibrate:output_filter"
+        } else {
+            "output_filter"
+        };
+        let round = scored_pairs(&t.sts, gap_res, kind, &|p| {
+            joint_tag(p) == " with the path refitted"
+        })?;
+        let Some((eff, e, props, _)) = round.best else {
+            return Ok(None);
+        };
+        if !(eff.gap_after < below && eff.gap_after <= gap_res * (1.0 - min_shrink)) {
+            return Ok(None);
+        }
+        let step = Step {
+            action: "add",
+            kind: eff.kind.clone(),
+            gap_before: gap_res,
+            gap_after: eff.gap_after,
+            runner_up: None,
+            runner_up_gap_after: None,
+            difference_sd: None,
+            tie: false,
+        };
+        let gap_pair = eff.gap_after;
+        let filter = eff.kind.clone();
+        self.add(&mut t.search(), (props, eff, e, step))?;
+        t.write_back(s);
+        Ok(Some(format!(
+            "output_resolution and {filter} added as a pair: the rounding alone takes the gap from {gap_was:.3} to {gap_res:.3}, with the filter fitted by simulation beside it to {gap_pair:.3} (the round's best single effect, {}, to {:.3})",
+            best.0, best.1
+        )))
     }
 
     /// Rival `r` of a round estimated again on both folds' states of `t` (its kind

@@ -857,6 +857,48 @@ fn a_filter_read_before_a_coarse_rate_lsb_is_fitted_again_by_simulation_once_the
     assert_explained(&d);
 }
 
+/// A rate LSB twice the unfiltered noise's sd behind a second-order filter, with
+/// neither in the spec: the rounding alone leaves the simulations many more level
+/// changes than the log's few, the filter alone every value off the grid, so neither
+/// shrinks the gap on its own. The pair (the resolution, then the filter fitted by
+/// simulation beside it) is tried as one move and closes the gap.
+#[test]
+fn a_coarse_lsb_behind_a_filter_is_added_with_the_filter_as_a_pair() {
+    let case = hidden(
+        "output_resolution",
+        false,
+        [
+            Component::OutputFilter {
+                order: 2,
+                bandwidth_hz: 1.0,
+                damping: None,
+                discretization: Default::default(),
+            },
+            Component::OutputResolution {
+                quantum: 0.065,
+                on_angle: false,
+            },
+        ],
+    );
+    let d = run(&case, 36_000, 13, 12);
+    let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    assert!(
+        kinds.contains(&"output_resolution") && kinds.contains(&"output_filter"),
+        "{:?} {:?}",
+        d.steps,
+        d.notes
+    );
+    let comps = &d.spec_after.channels[0].components;
+    assert!(
+        comps.iter().any(|c| matches!(
+            c,
+            Component::OutputResolution { quantum, .. } if (quantum - 0.065).abs() < 1e-9
+        )),
+        "{comps:?}"
+    );
+    assert_explained(&d);
+}
+
 #[test]
 fn a_filter_behind_a_datasheet_level_is_found_with_the_white_noise_refitted() {
     // the spec gives the white noise the sensor's filtered output shows (as a datasheet's
