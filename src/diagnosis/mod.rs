@@ -1345,6 +1345,24 @@ fn diagnose_log(
             break;
         }
     }
+    // a resolution reports the rounding form the spec after holds: a filter fitted by
+    // simulation beside it may have moved the rounding onto its own form
+    for (e, s) in added.iter_mut().zip(&slots) {
+        let now = &sts[0].spec.channels[channel].components[s[0].comp];
+        if let (
+            Component::OutputResolution { on_angle, .. },
+            Component::OutputResolution { on_angle: was, .. },
+        ) = (now, &e.component)
+            && on_angle != was
+        {
+            if let serde_json::Value::Object(m) = &mut e.params {
+                m.insert("on_angle".into(), serde_json::json!(on_angle));
+            }
+            e.note
+                .push_str("; the rounding's form set by the filter fitted by simulation beside it");
+            e.component = now.clone();
+        }
+    }
     // each kept effect's share of the final joint model, the ranking reported
     pb.set_position(max_rounds as u64 + 1);
     pb.set_message("contributions");
@@ -1625,9 +1643,15 @@ fn path_with(path: &PathStage, p: &Proposal) -> PathStage {
 }
 
 /// [`pair_key`] without the form: what pairs the folds' estimates of one candidate
-/// when the two halves chose different forms of it.
+/// when the two halves chose different forms of it. A cross-axis coupling's source
+/// channel stays in the key: couplings to two channels are two candidates, not two
+/// forms of one.
 fn loose_key(p: &Proposal) -> (String, Option<usize>, &'static str) {
-    (p.kind.clone(), p.replaces, joint_tag(p))
+    let kind = match &p.component {
+        Component::CrossAxis { from, .. } => format!("{} from {from}", p.kind),
+        _ => p.kind.clone(),
+    };
+    (kind, p.replaces, joint_tag(p))
 }
 
 /// Fold 1's estimates `left` that met no fold-2 estimate of their form, each paired
@@ -1650,7 +1674,8 @@ fn pair_across_forms(
 
 /// The form that tells two candidates of one kind apart: a filter's order and
 /// discretization (a FIR: its number of taps), a resolution on the rate or on the
-/// angle, outliers' normal or Student-t amplitudes; empty for the other kinds.
+/// angle, outliers' normal or Student-t amplitudes, a cross-axis coupling's source
+/// channel; empty for the other kinds.
 fn form(c: &Component) -> String {
     match c {
         Component::OutputFilter {
@@ -1680,6 +1705,7 @@ fn form(c: &Component) -> String {
             "on the rate"
         }
         .to_string(),
+        Component::CrossAxis { from, .. } => format!("from {from}"),
         _ => String::new(),
     }
 }
@@ -1687,11 +1713,7 @@ fn form(c: &Component) -> String {
 /// An effect's kind with its form ([`form`], or a cross-axis coupling's other channel)
 /// in parentheses, for the notes.
 fn label(e: &Effect) -> String {
-    let f = match &e.component {
-        Component::CrossAxis { from, .. } => format!("from {from}"),
-        c => form(c),
-    };
-    match f {
+    match form(&e.component) {
         f if f.is_empty() => e.kind.clone(),
         f => format!("{} ({f})", e.kind),
     }

@@ -812,6 +812,9 @@ fn a_filter_before_a_coarse_angle_quantizer_is_fitted_by_simulation_with_the_rou
         )),
         "{comps:?}"
     );
+    // the resolution's effect reports the form the spec after holds
+    let r = added(&d, "output_resolution");
+    assert_eq!(r.params["on_angle"], true, "{}", r.params);
     assert_explained(&d);
 }
 
@@ -896,6 +899,70 @@ fn a_coarse_lsb_behind_a_filter_is_added_with_the_filter_as_a_pair() {
         )),
         "{comps:?}"
     );
+    assert_explained(&d);
+}
+
+/// A gyro that picks up two other axes: x = own + 0.3 y + 0.2 z at 10 Hz, y and z
+/// white noise with a random walk each, the spec without either coupling. Each
+/// coupling is its own candidate, so the second is found once the first is in.
+#[test]
+fn couplings_to_two_other_channels_are_both_added() {
+    use farma::simulator::{ChannelSpec, SimRequest, simulate};
+    let rate_hz = 10.0;
+    let other = |name: &str| ChannelSpec {
+        name: name.into(),
+        components: vec![
+            Component::WhiteNoise { n: 0.01 },
+            Component::RateRandomWalk { k: 2e-4 },
+        ],
+    };
+    let mut spec = bank::base_spec(rate_hz, false);
+    spec.channels.push(other("y"));
+    spec.channels.push(other("z"));
+    let mut truth = spec.clone();
+    truth.channels[0].components.extend([
+        Component::CrossAxis {
+            from: "y".into(),
+            gain: 0.3,
+        },
+        Component::CrossAxis {
+            from: "z".into(),
+            gain: 0.2,
+        },
+    ]);
+    let mut req = SimRequest::new(36_000, rate_hz);
+    req.seed = Some(17);
+    let log = simulate(&truth, &req).unwrap();
+    let (x, y, z) = (
+        log.channel(CHANNEL).unwrap(),
+        log.channel("y").unwrap(),
+        log.channel("z").unwrap(),
+    );
+    let real = RealLog {
+        others: vec![("y".into(), y), ("z".into(), z)],
+        ..bank_log(x, None, rate_hz)
+    };
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    let mut gains: Vec<(String, f64)> = d
+        .added
+        .iter()
+        .filter(|e| e.kind == "cross_axis")
+        .map(|e| {
+            (
+                e.params["from"].as_str().unwrap().to_string(),
+                e.params["gain"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    gains.sort_by(|a, b| a.0.cmp(&b.0));
+    assert_eq!(gains.len(), 2, "{:?} {:?}", d.steps, d.notes);
+    assert_eq!((gains[0].0.as_str(), gains[1].0.as_str()), ("y", "z"));
+    assert!((gains[0].1 - 0.3).abs() < 0.03, "{gains:?}");
+    assert!((gains[1].1 - 0.2).abs() < 0.03, "{gains:?}");
     assert_explained(&d);
 }
 

@@ -11,14 +11,24 @@ use super::{Context, Delta, Found, Proposal, Training};
 use crate::error::Result;
 use crate::simulator::Component;
 
-/// One cross_axis proposal per other channel of the spec in the log; not tried when
-/// there is none.
+/// One cross_axis proposal per other channel of the spec in the log that the target
+/// channel is not coupled to yet (a gyro can pick up two others); not tried when there
+/// is none.
 pub(super) fn cross_axis(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
     if cx.others.is_empty() {
         out.skip("cross_axis", "no other channel of the spec in the log");
     }
+    let coupled = |name: &str| {
+        cx.spec.channels[cx.channel]
+            .components
+            .iter()
+            .any(|c| matches!(c, Component::CrossAxis { from, .. } if from == name))
+    };
     for (j, (name, o)) in cx.others.iter().enumerate() {
+        if coupled(name) {
+            continue;
+        }
         let dx: Vec<f64> = diff(res);
         let dob: Vec<f64> = diff(o);
         if let Some((b, _)) = ls(&dx, &[&dob], true, &shrink_ranges(ranges)) {

@@ -680,7 +680,7 @@ fn run_step(cx: &Context, tr: &Training, step: &Step, out: &mut Found) -> Result
         }
         Step::GaussMarkov if !has(Kind::GaussMarkov) => noise::gauss_markov(cx, tr, out)?,
         Step::Outliers if !has(Kind::Outliers) => outliers::outliers(cx, out)?,
-        Step::CrossAxis if !has(Kind::CrossAxis) => cross_axis::cross_axis(cx, tr, out)?,
+        Step::CrossAxis => cross_axis::cross_axis(cx, tr, out)?,
         Step::Arma if !has(Kind::Arma) => out.skip(
             "arma",
             "not estimated as an added effect: fit the drift with `farma fit` and add the model",
