@@ -472,11 +472,12 @@ impl Layout {
             .unzip();
         out.extend(&means);
         out.extend(lnvars);
-        out.extend(self.distribution(x));
+        let cell = self.value_cell(x);
+        out.extend(self.distribution(x, cell));
         if let (Some(tl), Some(tp)) = (&self.temp, temperature) {
             out.extend(self.temperature(x, tl, tp));
         }
-        out.extend(self.state(x));
+        out.extend(self.state(x, cell));
         debug_assert!(others.len() == self.n_other);
         for o in others.iter().take(self.n_other) {
             let diffs = || {
@@ -528,8 +529,11 @@ impl Layout {
                         .sum()
                 }),
             ),
-            ("distribution", time(&|| self.distribution(x).len())),
-            ("state", time(&|| self.state(x).len())),
+            (
+                "distribution",
+                time(&|| self.distribution(x, self.value_cell(x)).len()),
+            ),
+            ("state", time(&|| self.state(x, self.value_cell(x)).len())),
         ];
         if let (Some(tl), Some(tp)) = (&self.temp, temperature) {
             out.push(("temperature", time(&|| self.temperature(x, tl, tp).len())));
@@ -603,7 +607,20 @@ impl Layout {
             .collect()
     }
 
-    fn distribution(&self, x: &[f64]) -> Vec<f64> {
+    /// The cell within which two values of `x` on the part are one value: 1e-9 of
+    /// their largest magnitude (0 when none is finite). A rate computed as a
+    /// difference of rounded angles carries float noise in its last digits
+    /// (0.22904528993991607 and 0.2290452899399163), not more levels; the distinct
+    /// values and the state bins read the same cell.
+    fn value_cell(&self, x: &[f64]) -> f64 {
+        1e-9 * self
+            .ranges
+            .iter()
+            .map(|r| largest_finite_magnitude(&x[r.clone()]))
+            .fold(0.0f64, f64::max)
+    }
+
+    fn distribution(&self, x: &[f64], cell: f64) -> Vec<f64> {
         let mut d: Vec<f64> = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
         for r in &self.ranges {
             d.extend(x[r.clone()].windows(2).map(|w| w[1] - w[0]));
@@ -623,15 +640,7 @@ impl Layout {
         let q = order_statistics(&d, &[rank(0.5), rank(0.999), rank(0.9999)]);
         let med = q[0].max(f64::MIN_POSITIVE * 1e10);
         let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
-        // values in one cell of a grid of 1e-9 of the largest magnitude are one value:
-        // a rate computed as a difference of rounded angles carries float noise in its
-        // last digits (0.22904528993991607 and 0.2290452899399163), not more levels
-        let largest = self
-            .ranges
-            .iter()
-            .map(|r| largest_finite_magnitude(&x[r.clone()]))
-            .fold(0.0f64, f64::max);
-        let cell = 1e-9 * largest;
+        // values in one cell ([`Layout::value_cell`]) are one value
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
         let distinct = if cell > 0.0 {
             distinct_count_on_grid(
@@ -708,23 +717,22 @@ impl Layout {
         out
     }
 
-    fn state(&self, x: &[f64]) -> Vec<f64> {
+    fn state(&self, x: &[f64], cell: f64) -> Vec<f64> {
         let mut u: Vec<f64> = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
         for r in &self.ranges {
             u.extend_from_slice(&x[r.start..r.end - 1]);
         }
         let ranks: Vec<usize> = (1..N_BINS).map(|k| (k * (u.len() - 1)) / N_BINS).collect();
         let edges = order_statistics(&u, &ranks);
-        // a value within 1e-9 of the largest magnitude of an edge is that edge's value,
-        // as the distinct values count them: a level of a discrete series carries float
-        // noise in its last digits, which must not split it across two bins
-        let tie = 1e-9 * largest_finite_magnitude(&u);
+        // a value within one cell ([`Layout::value_cell`]) above an edge is that edge's
+        // value, as the distinct values count them: a level of a discrete series must
+        // not be split across two bins by the float noise in its last digits
         // per bin: sums for the slope of x_t on x_{t-1}
         let mut s = [[0.0f64; 5]; N_BINS]; // n, su, sy, suu, suy
         for r in &self.ranges {
             for t in r.start + 1..r.end {
                 let (a, y) = (x[t - 1], x[t]);
-                let k = bin_of(&edges, a - tie).min(N_BINS - 1);
+                let k = bin_of(&edges, a - cell).min(N_BINS - 1);
                 let b = &mut s[k];
                 b[0] += 1.0;
                 b[1] += a;
@@ -1464,6 +1472,9 @@ mod cross_axis_tests {
 
 #[cfg(test)]
 mod state_tests {
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
     use super::Layout;
     use crate::diagnosis::blocks::Blocks;
 
@@ -1474,13 +1485,8 @@ mod state_tests {
     fn float_noise_on_the_levels_of_a_discrete_series_leaves_the_state_features_as_they_are() {
         let n = 40_000;
         let lsb = 2.792_360_385_672_882;
-        let mut s = 7u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut next = || rng.random::<f64>();
         // the level index, a persistent chain: mostly 0 and 1, rarely -1 and 2
         let mut k = 0i64;
         let mut exact = Vec::with_capacity(n);
@@ -1503,7 +1509,10 @@ mod state_tests {
         let blocks = Blocks::interleaved(n, 8, 0.5).unwrap();
         for training in [false, true] {
             let l = Layout::new(&blocks, training, 10.0, None, &names);
-            let (a, b) = (l.state(&exact), l.state(&noisy));
+            let (a, b) = (
+                l.state(&exact, l.value_cell(&exact)),
+                l.state(&noisy, l.value_cell(&noisy)),
+            );
             assert!(a.iter().any(|v| *v != 0.0), "{a:?}");
             for (x, y) in a.iter().zip(&b) {
                 assert!((x - y).abs() < 1e-9, "{a:?} against {b:?}");
@@ -1558,10 +1567,10 @@ mod timing_probe {
             std::hint::black_box(l.ln_psd(&x));
         });
         t("distribution", &|| {
-            std::hint::black_box(l.distribution(&x));
+            std::hint::black_box(l.distribution(&x, l.value_cell(&x)));
         });
         t("state", &|| {
-            std::hint::black_box(l.state(&x));
+            std::hint::black_box(l.state(&x, l.value_cell(&x)));
         });
         t("round", &|| {
             let mut y = x.clone();

@@ -23,7 +23,7 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply, form,
-    joint_tag, loose_key, pair_key, removable, take_back,
+    joint_tag, pair_across_forms, pair_key, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -358,15 +358,19 @@ impl Refit<'_> {
                     }
                 })?;
             }
+            // by form first, then the rest across forms, as a round pairs them
             let [ps0, mut ps1] = props;
-            let mut round = Round::default();
+            let mut pairs = Vec::new();
+            let mut left = Vec::new();
             for p in ps0 {
-                let j = ps1
-                    .iter()
-                    .position(|q| pair_key(q) == pair_key(&p))
-                    .or_else(|| ps1.iter().position(|q| loose_key(q) == loose_key(&p)));
-                let Some(j) = j else { continue };
-                let q = ps1.remove(j);
+                match ps1.iter().position(|q| pair_key(q) == pair_key(&p)) {
+                    Some(j) => pairs.push((p, ps1.remove(j))),
+                    None => left.push(p),
+                }
+            }
+            pairs.extend(pair_across_forms(left, &mut ps1).0);
+            let mut round = Round::default();
+            for (p, q) in pairs {
                 let mut copy = sts.clone();
                 apply(&mut copy[0], self.channel, p.clone());
                 apply(&mut copy[1], self.channel, q.clone());
@@ -387,14 +391,9 @@ impl Refit<'_> {
         };
         let gap_res = res_eff.gap_after;
         let step = Step {
-            action: "add",
-            kind: res_eff.kind.clone(),
-            gap_before: gap_was,
-            gap_after: gap_res,
             runner_up: Some(best.0.to_string()),
             runner_up_gap_after: Some(best.1),
-            difference_sd: None,
-            tie: false,
+            ..Step::plain("add", res_eff.kind.clone(), gap_was, gap_res)
         };
         self.add(&mut t.search(), (props, res_eff, e, step))?;
         // the filters fitted by simulation with the rounding now in the spec (those
@@ -413,16 +412,7 @@ impl Refit<'_> {
         if !(eff.gap_after < below && eff.gap_after <= gap_res * (1.0 - min_shrink)) {
             return Ok(None);
         }
-        let step = Step {
-            action: "add",
-            kind: eff.kind.clone(),
-            gap_before: gap_res,
-            gap_after: eff.gap_after,
-            runner_up: None,
-            runner_up_gap_after: None,
-            difference_sd: None,
-            tie: false,
-        };
+        let step = Step::plain("add", eff.kind.clone(), gap_res, eff.gap_after);
         let gap_pair = eff.gap_after;
         let filter = eff.kind.clone();
         self.add(&mut t.search(), (props, eff, e, step))?;
