@@ -37,7 +37,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "gap_after": d.gap_after,
         "noise_floor": d.noise_floor,
         "gap_threshold": d.gap_threshold,
-        "significant": d.gap_before > d.gap_threshold,
+        "significant": d.significant,
         "explained": d.explained,
         "explained_threshold": d.explained_threshold,
         "explained_replica_gaps": d.explained_replica_gaps,

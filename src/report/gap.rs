@@ -249,7 +249,7 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
     let mut p = Page::new(&format!("farma gap: {real} against {spec}"));
     let mut lines = Vec::new();
     for d in done {
-        let sig = d.gap_before > d.gap_threshold;
+        let sig = d.significant;
         let mut l = format!(
             "{}: gap {:.2} before, {:.2} after the added effects (noise floor {:.2}, significant above {:.2}): {}",
             d.channel,
