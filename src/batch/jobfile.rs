@@ -37,7 +37,8 @@
 //! channel of the temperature role is offered when the spec names no
 //! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`,
 //! `reestimate` (true: `farma gap --reestimate`), `keep_events` (true: `farma gap
-//! --keep-events`), `explain_replicas` (`farma gap --explain-replicas`) (the defaults
+//! --keep-events`), `explain_replicas` (`farma gap --explain-replicas`), `max_samples`
+//! (`farma gap --max-samples`) (the defaults
 //! of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
@@ -182,6 +183,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "screen",
             "keep_events",
             "explain_replicas",
+            "max_samples",
         ],
     }
 }

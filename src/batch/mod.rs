@@ -507,6 +507,7 @@ fn run_task(
                     keep_events: opt_bool(task, "keep_events")?.unwrap_or(d.keep_events),
                     explain_replicas: opt_usize(task, "explain_replicas")?
                         .unwrap_or(d.explain_replicas),
+                    max_samples: opt_usize(task, "max_samples")?.unwrap_or(d.max_samples),
                     ..d
                 },
             };

@@ -64,6 +64,13 @@ pub struct GapArgs {
     /// right; 0: against the gap threshold.
     #[arg(long, default_value_t = crate::diagnosis::EXPLAIN_REPLICAS, value_name = "N")]
     pub explain_replicas: usize,
+    /// The longest channel diagnosed at its own rate: a longer one is averaged over
+    /// blocks of K consecutive samples (the least K that leaves N or fewer) and
+    /// diagnosed at the rate over K, in bounded memory; the output path (filter,
+    /// resolution, saturation) and outliers are then not diagnosed (contracts.md
+    /// section 3, `averaged_by`); 0: never average.
+    #[arg(long, default_value_t = crate::diagnosis::averaged::MAX_SAMPLES, value_name = "N")]
+    pub max_samples: usize,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: Option<PathBuf>,
@@ -98,6 +105,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             screen: !a.no_screen,
             keep_events: a.keep_events,
             explain_replicas: a.explain_replicas,
+            max_samples: a.max_samples,
             ..GapParams::default()
         },
     };

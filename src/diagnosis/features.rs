@@ -131,6 +131,9 @@ pub struct Layout {
     windows: Vec<Range<usize>>,
     temp: Option<TempLayout>,
     n_other: usize,
+    /// The distribution family holds `ln_distinct_share` (not in a diagnosis of a log
+    /// averaged over blocks, [`Layout::without_distinct`]).
+    distinct: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -400,7 +403,18 @@ impl Layout {
             windows,
             temp,
             n_other: others.len(),
+            distinct: true,
         }
+    }
+
+    /// This layout without the distinct-value share: a log averaged over blocks of
+    /// samples lies on the grid of its resolution over the block length, a per-sample
+    /// property that a diagnosis at the averaged rate does not simulate
+    /// ([`crate::diagnosis::averaged`]).
+    pub fn without_distinct(mut self) -> Layout {
+        self.defs.retain(|d| d.name != "ln_distinct_share");
+        self.distinct = false;
+        self
     }
 
     /// The blocks this layout covers.
@@ -642,6 +656,15 @@ impl Layout {
         let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
         // values in one cell ([`Layout::value_cell`]) are one value
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
+        let out = vec![
+            v.max(f64::MIN_POSITIVE).sqrt().ln(),
+            kurt.max(f64::MIN_POSITIVE).ln(),
+            ratio(q[1]),
+            ratio(q[2]),
+        ];
+        if !self.distinct {
+            return out;
+        }
         let distinct = if cell > 0.0 {
             distinct_count_on_grid(
                 self.ranges
@@ -658,13 +681,9 @@ impl Layout {
                 n_part,
             )
         };
-        vec![
-            v.max(f64::MIN_POSITIVE).sqrt().ln(),
-            kurt.max(f64::MIN_POSITIVE).ln(),
-            ratio(q[1]),
-            ratio(q[2]),
-            (distinct as f64 / n_part as f64).ln(),
-        ]
+        let mut out = out;
+        out.push((distinct as f64 / n_part as f64).ln());
+        out
     }
 
     fn temperature(&self, x: &[f64], tl: &TempLayout, tp: &Temperature) -> Vec<f64> {

@@ -30,6 +30,7 @@
 //!   others in place, and a round's best weighed against its rivals that way;
 //! - [`report`]: Parquet tables and the SVG report.
 
+pub mod averaged;
 pub mod bank;
 pub mod blocks;
 pub mod candidates;
@@ -115,6 +116,13 @@ pub struct GapParams {
     /// Only these kinds are candidates (None: every kind): what the re-diagnosis of a
     /// simulation of the spec after estimates.
     pub only_kinds: Option<Vec<String>>,
+    /// The longest channel diagnosed at its own rate: a longer one is averaged over
+    /// blocks of consecutive samples and diagnosed at the lower rate ([`averaged`]);
+    /// 0: never averaged.
+    pub max_samples: usize,
+    /// The log was averaged over blocks of samples ([`averaged`]; set by the diagnosis
+    /// of a long log): the distinct-value share is not a feature.
+    pub averaged: bool,
 }
 
 impl Default for GapParams {
@@ -131,6 +139,8 @@ impl Default for GapParams {
             keep_events: false,
             explain_replicas: EXPLAIN_REPLICAS,
             only_kinds: None,
+            max_samples: averaged::MAX_SAMPLES,
+            averaged: false,
         }
     }
 }
@@ -283,6 +293,9 @@ pub struct Diagnosis {
     /// The test-stand events found and replaced in the real log before the diagnosis
     /// (empty with `keep_events`).
     pub events_excluded: Vec<events::Event>,
+    /// The log was averaged over blocks of this many samples and diagnosed at its rate
+    /// over this factor ([`averaged`]); 1: at its own rate.
+    pub averaged_by: usize,
 }
 
 /// One fold's state of the search: its spec (the effects added with that fold's
@@ -321,6 +334,10 @@ pub fn diagnose_with_progress(
     prm: &GapParams,
     pb: &ProgressBar,
 ) -> Result<Diagnosis> {
+    let k = averaged::factor(real.x.len(), prm.max_samples);
+    if k > 1 {
+        return diagnose_averaged(real, spec, prm, pb, k);
+    }
     let found = if prm.keep_events {
         Vec::new()
     } else {
@@ -359,6 +376,85 @@ pub fn diagnose_with_progress(
         ),
     );
     d.events_excluded = found;
+    Ok(d)
+}
+
+/// [`diagnose_with_progress`] of a log averaged over blocks of `k` samples, at its rate
+/// over `k` ([`averaged`]): the spec without its per-sample components, the candidates
+/// without theirs, and `spec_after` at the log's own rate with them put back.
+fn diagnose_averaged(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+    k: usize,
+) -> Result<Diagnosis> {
+    let rate_hz = real.rate_hz / k as f64;
+    let (spec_k, removed) = averaged::spec_at(spec, rate_hz, k)?;
+    let mean = |v: &[f64]| averaged::block_means(v, k);
+    let x = mean(real.x);
+    let temperature = real.temperature_c.map(mean);
+    let others: Vec<(String, Vec<f64>)> = real
+        .others
+        .iter()
+        .map(|(s, v)| (s.clone(), mean(v)))
+        .collect();
+    let scan: Vec<(String, Vec<f64>)> = real
+        .scan
+        .iter()
+        .map(|(s, v)| (s.clone(), mean(v)))
+        .collect();
+    let log = RealLog {
+        channel: real.channel.clone(),
+        x: &x,
+        rate_hz,
+        temperature_c: temperature.as_deref(),
+        others: others
+            .iter()
+            .map(|(s, v)| (s.clone(), v.as_slice()))
+            .collect(),
+        spec_dir: real.spec_dir.clone(),
+        scan: scan
+            .iter()
+            .map(|(s, v)| (s.clone(), v.as_slice()))
+            .collect(),
+    };
+    let kinds = averaged::candidate_kinds();
+    let only = match &prm.only_kinds {
+        Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
+        None => kinds,
+    };
+    let p = GapParams {
+        only_kinds: Some(only),
+        max_samples: 0,
+        averaged: true,
+        ..prm.clone()
+    };
+    let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
+    d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &removed);
+    d.averaged_by = k;
+    let left_out = if removed.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; the spec's {} were left out of the averaged diagnosis and are in spec_after as they were",
+            removed
+                .iter()
+                .map(|(_, c)| c.kind().as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    d.notes.insert(
+        0,
+        format!(
+            "the log's {} samples were averaged over blocks of {k} and diagnosed at {rate_hz} Hz ({} samples; --max-samples {}): effects at time scales of {:.3} s and more are diagnosed, the output path (filter, resolution, saturation) and outliers, which act on each sample, are not candidates{left_out}",
+            real.x.len(),
+            x.len(),
+            prm.max_samples,
+            k as f64 / real.rate_hz
+        ),
+    );
     Ok(d)
 }
 
@@ -593,8 +689,14 @@ fn diagnose_log(
     let other_names: Vec<String> = real.others.iter().map(|(s, _)| s.clone()).collect();
     // the withheld part of fold 1 (blocks.part(false)) and of fold 2 (part(true)); each
     // fold trains on the other's withheld part
-    let withheld =
-        [false, true].map(|t| Layout::new(&blocks, t, rate_hz, temperature.as_ref(), &other_names));
+    let withheld = [false, true].map(|t| {
+        let l = Layout::new(&blocks, t, rate_hz, temperature.as_ref(), &other_names);
+        if prm.averaged {
+            l.without_distinct()
+        } else {
+            l
+        }
+    });
     let defs: Vec<FeatureDef> = withheld.iter().flat_map(|l| l.defs.clone()).collect();
     let real_others: Vec<&[f64]> = real.others.iter().map(|(_, v)| *v).collect();
     let real_feats: Vec<f64> = withheld
@@ -1485,6 +1587,7 @@ fn diagnose_log(
         seed,
         notes,
         events_excluded: Vec::new(),
+        averaged_by: 1,
     })
 }
 

@@ -38,6 +38,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "noise_floor": d.noise_floor,
         "gap_threshold": d.gap_threshold,
         "significant": d.significant,
+        "averaged_by": d.averaged_by,
         "explained": d.explained,
         "explained_threshold": d.explained_threshold,
         "explained_replica_gaps": d.explained_replica_gaps,

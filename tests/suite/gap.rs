@@ -1763,3 +1763,79 @@ fn a_temperature_bias_below_the_omnibus_threshold_is_found_by_the_candidate_test
     assert!((slope - 0.0006).abs() < 0.0003, "slope {slope}");
     assert!(d.notes.iter().any(|n| n.contains("the candidate test")));
 }
+
+/// A log longer than `max_samples` is averaged over blocks and diagnosed at the lower
+/// rate: two hours at 10 Hz (72 000 samples) with a cap of 20 000 are averaged by 4
+/// (18 000 samples at 2.5 Hz). The temperature bias withheld from the spec is found
+/// there, and the spec's output resolution, which acts on each sample and is left out of
+/// the averaged diagnosis, is in `spec_after` as it was, with the rate of the log.
+#[test]
+fn a_log_longer_than_max_samples_is_averaged_and_the_output_path_put_back() {
+    use farma::simulator::{SimRequest, simulate};
+    let n = 72_000;
+    let temp: Vec<f64> = (0..n)
+        .map(|k| 20.0 + 15.0 * (k as f64 / n as f64 * std::f64::consts::PI).sin())
+        .collect();
+    let mut spec = bank::base_spec(10.0, true);
+    spec.channels[0]
+        .components
+        .push(Component::OutputResolution {
+            quantum: 0.01,
+            on_angle: false,
+        });
+    let mut truth = spec.clone();
+    truth.channels[0]
+        .components
+        .push(Component::TemperatureBias {
+            coeffs: vec![0.01],
+            reference_c: Some(25.0),
+        });
+    let mut req = SimRequest::new(n, 10.0);
+    req.temperature_c = Some(&temp);
+    req.seed = Some(41);
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let real = bank_log(&x, Some(&temp), 10.0);
+    let prm = GapParams {
+        max_samples: 20_000,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    assert_eq!(d.averaged_by, 4);
+    assert!(
+        d.notes[0].contains("averaged over blocks of 4"),
+        "{}",
+        d.notes[0]
+    );
+    assert_first_step(&d, "temperature_bias");
+    assert_explained(&d);
+    assert!(
+        !d.effects.iter().any(|e| e.kind.starts_with("output_")),
+        "per-sample candidates at the averaged rate"
+    );
+    assert_eq!(d.spec_after.sample_rate_hz, 10.0);
+    let comps = &d.spec_after.channels[0].components;
+    assert!(
+        comps
+            .iter()
+            .any(|c| matches!(c, Component::OutputResolution { quantum, .. } if *quantum == 0.01))
+    );
+    assert!(
+        comps
+            .iter()
+            .any(|c| matches!(c, Component::TemperatureBias { .. }))
+    );
+    // the same log at its own rate: not averaged
+    let whole = GapParams {
+        max_samples: 0,
+        screen: false,
+        replicas: 5,
+        max_added: 1,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    assert_eq!(diagnose(&real, &spec, &whole).unwrap().averaged_by, 1);
+}
