@@ -68,7 +68,7 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, Removed)> {
             .find(|c| matches!(c.kind(), Kind::Arma | Kind::Farma))
         {
             return Err(Error::Usage(format!(
-                "channel '{}' of the spec has a {} component, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (--max-samples), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
+                "channel '{}' of the spec has a component of kind {}, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (--max-samples), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
                 ch.name,
                 c.kind().as_str()
             )));

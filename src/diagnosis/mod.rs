@@ -1076,11 +1076,13 @@ fn diagnose_log(
             skipped.extend(candidates::output_path::proposals(
                 &cx(1),
                 grid_seen,
+                candidates::output_path::Asked::All,
                 &mut hold,
             )?);
             skipped1.extend(candidates::output_path::proposals(
                 &cx(0),
                 grid_seen,
+                candidates::output_path::Asked::All,
                 &mut pair,
             )?);
         }

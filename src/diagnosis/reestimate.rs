@@ -18,6 +18,7 @@
 //! of the drift that follows the temperature) ranks low on its own in later rounds,
 //! but wins once the earlier effect is estimated again beside it.
 
+use super::candidates::output_path::Asked;
 use super::candidates::{self, Context, Proposal};
 use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
@@ -347,12 +348,13 @@ impl Refit<'_> {
         // copy shares the sums) and offered to a round
         let scored_pairs = |sts: &[State; 2],
                             gap_ref: f64,
+                            asked: Asked,
                             kind: &str,
                             keep: &dyn Fn(&Proposal) -> bool|
          -> Result<Round> {
             let mut props: [Vec<Proposal>; 2] = Default::default();
             for (f, ps) in props.iter_mut().enumerate() {
-                candidates::output_path::proposals(&self.cx(&sts[f], f), true, &mut |p| {
+                candidates::output_path::proposals(&self.cx(&sts[f], f), true, asked, &mut |p| {
                     if p.kind == kind && keep(&p) {
                         ps.push(p)
                     }
@@ -383,9 +385,13 @@ impl Refit<'_> {
         let mut t = Trial::of(s);
         let gap_was = t.gap_now;
         // the resolution in the rounding form of `res`
-        let round = scored_pairs(&t.sts, gap_was, "output_resolution", &|p| {
-            form(&p.component) == form(&res.component)
-        })?;
+        let round = scored_pairs(
+            &t.sts,
+            gap_was,
+            Asked::Resolution,
+            "output_resolution",
+            &|p| form(&p.component) == form(&res.component),
+        )?;
         let Some((res_eff, e, props, _)) = round.best else {
             return Ok(None);
         };
@@ -403,7 +409,7 @@ impl Refit<'_> {
         } else {
             "output_filter"
         };
-        let round = scored_pairs(&t.sts, gap_res, kind, &|p| {
+        let round = scored_pairs(&t.sts, gap_res, Asked::BySimulation, kind, &|p| {
             joint_tag(p) == " with the path refitted"
         })?;
         let Some((eff, e, props, _)) = round.best else {

@@ -733,6 +733,17 @@ fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<Also> {
     ))
 }
 
+/// Which of [`proposals`]' candidates are asked for: all of them (a round), or only
+/// the output resolution, or only the filters fitted by simulation beside the spec's
+/// rounding (the pair move, `Refit::path_pair`, which scores each in turn); the others'
+/// fits are then not run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Asked {
+    All,
+    Resolution,
+    BySimulation,
+}
+
 /// The output-path candidates for the state `cx` (module doc), each handed to `sink`
 /// with an empty delta (an output-path component changes the path, not the sum);
 /// `grid_seen`: the withheld statistics show a value grid the simulations lack.
@@ -740,6 +751,7 @@ fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<Also> {
 pub fn proposals(
     cx: &Context,
     grid_seen: bool,
+    asked: Asked,
     sink: &mut dyn FnMut(Proposal),
 ) -> Result<Vec<NotTried>> {
     let comps = &cx.spec.channels[cx.channel].components;
@@ -785,7 +797,12 @@ pub fn proposals(
             note,
         })
     };
-    if let (Some(g), true, false) = (lsb, grid_seen, has(Kind::OutputResolution)) {
+    if let (Some(g), true, false, true) = (
+        lsb,
+        grid_seen,
+        has(Kind::OutputResolution),
+        asked != Asked::BySimulation,
+    ) {
         for on_angle in [false, true] {
             offer_also(
                 Component::OutputResolution {
@@ -804,7 +821,7 @@ pub fn proposals(
     }
     // the filters fitted by simulation with the rounding, proposed last
     let mut by_simulation: Vec<Proposal> = Vec::new();
-    if !has(Kind::OutputFilter) {
+    if !has(Kind::OutputFilter) && asked == Asked::All {
         let mut at_edge = None;
         let mut found = 0;
         // the zero-order hold on both bands; the bilinear transform (whose zero at the
@@ -918,7 +935,8 @@ pub fn proposals(
     if let Some((k, quantum, on_angle)) = comps.iter().enumerate().find_map(|(k, c)| match c {
         Component::OutputResolution { quantum, on_angle } => Some((k, *quantum, *on_angle)),
         _ => None,
-    }) && super::path_fit::coarse(cx.real, cx.ranges(), quantum)
+    }) && asked != Asked::Resolution
+        && super::path_fit::coarse(cx.real, cx.ranges(), quantum)
         && let Some(fits) = super::path_fit::fit(cx, &PathStage::of(comps, fs), quantum)
     {
         let filter_now = comps.iter().position(|c| c.kind() == Kind::OutputFilter);
@@ -929,6 +947,7 @@ pub fn proposals(
         );
     }
     if !has(Kind::Saturation)
+        && asked == Asked::All
         && let Some(c) = saturation(&x, grid.as_ref().map(|g| g.quantum)).present()
     {
         offer_also(
