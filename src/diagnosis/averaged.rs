@@ -16,7 +16,9 @@
 //! for what acts on each sample: the output path (filter, resolution, saturation), the
 //! outliers, and an ARMA or FARMA model fitted at the log's own rate. The first two are
 //! taken out of the spec for the averaged diagnosis and put back, unchanged, in
-//! `spec_after` (a note says so), and are not candidates; a spec with an ARMA or FARMA
+//! `spec_after` (a note says so), and are not candidates (nor is the distinct-value
+//! share a feature, nor the log's printed precision read: a block mean of a rounded
+//! output lies on a grid of its own); a spec with an ARMA or FARMA
 //! component is refused (the averaged log cannot be simulated from it).
 
 use crate::error::{Error, Result};

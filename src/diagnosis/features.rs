@@ -656,7 +656,7 @@ impl Layout {
         let ratio = |qp: f64| (qp / med).max(f64::MIN_POSITIVE).ln();
         // values in one cell ([`Layout::value_cell`]) are one value
         let n_part: usize = self.ranges.iter().map(|r| r.len()).sum();
-        let out = vec![
+        let mut out = vec![
             v.max(f64::MIN_POSITIVE).sqrt().ln(),
             kurt.max(f64::MIN_POSITIVE).ln(),
             ratio(q[1]),
@@ -681,7 +681,6 @@ impl Layout {
                 n_part,
             )
         };
-        let mut out = out;
         out.push((distinct as f64 / n_part as f64).ln());
         out
     }

@@ -437,7 +437,7 @@ fn diagnose_averaged(
         String::new()
     } else {
         format!(
-            "; the spec's {} were left out of the averaged diagnosis and are in spec_after as they were",
+            "; the spec's per-sample components ({}) were left out of the averaged diagnosis and are in spec_after as they were",
             removed
                 .iter()
                 .map(|(_, c)| c.kind().as_str())
@@ -714,8 +714,15 @@ fn diagnose_log(
             }
         }
     }
-    // a log written as text with k decimals: the simulations are printed alike
-    let printed = features::printed_step(real.x);
+    // a log written as text with k decimals: the simulations are printed alike (not a
+    // log averaged over blocks: a block mean of printed values is off the printed grid,
+    // and a grid it lies on is the resolution's over the block length, a per-sample
+    // property the averaged diagnosis leaves out)
+    let printed = if prm.averaged {
+        None
+    } else {
+        features::printed_step(real.x)
+    };
     if let Some(step) = printed {
         notes.push(format!(
             "the real log is written with {} decimals: every simulation is rounded to {step:e} u before its statistics are compared",
@@ -1143,9 +1150,10 @@ fn diagnose_log(
             first = Some(all.clone());
         }
         if stop_floor {
-            // the candidate test: the first round's best candidate lowers the squared
-            // gap on the withheld part by CANDIDATE_TEST_D or more
-            let drop = best.as_ref().filter(|_| round_no == 1).map(|b| {
+            // the candidate test: the round's best candidate lowers the squared gap on
+            // the withheld part by CANDIDATE_TEST_D or more (this is the first round:
+            // a later one within the threshold stopped before its candidates)
+            let drop = best.as_ref().map(|b| {
                 (
                     b.0.kind.clone(),
                     gap_now * gap_now - b.0.gap_after * b.0.gap_after,
@@ -1793,10 +1801,21 @@ fn pair_across_forms(
     left: Vec<Proposal>,
     held: &mut Vec<Proposal>,
 ) -> (Vec<(Proposal, Proposal)>, Vec<Proposal>) {
+    pair_by(left, held, loose_key)
+}
+
+/// Each of fold 1's estimates in `left`, in order, with the first of fold 2's `held`
+/// whose `key` is the same (taken out of `held`): the pairs, and fold 1's estimates
+/// left without one.
+fn pair_by<K: PartialEq>(
+    left: Vec<Proposal>,
+    held: &mut Vec<Proposal>,
+    key: impl Fn(&Proposal) -> K,
+) -> (Vec<(Proposal, Proposal)>, Vec<Proposal>) {
     let mut pairs = Vec::new();
     let mut alone = Vec::new();
     for p in left {
-        match held.iter().position(|q| loose_key(q) == loose_key(&p)) {
+        match held.iter().position(|q| key(q) == key(&p)) {
             Some(i) => pairs.push((p, held.remove(i))),
             None => alone.push(p),
         }

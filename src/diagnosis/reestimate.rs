@@ -24,7 +24,7 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply, form,
-    joint_tag, pair_across_forms, pair_key, removable, take_back,
+    joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -362,14 +362,7 @@ impl Refit<'_> {
             }
             // by form first, then the rest across forms, as a round pairs them
             let [ps0, mut ps1] = props;
-            let mut pairs = Vec::new();
-            let mut left = Vec::new();
-            for p in ps0 {
-                match ps1.iter().position(|q| pair_key(q) == pair_key(&p)) {
-                    Some(j) => pairs.push((p, ps1.remove(j))),
-                    None => left.push(p),
-                }
-            }
+            let (mut pairs, left) = pair_by(ps0, &mut ps1, pair_key);
             pairs.extend(pair_across_forms(left, &mut ps1).0);
             let mut round = Round::default();
             for (p, q) in pairs {
