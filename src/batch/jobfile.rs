@@ -38,7 +38,7 @@
 //! `temperature_channel`), `replicas`, `blocks`, `train_fraction`, `seed`, `max_effects`,
 //! `reestimate` (true: `farma gap --reestimate`), `keep_events` (true: `farma gap
 //! --keep-events`), `explain_replicas` (`farma gap --explain-replicas`), `max_samples`
-//! (`farma gap --max-samples`) (the defaults
+//! (`farma gap --max-samples`), `excerpt_samples` (`farma gap --excerpt-samples`) (the defaults
 //! of `farma gap`). A folder input takes its `.csv`, `.parquet`, `.arrow` and `.ipc`
 //! files (not recursively).
 
@@ -184,6 +184,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "keep_events",
             "explain_replicas",
             "max_samples",
+            "excerpt_samples",
         ],
     }
 }

@@ -508,6 +508,8 @@ fn run_task(
                     explain_replicas: opt_usize(task, "explain_replicas")?
                         .unwrap_or(d.explain_replicas),
                     max_samples: opt_usize(task, "max_samples")?.unwrap_or(d.max_samples),
+                    excerpt_samples: opt_usize(task, "excerpt_samples")?
+                        .unwrap_or(d.excerpt_samples),
                     ..d
                 },
             };

@@ -67,10 +67,17 @@ pub struct GapArgs {
     /// The longest channel diagnosed at its own rate: a longer one is averaged over
     /// blocks of K consecutive samples (the least K that leaves N or fewer) and
     /// diagnosed at the rate over K, in bounded memory; the output path (filter,
-    /// resolution, saturation) and outliers are then not diagnosed (contracts.md
-    /// section 3, `averaged_by`); 0: never average.
+    /// resolution, saturation) and outliers are then diagnosed on the log's first
+    /// samples at its own rate (--excerpt-samples; contracts.md section 3,
+    /// `averaged_by`, `per_sample`); 0: never average.
     #[arg(long, default_value_t = crate::diagnosis::averaged::MAX_SAMPLES, value_name = "N")]
     pub max_samples: usize,
+    /// Of a log averaged (--max-samples): its first N samples (at most --max-samples)
+    /// are diagnosed at its own rate for the output path and outliers, against the spec
+    /// after the averaged diagnosis (contracts.md section 3, `per_sample`); 0: not
+    /// diagnosed.
+    #[arg(long, default_value_t = crate::diagnosis::averaged::EXCERPT_SAMPLES, value_name = "N")]
+    pub excerpt_samples: usize,
     /// Output folder: gap_features/gap_regions/gap_effects.parquet, spec_after.toml, report.svg.
     #[arg(short, long, value_name = "OUTDIR")]
     pub output: Option<PathBuf>,
@@ -106,6 +113,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             keep_events: a.keep_events,
             explain_replicas: a.explain_replicas,
             max_samples: a.max_samples,
+            excerpt_samples: a.excerpt_samples,
             ..GapParams::default()
         },
     };
@@ -120,8 +128,14 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
         let files = job.write(dir, std::slice::from_ref(&d))?;
         json["outputs"] = serde_json::json!(files);
     }
+    let per_sample = d.per_sample.as_deref().map_or(String::new(), |p| {
+        format!(
+            "; the per-sample part {:.3} -> {:.3} (significant above {:.3})",
+            p.gap_before, p.gap_after, p.gap_threshold
+        )
+    });
     eprintln!(
-        "farma gap {}: gap {:.3} -> {:.3} on the withheld part (noise floor {:.3}, significant above {:.3}); {:.1} s",
+        "farma gap {}: gap {:.3} -> {:.3} on the withheld part (noise floor {:.3}, significant above {:.3}){per_sample}; {:.1} s",
         d.channel,
         d.gap_before,
         d.gap_after,
@@ -207,6 +221,14 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
     );
     for n in &d.notes {
         let _ = writeln!(s, "note: {n}");
+    }
+    if let Some(p) = &d.per_sample {
+        let _ = writeln!(
+            s,
+            "\nthe per-sample part: the log's first {} samples at its own rate, against the spec after the averaged diagnosis\n",
+            p.blocks.n
+        );
+        s += &text(p);
     }
     s
 }

@@ -2,7 +2,8 @@
 //! averaged over consecutive blocks of K samples (K the least factor that leaves
 //! `max_samples` or fewer) and diagnosed at rate / K, so that the ensemble's memory is
 //! bounded whatever the log's length (about 2 GB at the default 2^20 samples and 20
-//! replicas; BENCHMARKS.md).
+//! replicas, about 200 MB at 2^16; BENCHMARKS.md). What acts on each sample is diagnosed
+//! on the log's first samples at its own rate ([`per_sample`]).
 //!
 //! What the averaged diagnosis sees: every effect whose block means of K samples are,
 //! in distribution, the samples of the same component simulated at rate / K. That
@@ -21,12 +22,36 @@
 //! output lies on a grid of its own); a spec with an ARMA or FARMA
 //! component is refused (the averaged log cannot be simulated from it).
 
+use indicatif::ProgressBar;
+
+use super::{Diagnosis, GapParams, RealLog};
 use crate::error::{Error, Result};
 use crate::simulator::{Component, Kind, Spec};
 
-/// The longest channel diagnosed at its own rate, by default (2^20 samples: the ADIS16405
-/// runs' 1e6 are not averaged).
+/// The longest channel diagnosed at its own rate, by default (2^20 samples: the
+/// ADIS16405 runs' 1e6 are not averaged; at 2^16 they are averaged by 16 and
+/// diagnosed about 7x faster in a tenth of the memory, at a cost in accuracy on the
+/// per-sample effects that BENCHMARKS.md gives, the twenty-fifth session).
 pub const MAX_SAMPLES: usize = 1 << 20;
+
+/// The longest channel diagnosed at its own rate when the spec holds a model at that
+/// rate (ARMA, FARMA: [`rate_model`]), which cannot simulate an averaged log; a longer
+/// one is refused ([`spec_at`]).
+pub const MODEL_MAX_SAMPLES: usize = 1 << 20;
+
+/// Whether a channel of `spec` holds an ARMA or FARMA model, fitted at the log's own
+/// rate.
+pub fn rate_model(spec: &Spec) -> bool {
+    spec.channels.iter().any(|ch| {
+        ch.components
+            .iter()
+            .any(|c| matches!(c.kind(), Kind::Arma | Kind::Farma))
+    })
+}
+
+/// The samples of an averaged log diagnosed at its own rate for the per-sample
+/// components, by default ([`per_sample`]; 2^16: 655 s at 100 Hz, 65.5 s at 1 kHz).
+pub const EXCERPT_SAMPLES: usize = 1 << 16;
 
 /// The least K with ceil(n / K) <= max (1 when n <= max or max is 0: never averaged).
 pub fn factor(n: usize, max: usize) -> usize {
@@ -49,7 +74,7 @@ pub fn block_means(v: &[f64], k: usize) -> Vec<f64> {
 
 /// Whether a component acts on each sample of the output and is left out of the
 /// averaged diagnosis (module doc).
-fn per_sample(c: &Component) -> bool {
+fn acts_on_each_sample(c: &Component) -> bool {
     c.kind().is_output_path() || c.kind() == Kind::Outliers
 }
 
@@ -70,13 +95,15 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, Removed)> {
             .find(|c| matches!(c.kind(), Kind::Arma | Kind::Farma))
         {
             return Err(Error::Usage(format!(
-                "channel '{}' of the spec has a component of kind {}, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (--max-samples), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
+                "channel '{}' of the spec has a component of kind {}, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (it is longer than {MODEL_MAX_SAMPLES} samples, the most diagnosed at its own rate with such a model), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
                 ch.name,
                 c.kind().as_str()
             )));
         }
-        let (keep, out_j): (Vec<Component>, Vec<Component>) =
-            ch.components.drain(..).partition(|c| !per_sample(c));
+        let (keep, out_j): (Vec<Component>, Vec<Component>) = ch
+            .components
+            .drain(..)
+            .partition(|c| !acts_on_each_sample(c));
         ch.components = keep;
         removed.extend(out_j.into_iter().map(|c| (j, c)));
     }
@@ -111,6 +138,113 @@ pub fn candidate_kinds() -> Vec<String> {
         .collect()
 }
 
+/// The candidate kinds of the per-sample part ([`per_sample`]): the output path's, the
+/// outliers', the models at the log's own rate (ARMA, FARMA), their recalibrations, and
+/// the white noise's recalibration: the averaged part sees the noise a rounding or
+/// outliers add as white noise and raises its level, which the per-sample part then
+/// takes back beside them.
+pub fn per_sample_kinds() -> Vec<String> {
+    Kind::ALL
+        .into_iter()
+        .filter(|k| k.is_output_path() || matches!(k, Kind::Outliers | Kind::Arma | Kind::Farma))
+        .flat_map(|k| {
+            [
+                k.as_str().to_string(),
+                format!("recalibrate:{}", k.as_str()),
+            ]
+        })
+        .chain(std::iter::once(format!(
+            "recalibrate:{}",
+            Kind::WhiteNoise.as_str()
+        )))
+        .collect()
+}
+
+/// The per-sample part of the averaged diagnosis `d` of `real`: the log's first
+/// `prm.excerpt_samples` samples (at most `prm.max_samples`), every channel cut alike,
+/// diagnosed at the log's own rate against `d.spec_after` (the slow effects found on
+/// the averaged log in it, the per-sample components put back), with the output path
+/// and outliers as the only candidates ([`per_sample_kinds`]). The excerpt is the log's
+/// start, so that the spec after simulates it from the same time 0 (a warm-up, a ramp,
+/// a temperature profile line up).
+///
+/// Merged into `d`: `significant` when either part is, `explained` when both are, the
+/// spec after the per-sample part's, a note with its gaps; the part itself in
+/// `d.per_sample`. A per-sample part that adds nothing leaves the verdict to the
+/// averaged part: its threshold is that of the spec after's own simulations, which
+/// do not hold the error of the slow effects estimated on the averaged log, so a gap
+/// that no per-sample candidate shrinks is not taken as a per-sample effect (a note
+/// gives it). A per-sample part that cannot be diagnosed (an excerpt too short for
+/// the block layout) leaves `d` as it was, with a note saying why.
+pub fn per_sample<'a>(real: &RealLog<'a>, prm: &GapParams, pb: &ProgressBar, d: &mut Diagnosis) {
+    let n = prm.excerpt_samples.min(prm.max_samples).min(real.x.len());
+    if n == 0 {
+        return;
+    }
+    let cut = |v: &[(String, &'a [f64])]| -> Vec<(String, &'a [f64])> {
+        v.iter()
+            .map(|(s, v)| (s.clone(), &v[..n.min(v.len())]))
+            .collect()
+    };
+    let log = RealLog {
+        channel: real.channel.clone(),
+        x: &real.x[..n],
+        rate_hz: real.rate_hz,
+        temperature_c: real.temperature_c.map(|t| &t[..n.min(t.len())]),
+        others: cut(&real.others),
+        spec_dir: real.spec_dir.clone(),
+        scan: cut(&real.scan),
+    };
+    let kinds = per_sample_kinds();
+    let only = match &prm.only_kinds {
+        Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
+        None => kinds,
+    };
+    let p = GapParams {
+        only_kinds: Some(only),
+        max_samples: 0,
+        averaged: false,
+        ..prm.clone()
+    };
+    let seconds = n as f64 / real.rate_hz;
+    match super::diagnose_with_progress(&log, &d.spec_after, &p, pb) {
+        Ok(e) => {
+            d.own_explained = d.explained;
+            if !e.added.is_empty() {
+                d.significant |= e.significant;
+                d.explained &= e.explained;
+            } else if e.gap_before > e.gap_threshold {
+                d.notes.push(format!(
+                    "the per-sample part's gap {:.3} is above its threshold {:.3}, and no per-sample candidate shrinks it: it is left to the averaged part's verdict (the slow effects are simulated on the excerpt as estimated on the averaged log, an estimation error that threshold does not hold)",
+                    e.gap_before, e.gap_threshold
+                ));
+            }
+            d.spec_after = e.spec_after.clone();
+            d.notes.push(format!(
+                "the per-sample part (per_sample): the log's first {n} samples ({seconds:.1} s) were diagnosed at {} Hz against the spec after the averaged diagnosis, the output path and outliers the only candidates: gap {:.3} -> {:.3} (threshold {:.3}{}), added: {}",
+                real.rate_hz,
+                e.gap_before,
+                e.gap_after,
+                e.gap_threshold,
+                if e.significant { "" } else { ", not significant" },
+                if e.added.is_empty() {
+                    "nothing".to_string()
+                } else {
+                    e.added
+                        .iter()
+                        .map(|a| a.kind.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            ));
+            d.per_sample = Some(Box::new(e));
+        }
+        Err(e) => d.notes.push(format!(
+            "the per-sample part was not diagnosed (the log's first {n} samples, {seconds:.1} s; --excerpt-samples): {e}"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -118,6 +252,7 @@ mod tests {
     #[test]
     fn the_factor_is_the_least_that_fits() {
         assert_eq!(factor(1_000_000, MAX_SAMPLES), 1);
+        assert_eq!(factor(1_000_000, 1 << 16), 16);
         assert_eq!(factor(100, 0), 1);
         assert_eq!(factor(100_000_000, MAX_SAMPLES), 96);
         assert!(100_000_000usize.div_ceil(96) <= MAX_SAMPLES);

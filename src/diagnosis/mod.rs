@@ -123,6 +123,10 @@ pub struct GapParams {
     /// The log was averaged over blocks of samples ([`averaged`]; set by the diagnosis
     /// of a long log): the distinct-value share is not a feature.
     pub averaged: bool,
+    /// When a log is averaged: its first this many samples are diagnosed at the log's
+    /// own rate for the per-sample components, the output path and outliers
+    /// ([`averaged::per_sample`]); 0: they are not diagnosed.
+    pub excerpt_samples: usize,
 }
 
 impl Default for GapParams {
@@ -141,6 +145,7 @@ impl Default for GapParams {
             only_kinds: None,
             max_samples: averaged::MAX_SAMPLES,
             averaged: false,
+            excerpt_samples: averaged::EXCERPT_SAMPLES,
         }
     }
 }
@@ -296,6 +301,38 @@ pub struct Diagnosis {
     /// The log was averaged over blocks of this many samples and diagnosed at its rate
     /// over this factor ([`averaged`]); 1: at its own rate.
     pub averaged_by: usize,
+    /// Of an averaged log: the diagnosis of its first samples at the log's own rate for
+    /// the per-sample components ([`averaged::per_sample`]), against this diagnosis's
+    /// spec after. Its added effects, verdict and spec after are merged into this one's
+    /// (`added` excepted: [`Diagnosis::all_added`]).
+    pub per_sample: Option<Box<Diagnosis>>,
+    /// This diagnosis's own verdict before its per-sample part's was merged in
+    /// (`explained` is then both parts'); read only when `per_sample` is some.
+    pub(crate) own_explained: bool,
+}
+
+impl Diagnosis {
+    /// The part of the log a diagnosis's added effects were found on: `log` (the log at
+    /// its own rate), `averaged` (an averaged log, [`averaged`]) or `per_sample` (an
+    /// averaged log's per-sample part, [`averaged::per_sample`]).
+    pub fn part(&self) -> &'static str {
+        if self.averaged_by > 1 {
+            "averaged"
+        } else {
+            "log"
+        }
+    }
+
+    /// Every added effect with the part it was found on ([`Diagnosis::part`]): this
+    /// diagnosis's, then its per-sample part's.
+    pub fn all_added(&self) -> Vec<(&'static str, &Effect)> {
+        let mut v: Vec<(&'static str, &Effect)> =
+            self.added.iter().map(|e| (self.part(), e)).collect();
+        if let Some(p) = &self.per_sample {
+            v.extend(p.added.iter().map(|e| ("per_sample", e)));
+        }
+        v
+    }
 }
 
 /// One fold's state of the search: its spec (the effects added with that fold's
@@ -335,8 +372,25 @@ pub fn diagnose_with_progress(
     pb: &ProgressBar,
 ) -> Result<Diagnosis> {
     let k = averaged::factor(real.x.len(), prm.max_samples);
-    if k > 1 {
+    if k > 1 && !(averaged::rate_model(spec) && real.x.len() <= averaged::MODEL_MAX_SAMPLES) {
         return diagnose_averaged(real, spec, prm, pb, k);
+    }
+    if k > 1 {
+        let p = GapParams {
+            max_samples: 0,
+            ..prm.clone()
+        };
+        let mut d = diagnose_with_progress(real, spec, &p, pb)?;
+        d.notes.insert(
+            0,
+            format!(
+                "the spec holds an ARMA or FARMA model at the log's own rate, which cannot simulate an averaged log: its {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such a model are",
+                real.x.len(),
+                prm.max_samples,
+                averaged::MODEL_MAX_SAMPLES
+            ),
+        );
+        return Ok(d);
     }
     let found = if prm.keep_events {
         Vec::new()
@@ -437,7 +491,7 @@ fn diagnose_averaged(
         String::new()
     } else {
         format!(
-            "; the spec's per-sample components ({}) were left out of the averaged diagnosis and are in spec_after as they were",
+            "; the spec's per-sample components ({}) were left out of it and are in spec_after (as they were, unless the per-sample part changes them)",
             removed
                 .iter()
                 .map(|(_, c)| c.kind().as_str())
@@ -445,16 +499,22 @@ fn diagnose_averaged(
                 .join(", ")
         )
     };
+    let per_sample = if prm.excerpt_samples > 0 {
+        "are diagnosed on the log's first samples at its own rate (the per-sample part)"
+    } else {
+        "are not diagnosed (--excerpt-samples 0)"
+    };
     d.notes.insert(
         0,
         format!(
-            "the log's {} samples were averaged over blocks of {k} and diagnosed at {rate_hz} Hz ({} samples; --max-samples {}): effects at time scales of {:.3} s and more are diagnosed, the output path (filter, resolution, saturation) and outliers, which act on each sample, are not candidates{left_out}",
+            "the log's {} samples were averaged over blocks of {k} and diagnosed at {rate_hz} Hz ({} samples; --max-samples {}): effects at time scales of {:.3} s and more are diagnosed there; the output path (filter, resolution, saturation) and outliers, which act on each sample, {per_sample}{left_out}",
             real.x.len(),
             x.len(),
             prm.max_samples,
             k as f64 / real.rate_hz
         ),
     );
+    averaged::per_sample(real, prm, pb, &mut d);
     Ok(d)
 }
 
@@ -1598,6 +1658,8 @@ fn diagnose_log(
         notes,
         events_excluded: Vec::new(),
         averaged_by: 1,
+        per_sample: None,
+        own_explained: false,
     })
 }
 

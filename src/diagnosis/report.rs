@@ -42,11 +42,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
         "explained": d.explained,
         "explained_threshold": d.explained_threshold,
         "explained_replica_gaps": d.explained_replica_gaps,
-        "unexplained": if d.explained {
-            Vec::new()
-        } else {
-            d.where_after.iter().map(region).collect::<Vec<_>>()
-        },
+        "unexplained": unexplained(d).into_iter().map(region).collect::<Vec<_>>(),
         "where": d.where_before.iter().map(region).collect::<Vec<_>>(),
         "where_after": d.where_after.iter().map(region).collect::<Vec<_>>(),
         "effects": d.effects.iter().map(|e| json!({
@@ -56,10 +52,10 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "params": e.params,
             "note": e.note,
         })).collect::<Vec<_>>(),
-        "added": d.added.iter().map(|e| e.kind.clone()).collect::<Vec<_>>(),
-        "added_effects": d.added.iter().map(|e| json!({
+        "added": d.all_added().iter().map(|(_, e)| e.kind.clone()).collect::<Vec<_>>(),
+        "added_effects": d.all_added().iter().map(|(part, e)| json!({
             "kind": e.kind, "shrink": e.shrink, "gap_after": e.gap_after, "params": e.params,
-            "contribution": e.contribution.map(finite), "step": e.step,
+            "contribution": e.contribution.map(finite), "step": e.step, "part": part,
         })).collect::<Vec<_>>(),
         "steps": d.steps.iter().map(|s| json!({
             "action": s.action,
@@ -85,7 +81,26 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "channels": e.channels,
             "peak_sd": finite(e.peak_sd),
         })).collect::<Vec<_>>(),
+        "per_sample": d.per_sample.as_deref().map(to_json),
     })
+}
+
+/// The regions that remain when `d` is not explained: its own out-of-band regions after
+/// the added effects when its gap after is above its threshold, and its per-sample
+/// part's when that part is not explained.
+fn unexplained(d: &Diagnosis) -> Vec<&Region> {
+    if d.explained {
+        return Vec::new();
+    }
+    let mut v: Vec<&Region> = if d.per_sample.is_some() && d.own_explained {
+        Vec::new()
+    } else {
+        d.where_after.iter().collect()
+    };
+    if let Some(p) = d.per_sample.as_deref().filter(|p| !p.added.is_empty()) {
+        v.extend(unexplained(p));
+    }
+    v
 }
 
 fn finite(v: f64) -> Value {
@@ -136,12 +151,16 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
             )) as ArrayRef,
         ),
     ])?;
-    let regions: Vec<(&str, &Region)> = d
+    let mut regions: Vec<(&str, &Region)> = d
         .where_before
         .iter()
         .map(|r| ("before", r))
         .chain(d.where_after.iter().map(|r| ("after", r)))
         .collect();
+    if let Some(p) = &d.per_sample {
+        regions.extend(p.where_before.iter().map(|r| ("per_sample_before", r)));
+        regions.extend(p.where_after.iter().map(|r| ("per_sample_after", r)));
+    }
     let nr = regions.len();
     let reg = batch(vec![
         ("channel", ch(nr)),
@@ -177,8 +196,7 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
             )) as ArrayRef,
         ),
     ])?;
-    let ne = d.effects.len() + d.added.len();
-    let rows: Vec<(&str, i64, &super::Effect)> = d
+    let mut rows: Vec<(&str, i64, &super::Effect)> = d
         .effects
         .iter()
         .enumerate()
@@ -190,6 +208,21 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
                 .map(|(i, e)| ("added", i as i64 + 1, e)),
         )
         .collect();
+    if let Some(p) = &d.per_sample {
+        rows.extend(
+            p.effects
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ("per_sample_ranked", i as i64 + 1, e)),
+        );
+        rows.extend(
+            p.added
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ("per_sample_added", i as i64 + 1, e)),
+        );
+    }
+    let ne = rows.len();
     let eff = batch(vec![
         ("channel", ch(ne)),
         ("list", strs(rows.iter().map(|r| r.0.into()).collect())),
@@ -228,7 +261,13 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
             "added",
             Arc::new(BooleanArray::from(
                 rows.iter()
-                    .map(|r| r.0 == "added" || was_added(d, r.2))
+                    .map(|r| {
+                        r.0.ends_with("added")
+                            || match r.0 {
+                                "ranked" => was_added(d, r.2),
+                                _ => d.per_sample.as_deref().is_some_and(|p| was_added(p, r.2)),
+                            }
+                    })
                     .collect::<Vec<_>>(),
             )) as ArrayRef,
         ),

@@ -273,15 +273,48 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
                     .join(", ")
             );
         }
-        lines.push(if sig && d.gap_after > d.gap_threshold {
-            format!("!{l} (still above the threshold after the added effects)")
+        if let Some(ps) = &d.per_sample {
+            l += &format!(
+                "; the per-sample part (its first {} samples at its own rate): gap {:.2} -> {:.2} (significant above {:.2}){}",
+                ps.blocks.n,
+                ps.gap_before,
+                ps.gap_after,
+                ps.gap_threshold,
+                if ps.added.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        ", added: {}",
+                        ps.added
+                            .iter()
+                            .map(|e| e.kind.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                }
+            );
+        }
+        lines.push(if sig && !d.explained {
+            format!("!{l} (not explained by the added effects)")
         } else {
             l
         });
     }
     p.verdict(&lines);
-    for d in done {
-        p.h2(&format!("channel {}", d.channel));
+    let sections = done.iter().flat_map(|d| {
+        let part = d.per_sample.as_deref().map(|ps| {
+            (
+                format!(
+                    "channel {}: the per-sample part (the log's first {} samples at its own rate, against the spec after the averaged diagnosis)",
+                    d.channel, ps.blocks.n
+                ),
+                ps,
+            )
+        });
+        std::iter::once((format!("channel {}", d.channel), d)).chain(part)
+    });
+    for (title, d) in sections {
+        p.h2(&title);
         p.plot(&gap_svg(d)?);
         if !d.events_excluded.is_empty() {
             p.h3("test-stand events excluded (replaced by the stretch before each)");

@@ -1846,3 +1846,127 @@ fn a_log_longer_than_max_samples_is_averaged_and_the_output_path_put_back() {
     };
     assert_eq!(diagnose(&real, &spec, &whole).unwrap().averaged_by, 1);
 }
+
+/// A log longer than `max_samples` with a slow effect and a per-sample one withheld (a
+/// constant bias and a rounding to half the noise's sd, 100 Hz): the averaged part adds
+/// the bias, the per-sample part (the log's first samples at 100 Hz) the rounding, and
+/// the spec after holds both; the JSON and the effects table say which part found
+/// which.
+#[test]
+fn a_long_log_s_slow_effect_is_found_averaged_and_its_rounding_on_the_per_sample_part() {
+    use farma::simulator::{SimRequest, simulate};
+    let (n, rate_hz) = (200_000, 100.0);
+    let spec = bank::base_spec(rate_hz, false);
+    let mut truth = spec.clone();
+    truth.channels[0]
+        .components
+        .push(Component::ConstantBias { value: 0.05 });
+    truth.channels[0]
+        .components
+        .push(Component::OutputResolution {
+            quantum: 0.05,
+            on_angle: false,
+        });
+    let mut req = SimRequest::new(n, rate_hz);
+    req.seed = Some(43);
+    let x = simulate(&truth, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let real = bank_log(&x, None, rate_hz);
+    let prm = GapParams {
+        max_samples: 20_000,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    assert_eq!(d.averaged_by, 10);
+    assert_first_step(&d, "constant_bias");
+    let ps = d.per_sample.as_deref().expect("the per-sample part");
+    // the excerpt: at most max_samples, at the log's own rate
+    assert_eq!((ps.blocks.n, ps.averaged_by), (20_000, 1));
+    let parts: Vec<(&str, &str)> = d
+        .all_added()
+        .iter()
+        .map(|(p, e)| (*p, e.kind.as_str()))
+        .collect();
+    assert!(
+        parts.contains(&("averaged", "constant_bias"))
+            && parts.contains(&("per_sample", "output_resolution")),
+        "{parts:?}; notes {:?}",
+        d.notes
+    );
+    assert!(d.significant && d.explained, "{:?}", d.notes);
+    let comps = &d.spec_after.channels[0].components;
+    assert!(
+        comps
+            .iter()
+            .any(|c| matches!(c, Component::ConstantBias { value } if (value - 0.05).abs() < 0.01)),
+        "{comps:?}"
+    );
+    assert!(
+        comps.iter().any(
+            |c| matches!(c, Component::OutputResolution { quantum, .. } if (quantum - 0.05).abs() < 0.005)
+        ),
+        "{comps:?}"
+    );
+    let v = farma::diagnosis::report::to_json(&d);
+    assert_eq!(v["per_sample"]["averaged_by"], 1);
+    let json_parts: Vec<(String, String)> = v["added_effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| (a["part"].to_string(), a["kind"].to_string()))
+        .collect();
+    assert!(
+        json_parts.contains(&("\"per_sample\"".into(), "\"output_resolution\"".into())),
+        "{json_parts:?}"
+    );
+    let [_, _, effects] = farma::diagnosis::report::tables(&d).unwrap();
+    let list = effects
+        .column_by_name("list")
+        .unwrap()
+        .as_any()
+        .downcast_ref::<arrow_array::StringArray>()
+        .unwrap();
+    assert!(list.iter().any(|l| l == Some("per_sample_added")));
+}
+
+/// A spec with an ARMA model (at the log's own rate) against a log longer than
+/// `max_samples` but within 2^20 samples: not averaged (the model cannot simulate an
+/// averaged log), diagnosed at the log's own rate, and a note says so.
+#[test]
+fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_20() {
+    use farma::simulator::{SimRequest, simulate};
+    let mut spec = bank::base_spec(10.0, false);
+    spec.channels[0].components.push(Component::Arma {
+        ar: vec![0.5],
+        ma: vec![],
+        sigma: 0.01,
+    });
+    let n = 30_000;
+    let mut req = SimRequest::new(n, 10.0);
+    req.seed = Some(7);
+    let x = simulate(&spec, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec();
+    let real = bank_log(&x, None, 10.0);
+    let prm = GapParams {
+        max_samples: 10_000,
+        replicas: 5,
+        screen: false,
+        max_added: 1,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    assert_eq!(d.averaged_by, 1);
+    assert!(d.per_sample.is_none());
+    assert!(
+        d.notes[0].contains("ARMA or FARMA") && d.notes[0].contains("own rate"),
+        "{}",
+        d.notes[0]
+    );
+}
