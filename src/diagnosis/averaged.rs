@@ -78,16 +78,76 @@ fn acts_on_each_sample(c: &Component) -> bool {
     c.kind().is_output_path() || c.kind() == Kind::Outliers
 }
 
-/// The components of `spec` that [`spec_at`] takes out: (channel, component) in order.
-pub type Removed = Vec<(usize, Component)>;
+/// What [`spec_at`] took out of a spec: the per-sample components, and the stand-ins it
+/// put in their place.
+#[derive(Clone, Debug, Default)]
+pub struct TakenOut {
+    /// The per-sample components taken out: (channel, component), in order.
+    pub removed: Vec<(usize, Component)>,
+    /// Per channel: the index of its first stand-in and how many there are (they
+    /// follow the channel's kept components; the averaged diagnosis adds after them).
+    stand_ins: Vec<(usize, usize)>,
+}
 
-/// `spec` at `rate_hz` (the averaged rate) with the per-sample components of every
-/// channel taken out, and what was taken out; an error when a channel holds an ARMA or
-/// FARMA model (fitted at the log's own rate: it cannot simulate the averaged log).
-pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, Removed)> {
+/// The component that stands in, in the averaged spec, for the
+/// per-sample component `c` of a channel at `rate_hz` whose white noise has sample
+/// standard deviation `sd` (None: nothing stands in).
+/// - A rounding of the rate to `quantum` q adds an error uniform over +-q/2 to each
+///   sample, independent of the others while q is at most 1.5 `sd` (Sheppard's
+///   correction): white noise of density n = q / sqrt(12 rate_hz) (its sample variance
+///   n^2 rate_hz = q^2 / 12). Coarser, the error follows the signal and nothing stands
+///   in: a normal sample of sd 1 rounded to 1.5 has the variance 1 + q^2 / 12 to 0.1 %,
+///   rounded to 2, 2.5 % below it (numpy, 4e6 draws).
+/// - A rounding of the angle to steps of q / rate_hz: the rate's error is the first
+///   difference of a uniform angle error, whose block means are the angle quantization
+///   noise at any rate (`quantization`, IEEE 952 Q = angle quantum / sqrt(12) =
+///   q / (rate_hz sqrt(12))).
+/// - A low-pass filter: the block mean (a boxcar in continuous time) and the filter
+///   commute, so the block means of the filtered rate are the filter's output on the
+///   block means: it stands in for itself, discretized at the averaged rate by the
+///   zero-order hold (the continuous filter sampled, exact at any bandwidth for an
+///   input held over each interval; a bilinear filter's warping at the log's rate is
+///   lost). A filter much faster than the averaged rate settles within a block and
+///   leaves the block means nearly as they were, as its stand-in does.
+/// - Saturation, a FIR and outliers: nothing.
+fn stand_in(c: &Component, rate_hz: f64, sd: f64) -> Option<Component> {
+    match c {
+        Component::OutputResolution {
+            quantum,
+            on_angle: false,
+        } if *quantum <= 1.5 * sd => Some(Component::WhiteNoise {
+            n: quantum / (12.0 * rate_hz).sqrt(),
+        }),
+        Component::OutputResolution {
+            quantum,
+            on_angle: true,
+        } => Some(Component::Quantization {
+            q: quantum / (rate_hz * 12f64.sqrt()),
+        }),
+        Component::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+            ..
+        } => Some(Component::OutputFilter {
+            order: *order,
+            bandwidth_hz: *bandwidth_hz,
+            damping: *damping,
+            discretization: crate::simulator::Discretization::Zoh,
+        }),
+        _ => None,
+    }
+}
+
+/// `spec` at the averaged rate `rate_hz / k` (the log's own rate `rate_hz`) with the
+/// per-sample components of every channel taken out and their stand-ins
+/// (`stand_in`) after each channel's kept components; an error when a channel holds
+/// an ARMA or FARMA model (fitted at the log's own rate: it cannot simulate the
+/// averaged log).
+pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> {
     let mut out = spec.clone();
-    out.sample_rate_hz = rate_hz;
-    let mut removed = Vec::new();
+    out.sample_rate_hz = rate_hz / k as f64;
+    let mut taken = TakenOut::default();
     for (j, ch) in out.channels.iter_mut().enumerate() {
         if let Some(c) = ch
             .components
@@ -100,24 +160,46 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, Removed)> {
                 c.kind().as_str()
             )));
         }
+        let sd = (ch
+            .components
+            .iter()
+            .map(|c| match c {
+                Component::WhiteNoise { n } => n * n,
+                _ => 0.0,
+            })
+            .sum::<f64>()
+            * rate_hz)
+            .sqrt();
         let (keep, out_j): (Vec<Component>, Vec<Component>) = ch
             .components
             .drain(..)
             .partition(|c| !acts_on_each_sample(c));
         ch.components = keep;
-        removed.extend(out_j.into_iter().map(|c| (j, c)));
+        let stand: Vec<Component> = out_j
+            .iter()
+            .filter_map(|c| stand_in(c, rate_hz, sd))
+            .collect();
+        taken.stand_ins.push((ch.components.len(), stand.len()));
+        ch.components.extend(stand);
+        taken.removed.extend(out_j.into_iter().map(|c| (j, c)));
     }
-    Ok((out, removed))
+    Ok((out, taken))
 }
 
 /// `spec_after` of an averaged diagnosis at the log's own rate `rate_hz`, with the
-/// components [`spec_at`] took out put back after each channel's others (the output
-/// path's components keep their order among themselves, which is all the simulator
-/// reads of it).
-pub fn restore(spec_after: &Spec, rate_hz: f64, removed: &Removed) -> Spec {
+/// stand-ins [`spec_at`] put in taken out and the components it took out put back
+/// after each channel's others (the output path's components keep their order among
+/// themselves, which is all the simulator reads of it).
+pub fn restore(spec_after: &Spec, rate_hz: f64, taken: &TakenOut) -> Spec {
     let mut out = spec_after.clone();
     out.sample_rate_hz = rate_hz;
-    for (j, c) in removed {
+    for (j, &(at, n)) in taken.stand_ins.iter().enumerate() {
+        let comps = &mut out.channels[j].components;
+        if n > 0 && at + n <= comps.len() {
+            comps.drain(at..at + n);
+        }
+    }
+    for (j, c) in &taken.removed {
         out.channels[*j].components.push(c.clone());
     }
     out
@@ -160,33 +242,14 @@ pub fn per_sample_kinds() -> Vec<String> {
         .collect()
 }
 
-/// The per-sample part of the averaged diagnosis `d` of `real`: the log's first
-/// `prm.excerpt_samples` samples (at most `prm.max_samples`), every channel cut alike,
-/// diagnosed at the log's own rate against `d.spec_after` (the slow effects found on
-/// the averaged log in it, the per-sample components put back), with the output path
-/// and outliers as the only candidates ([`per_sample_kinds`]). The excerpt is the log's
-/// start, so that the spec after simulates it from the same time 0 (a warm-up, a ramp,
-/// a temperature profile line up).
-///
-/// Merged into `d`: `significant` when either part is, `explained` when both are, the
-/// spec after the per-sample part's, a note with its gaps; the part itself in
-/// `d.per_sample`. A per-sample part that adds nothing leaves the verdict to the
-/// averaged part: its threshold is that of the spec after's own simulations, which
-/// do not hold the error of the slow effects estimated on the averaged log, so a gap
-/// that no per-sample candidate shrinks is not taken as a per-sample effect (a note
-/// gives it). A per-sample part that cannot be diagnosed (an excerpt too short for
-/// the block layout) leaves `d` as it was, with a note saying why.
-pub fn per_sample<'a>(real: &RealLog<'a>, prm: &GapParams, pb: &ProgressBar, d: &mut Diagnosis) {
-    let n = prm.excerpt_samples.min(prm.max_samples).min(real.x.len());
-    if n == 0 {
-        return;
-    }
+/// The log's first `n` samples, every channel and the temperature cut alike.
+fn excerpt<'a>(real: &RealLog<'a>, n: usize) -> RealLog<'a> {
     let cut = |v: &[(String, &'a [f64])]| -> Vec<(String, &'a [f64])> {
         v.iter()
             .map(|(s, v)| (s.clone(), &v[..n.min(v.len())]))
             .collect()
     };
-    let log = RealLog {
+    RealLog {
         channel: real.channel.clone(),
         x: &real.x[..n],
         rate_hz: real.rate_hz,
@@ -194,8 +257,26 @@ pub fn per_sample<'a>(real: &RealLog<'a>, prm: &GapParams, pb: &ProgressBar, d: 
         others: cut(&real.others),
         spec_dir: real.spec_dir.clone(),
         scan: cut(&real.scan),
-    };
-    let kinds = per_sample_kinds();
+    }
+}
+
+/// The samples of the per-sample part: `prm.excerpt_samples`, at most
+/// `prm.max_samples` and the log's length.
+fn excerpt_len(real: &RealLog, prm: &GapParams) -> usize {
+    prm.excerpt_samples.min(prm.max_samples).min(real.x.len())
+}
+
+/// The diagnosis of the log's first samples ([`excerpt_len`]) at its own rate against
+/// `spec`, with `kinds` (those of them `prm.only_kinds` allows) the only candidates.
+fn diagnose_excerpt(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+    kinds: Vec<String>,
+    explain_replicas: usize,
+) -> Result<Diagnosis> {
+    let log = excerpt(real, excerpt_len(real, prm));
     let only = match &prm.only_kinds {
         Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
         None => kinds,
@@ -204,14 +285,89 @@ pub fn per_sample<'a>(real: &RealLog<'a>, prm: &GapParams, pb: &ProgressBar, d: 
         only_kinds: Some(only),
         max_samples: 0,
         averaged: false,
+        explain_replicas,
         ..prm.clone()
     };
+    super::diagnose_with_progress(&log, spec, &p, pb)
+}
+
+/// The per-sample part's first pass, before the averaged part: the log's first
+/// samples (`excerpt_len`) at its own rate against `spec` as given, with the output
+/// path's kinds and the outliers' (and their recalibrations) the only candidates. What
+/// it adds is in the spec the averaged part starts from, where each stands in by its
+/// block means ([`spec_at`]), so that the averaged part does not take the noise a
+/// rounding adds for white noise (nor a slow filter for a Gauss-Markov). None when
+/// there is no excerpt or it cannot be diagnosed ([`per_sample`] then says why).
+pub fn first_pass(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+) -> Option<Diagnosis> {
+    if excerpt_len(real, prm) == 0 {
+        return None;
+    }
+    let kinds = Kind::ALL
+        .into_iter()
+        .filter(|k| k.is_output_path() || *k == Kind::Outliers)
+        .flat_map(|k| {
+            [
+                k.as_str().to_string(),
+                format!("recalibrate:{}", k.as_str()),
+            ]
+        })
+        .collect();
+    diagnose_excerpt(real, spec, prm, pb, kinds, 0).ok()
+}
+
+/// The per-sample part of the averaged diagnosis `d` of `real`: the log's first
+/// `prm.excerpt_samples` samples (at most `prm.max_samples`), every channel cut alike,
+/// diagnosed at the log's own rate against `d.spec_after` (the slow effects found on
+/// the averaged log in it, the per-sample components put back), with the per-sample
+/// kinds as the only candidates ([`per_sample_kinds`]). The excerpt is the log's
+/// start, so that the spec after simulates it from the same time 0 (a warm-up, a ramp,
+/// a temperature profile line up). `first` is the [`first_pass`], whose added effects
+/// are in `d.spec_after` already.
+///
+/// Merged into `d`: `significant` when either part is, `explained` when both are, the
+/// spec after the per-sample part's, a note with its gaps; the part itself in
+/// `d.per_sample` (and the first pass in `d.per_sample_first`). A per-sample part
+/// whose passes add nothing leaves the verdict to the averaged part: its threshold is
+/// that of the spec after's own simulations, which do not hold the error of the slow
+/// effects estimated on the averaged log, so a gap that no per-sample candidate
+/// shrinks is not taken as a per-sample effect (a note gives it). A per-sample part
+/// that cannot be diagnosed (an excerpt too short for the block layout) leaves `d` as
+/// it was, with a note saying why.
+pub fn per_sample(
+    real: &RealLog,
+    prm: &GapParams,
+    pb: &ProgressBar,
+    d: &mut Diagnosis,
+    first: Option<Diagnosis>,
+) {
+    let n = excerpt_len(real, prm);
+    if n == 0 {
+        return;
+    }
     let seconds = n as f64 / real.rate_hz;
-    match super::diagnose_with_progress(&log, &d.spec_after, &p, pb) {
+    let first_added: Vec<String> = first
+        .iter()
+        .flat_map(|f| f.added.iter().map(|a| a.kind.clone()))
+        .collect();
+    d.per_sample_first = first.map(Box::new);
+    match diagnose_excerpt(
+        real,
+        &d.spec_after,
+        prm,
+        pb,
+        per_sample_kinds(),
+        prm.explain_replicas,
+    ) {
         Ok(e) => {
             d.own_explained = d.explained;
-            if !e.added.is_empty() {
-                d.significant |= e.significant;
+            if !e.added.is_empty() || !first_added.is_empty() {
+                d.significant |= e.significant
+                    || d.per_sample_first.as_ref().is_some_and(|f| f.significant);
                 d.explained &= e.explained;
             } else if e.gap_before > e.gap_threshold {
                 d.notes.push(format!(
@@ -220,22 +376,22 @@ pub fn per_sample<'a>(real: &RealLog<'a>, prm: &GapParams, pb: &ProgressBar, d: 
                 ));
             }
             d.spec_after = e.spec_after.clone();
+            let list = |v: Vec<String>| {
+                if v.is_empty() {
+                    "nothing".to_string()
+                } else {
+                    v.join(", ")
+                }
+            };
             d.notes.push(format!(
-                "the per-sample part (per_sample): the log's first {n} samples ({seconds:.1} s) were diagnosed at {} Hz against the spec after the averaged diagnosis, the output path and outliers the only candidates: gap {:.3} -> {:.3} (threshold {:.3}{}), added: {}",
+                "the per-sample part (per_sample): the log's first {n} samples ({seconds:.1} s) at {} Hz, first against the spec as given with the output path and outliers as candidates (added: {}; per_sample_first), then against the spec after the averaged diagnosis with the per-sample kinds as candidates: gap {:.3} -> {:.3} (threshold {:.3}{}), added: {}",
                 real.rate_hz,
+                list(first_added),
                 e.gap_before,
                 e.gap_after,
                 e.gap_threshold,
                 if e.significant { "" } else { ", not significant" },
-                if e.added.is_empty() {
-                    "nothing".to_string()
-                } else {
-                    e.added
-                        .iter()
-                        .map(|a| a.kind.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                }
+                list(e.added.iter().map(|a| a.kind.clone()).collect())
             ));
             d.per_sample = Some(Box::new(e));
         }
@@ -258,6 +414,53 @@ mod tests {
         assert!(100_000_000usize.div_ceil(96) <= MAX_SAMPLES);
         assert!(100_000_000usize.div_ceil(95) > MAX_SAMPLES);
         assert_eq!(factor(11, 5), 3);
+    }
+
+    /// The block means of a rounded white noise have the variance of white noise plus
+    /// the rounding's stand-in (rate and angle forms; the noise alone is 8 % below it
+    /// on the rate): 4e6 samples at 100 Hz, q = sd, averaged by 100 (the estimates'
+    /// relative sd about sqrt(2 / 4e4) = 0.7 %).
+    #[test]
+    fn a_rounding_s_stand_in_gives_its_block_means_variance() {
+        use crate::simulator::{SimRequest, simulate};
+        let var = |v: &[f64]| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / v.len() as f64
+        };
+        for on_angle in [false, true] {
+            let spec = Spec {
+                sample_rate_hz: 100.0,
+                temperature_channel: None,
+                seed: Some(3),
+                channels: vec![crate::simulator::ChannelSpec {
+                    name: "x".into(),
+                    components: vec![
+                        Component::WhiteNoise { n: 0.1 },
+                        Component::OutputResolution {
+                            quantum: 1.0,
+                            on_angle,
+                        },
+                    ],
+                }],
+            };
+            let (avg, _) = spec_at(&spec, 100.0, 100).unwrap();
+            assert_eq!(avg.channels[0].components.len(), 2);
+            let mut req = SimRequest::new(4_000_000, 100.0);
+            req.seed = Some(5);
+            let full = simulate(&spec, &req).unwrap();
+            let means = block_means(full.channel("x").unwrap(), 100);
+            let mut req = SimRequest::new(40_000, 1.0);
+            req.seed = Some(6);
+            let at = simulate(&avg, &req).unwrap();
+            let (want, got) = (var(&means), var(at.channel("x").unwrap()));
+            assert!(
+                (got / want - 1.0).abs() < 0.03,
+                "on_angle {on_angle}: block means {want}, stand-in {got}"
+            );
+            if !on_angle {
+                assert!(want > 1.05 * 0.01, "{want}");
+            }
+        }
     }
 
     #[test]
@@ -288,20 +491,43 @@ k = 0.001
             std::path::Path::new("test.toml"),
         )
         .unwrap();
-        let (avg, removed) = spec_at(&spec, 1.0, 100).unwrap();
+        let (mut avg, taken) = spec_at(&spec, 100.0, 100).unwrap();
         assert_eq!(avg.sample_rate_hz, 1.0);
         let kinds: Vec<Kind> = avg.channels[0]
             .components
             .iter()
             .map(|c| c.kind())
             .collect();
-        assert_eq!(kinds, [Kind::WhiteNoise, Kind::RateRandomWalk]);
-        let back = restore(&avg, 100.0, &removed);
-        assert_eq!(back.sample_rate_hz, 100.0);
-        assert_eq!(back.channels[0].components.len(), 3);
+        // the rounding's stand-in: white noise of density q / sqrt(12 rate)
         assert_eq!(
-            back.channels[0].components[2].kind(),
-            Kind::OutputResolution
+            kinds,
+            [Kind::WhiteNoise, Kind::RateRandomWalk, Kind::WhiteNoise]
+        );
+        assert_eq!(
+            avg.channels[0].components[2],
+            Component::WhiteNoise {
+                n: 0.05 / 1200f64.sqrt()
+            }
+        );
+        // an effect the averaged diagnosis adds follows the stand-ins and stays
+        avg.channels[0]
+            .components
+            .push(Component::ConstantBias { value: 1.0 });
+        let back = restore(&avg, 100.0, &taken);
+        assert_eq!(back.sample_rate_hz, 100.0);
+        let kinds: Vec<Kind> = back.channels[0]
+            .components
+            .iter()
+            .map(|c| c.kind())
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                Kind::WhiteNoise,
+                Kind::RateRandomWalk,
+                Kind::ConstantBias,
+                Kind::OutputResolution
+            ]
         );
         let mut arma = spec.clone();
         arma.channels[0].components.push(Component::Arma {
@@ -309,7 +535,7 @@ k = 0.001
             ma: vec![],
             sigma: 0.1,
         });
-        let e = spec_at(&arma, 1.0, 100).unwrap_err().to_string();
+        let e = spec_at(&arma, 100.0, 100).unwrap_err().to_string();
         assert!(e.contains("arma") && e.contains("--max-samples"), "{e}");
         let kinds = candidate_kinds();
         assert!(kinds.contains(&"rate_random_walk".to_string()));

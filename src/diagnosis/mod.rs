@@ -306,6 +306,11 @@ pub struct Diagnosis {
     /// spec after. Its added effects, verdict and spec after are merged into this one's
     /// (`added` excepted: [`Diagnosis::all_added`]).
     pub per_sample: Option<Box<Diagnosis>>,
+    /// Of an averaged log: the per-sample part's first pass, on the log's first
+    /// samples against the spec as given, before the averaged part
+    /// ([`averaged::first_pass`]); what it added is in the spec the averaged part
+    /// started from.
+    pub per_sample_first: Option<Box<Diagnosis>>,
     /// This diagnosis's own verdict before its per-sample part's was merged in
     /// (`explained` is then both parts'); read only when `per_sample` is some.
     pub(crate) own_explained: bool,
@@ -324,11 +329,14 @@ impl Diagnosis {
     }
 
     /// Every added effect with the part it was found on ([`Diagnosis::part`]): this
-    /// diagnosis's, then its per-sample part's.
+    /// diagnosis's, then its per-sample part's (its first pass's, then its own).
     pub fn all_added(&self) -> Vec<(&'static str, &Effect)> {
         let mut v: Vec<(&'static str, &Effect)> =
             self.added.iter().map(|e| (self.part(), e)).collect();
-        if let Some(p) = &self.per_sample {
+        for p in [&self.per_sample_first, &self.per_sample]
+            .into_iter()
+            .flatten()
+        {
             v.extend(p.added.iter().map(|e| ("per_sample", e)));
         }
         v
@@ -444,7 +452,18 @@ fn diagnose_averaged(
     k: usize,
 ) -> Result<Diagnosis> {
     let rate_hz = real.rate_hz / k as f64;
-    let (spec_k, removed) = averaged::spec_at(spec, rate_hz, k)?;
+    // a model at the log's own rate is refused before any work
+    averaged::spec_at(spec, real.rate_hz, k)?;
+    let first = if prm.excerpt_samples > 0 {
+        averaged::first_pass(real, spec, prm, pb)
+    } else {
+        None
+    };
+    let start = first
+        .as_ref()
+        .filter(|f| !f.added.is_empty())
+        .map_or(spec, |f| &f.spec_after);
+    let (spec_k, taken) = averaged::spec_at(start, real.rate_hz, k)?;
     let mean = |v: &[f64]| averaged::block_means(v, k);
     let x = mean(real.x);
     let temperature = real.temperature_c.map(mean);
@@ -485,14 +504,15 @@ fn diagnose_averaged(
         ..prm.clone()
     };
     let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
-    d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &removed);
+    d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &taken);
     d.averaged_by = k;
-    let left_out = if removed.is_empty() {
+    let left_out = if taken.removed.is_empty() {
         String::new()
     } else {
         format!(
-            "; the spec's per-sample components ({}) were left out of it and are in spec_after (as they were, unless the per-sample part changes them)",
-            removed
+            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as angle quantization noise, a filter slower than a quarter of the averaged rate as itself) and are in spec_after (as they were, unless the per-sample part changes them)",
+            taken
+                .removed
                 .iter()
                 .map(|(_, c)| c.kind().as_str())
                 .collect::<Vec<_>>()
@@ -514,7 +534,7 @@ fn diagnose_averaged(
             k as f64 / real.rate_hz
         ),
     );
-    averaged::per_sample(real, prm, pb, &mut d);
+    averaged::per_sample(real, prm, pb, &mut d, first);
     Ok(d)
 }
 
@@ -1659,6 +1679,7 @@ fn diagnose_log(
         events_excluded: Vec::new(),
         averaged_by: 1,
         per_sample: None,
+        per_sample_first: None,
         own_explained: false,
     })
 }

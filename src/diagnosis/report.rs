@@ -82,6 +82,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "peak_sd": finite(e.peak_sd),
         })).collect::<Vec<_>>(),
         "per_sample": d.per_sample.as_deref().map(to_json),
+        "per_sample_first": d.per_sample_first.as_deref().map(to_json),
     })
 }
 
@@ -215,9 +216,10 @@ pub fn tables(d: &Diagnosis) -> Result<[RecordBatch; 3]> {
                 .enumerate()
                 .map(|(i, e)| ("per_sample_ranked", i as i64 + 1, e)),
         );
+        let first = d.per_sample_first.iter().flat_map(|f| f.added.iter());
         rows.extend(
-            p.added
-                .iter()
+            first
+                .chain(p.added.iter())
                 .enumerate()
                 .map(|(i, e)| ("per_sample_added", i as i64 + 1, e)),
         );
