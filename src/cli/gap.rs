@@ -209,12 +209,15 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
     let _ = writeln!(
         s,
         "\nadded: {}",
-        if d.added.is_empty() {
+        if d.all_added().is_empty() {
             "nothing".to_string()
         } else {
-            d.added
+            d.all_added()
                 .iter()
-                .map(|e| e.kind.clone())
+                .map(|(part, e)| match *part {
+                    "per_sample" => format!("{} (per-sample part)", e.kind),
+                    _ => e.kind.clone(),
+                })
                 .collect::<Vec<_>>()
                 .join(", ")
         }

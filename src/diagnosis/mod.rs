@@ -510,7 +510,7 @@ fn diagnose_averaged(
         String::new()
     } else {
         format!(
-            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as angle quantization noise, a filter slower than a quarter of the averaged rate as itself) and are in spec_after (as they were, unless the per-sample part changes them)",
+            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as angle quantization noise, a low-pass filter as itself at the averaged rate) and are in spec_after (as they were, unless the per-sample part changes them)",
             taken
                 .removed
                 .iter()

@@ -668,6 +668,63 @@ fn the_gap_task_diagnoses_the_specs_channels_with_the_temperature_role() {
     assert_eq!(json_of(&o)["done"].as_u64(), Some(1), "{}", stderr(&o));
 }
 
+/// The gap task's `max_samples` and `excerpt_samples` reach the diagnosis: the 4000-sample
+/// log averaged (over blocks of 2 for at most 2000) has its per-sample part's rows in
+/// the effects table.
+#[test]
+fn the_gap_task_s_max_samples_and_excerpt_samples_reach_the_diagnosis() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = "sample_rate_hz = 10.0\nseed = 3\n[[channel]]\nname = \"gyro_x\"\n[[channel.component]]\nkind = \"white_noise\"\nn = 0.01\n";
+    std::fs::write(dir.path().join("spec.toml"), spec).unwrap();
+    let log = fixture("multiaxis.csv");
+    let j = job(
+        dir.path(),
+        &format!(
+            "[[inputs]]\npaths = [{:?}]\n[[tasks]]\nkind = \"gap\"\nspec = \"spec.toml\"\nreplicas = 6\nmax_samples = 2000\nexcerpt_samples = 1500\n",
+            log.to_str().unwrap()
+        ),
+    );
+    let root = dir.path().join("out");
+    let (j, r) = (j.to_str().unwrap(), root.to_str().unwrap());
+    let o = farma(&["batch", j, "-o", r, "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let f = root
+        .join("gap_effects")
+        .join("task=gap/log_id=multiaxis")
+        .join("part-0.parquet");
+    let lists = crate::common::parquet_strings(&f, "list");
+    assert!(lists.iter().any(|l| l == "per_sample_ranked"), "{lists:?}");
+    // excerpt_samples = 0: averaged, no per-sample part
+    let j0 = job(
+        dir.path(),
+        &format!(
+            "[[inputs]]\npaths = [{:?}]\n[[tasks]]\nkind = \"gap\"\nspec = \"spec.toml\"\nreplicas = 6\nmax_samples = 2000\nexcerpt_samples = 0\n",
+            log.to_str().unwrap()
+        ),
+    );
+    let root0 = dir.path().join("out0");
+    let o = farma(
+        &[
+            "batch",
+            j0.to_str().unwrap(),
+            "-o",
+            root0.to_str().unwrap(),
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let f0 = root0
+        .join("gap_effects")
+        .join("task=gap/log_id=multiaxis")
+        .join("part-0.parquet");
+    let lists = crate::common::parquet_strings(&f0, "list");
+    assert!(
+        !lists.is_empty() && !lists.iter().any(|l| l.starts_with("per_sample")),
+        "{lists:?}"
+    );
+}
+
 /// The root's index.html: one row per unit, a relative link to each adev unit's
 /// report.html (a file that is there) with that report's verdict, and the failed
 /// unit's error; self-contained; a rerun writes the same bytes.
