@@ -7,11 +7,13 @@
 # own, so that its ensemble never shares the log's noise. Also prints, per spec, the
 # median, 0.95 quantile and largest gap_before / gap_threshold (how near the threshold
 # a correct spec comes: a threshold at the 95 % level puts that quantile near 1).
-#   bash benches/gap_false_alarm.sh FARMA [SEEDS] [DURATION_S]
+#   bash benches/gap_false_alarm.sh FARMA [SEEDS] [DURATION_S] [GAP_FLAGS]
+# (GAP_FLAGS: extra flags of every diagnosis, e.g. "--max-samples 65536")
 set -eu
 farma=${1:?path of the farma binary}
 seeds=${2:-20}
 dur=${3:-3600}
+flags=${4:-}
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -45,7 +47,7 @@ for pair in "$root/fixtures/specs/adis16405_datasheet.toml:gyro_x_dps" "$work/me
     log="$work/$name-$s.parquet"
     "$farma" simulate "$spec" --duration "$dur" --seed "$((1000 + s))" -o "$log" >/dev/null 2>&1 \
       || { echo "$name seed $s: simulate failed" >&2; continue; }
-    out=$("$farma" gap --real "$log" --sim "$spec" --channel "$ch" --seed "$((5000 + s))" --json --no-cache 2>/dev/null) \
+    out=$("$farma" gap --real "$log" --sim "$spec" --channel "$ch" --seed "$((5000 + s))" $flags --json --no-cache 2>/dev/null) \
       || { echo "$name seed $s: gap failed" >&2; continue; }
     runs=$((runs + 1))
     if echo "$out" | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)["significant"] else 1)'; then sig=$((sig + 1)); fi

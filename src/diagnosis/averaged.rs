@@ -75,7 +75,12 @@ pub fn block_means(v: &[f64], k: usize) -> Vec<f64> {
 /// Whether a component acts on each sample of the output and is left out of the
 /// averaged diagnosis (module doc).
 fn acts_on_each_sample(c: &Component) -> bool {
-    c.kind().is_output_path() || c.kind() == Kind::Outliers
+    acts_on_each_sample_kind(c.kind())
+}
+
+/// [`acts_on_each_sample`] of a kind.
+fn acts_on_each_sample_kind(k: Kind) -> bool {
+    k.is_output_path() || k == Kind::Outliers
 }
 
 /// What [`spec_at`] took out of a spec: the per-sample components, and the stand-ins it
@@ -208,16 +213,7 @@ pub fn restore(spec_after: &Spec, rate_hz: f64, taken: &TakenOut) -> Spec {
 /// The candidate kinds of an averaged diagnosis: every kind and its recalibration but
 /// the per-sample ones and the models at the log's own rate.
 pub fn candidate_kinds() -> Vec<String> {
-    Kind::ALL
-        .into_iter()
-        .filter(|k| !(k.is_output_path() || matches!(k, Kind::Outliers | Kind::Arma | Kind::Farma)))
-        .flat_map(|k| {
-            [
-                k.as_str().to_string(),
-                format!("recalibrate:{}", k.as_str()),
-            ]
-        })
-        .collect()
+    kinds_where(|k| !(acts_on_each_sample_kind(k) || matches!(k, Kind::Arma | Kind::Farma)))
 }
 
 /// The candidate kinds of the per-sample part ([`per_sample`]): the output path's, the
@@ -226,19 +222,29 @@ pub fn candidate_kinds() -> Vec<String> {
 /// outliers add as white noise and raises its level, which the per-sample part then
 /// takes back beside them.
 pub fn per_sample_kinds() -> Vec<String> {
+    let mut v =
+        kinds_where(|k| acts_on_each_sample_kind(k) || matches!(k, Kind::Arma | Kind::Farma));
+    v.push(format!("recalibrate:{}", Kind::WhiteNoise.as_str()));
+    v
+}
+
+/// The kinds of the [`first_pass`]: the output path's and the outliers', with their
+/// recalibrations.
+fn first_pass_kinds() -> Vec<String> {
+    kinds_where(acts_on_each_sample_kind)
+}
+
+/// Each kind that `keep` holds, and its recalibration (`recalibrate:<kind>`).
+fn kinds_where(keep: impl Fn(Kind) -> bool) -> Vec<String> {
     Kind::ALL
         .into_iter()
-        .filter(|k| k.is_output_path() || matches!(k, Kind::Outliers | Kind::Arma | Kind::Farma))
+        .filter(|k| keep(*k))
         .flat_map(|k| {
             [
                 k.as_str().to_string(),
                 format!("recalibrate:{}", k.as_str()),
             ]
         })
-        .chain(std::iter::once(format!(
-            "recalibrate:{}",
-            Kind::WhiteNoise.as_str()
-        )))
         .collect()
 }
 
@@ -307,17 +313,7 @@ pub fn first_pass(
     if excerpt_len(real, prm) == 0 {
         return None;
     }
-    let kinds = Kind::ALL
-        .into_iter()
-        .filter(|k| k.is_output_path() || *k == Kind::Outliers)
-        .flat_map(|k| {
-            [
-                k.as_str().to_string(),
-                format!("recalibrate:{}", k.as_str()),
-            ]
-        })
-        .collect();
-    diagnose_excerpt(real, spec, prm, pb, kinds, 0).ok()
+    diagnose_excerpt(real, spec, prm, pb, first_pass_kinds(), 0).ok()
 }
 
 /// The per-sample part of the averaged diagnosis `d` of `real`: the log's first
