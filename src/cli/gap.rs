@@ -222,6 +222,22 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
                 .join(", ")
         }
     );
+    if d.per_sample.is_some() {
+        let _ = writeln!(
+            s,
+            "verdict of both parts: {}, {}",
+            if d.significant {
+                "significant"
+            } else {
+                "not significant"
+            },
+            if d.explained {
+                "explained"
+            } else {
+                "not explained"
+            }
+        );
+    }
     for n in &d.notes {
         let _ = writeln!(s, "note: {n}");
     }

@@ -39,6 +39,25 @@ pub const MAX_SAMPLES: usize = 1 << 20;
 /// one is refused ([`spec_at`]).
 pub const MODEL_MAX_SAMPLES: usize = 1 << 20;
 
+/// An error when a channel of `spec` holds an ARMA or FARMA model ([`rate_model`]),
+/// which cannot simulate the log averaged over blocks of `k` samples.
+pub fn refuse_rate_model(spec: &Spec, k: usize) -> Result<()> {
+    for ch in &spec.channels {
+        if let Some(c) = ch
+            .components
+            .iter()
+            .find(|c| matches!(c.kind(), Kind::Arma | Kind::Farma))
+        {
+            return Err(Error::Usage(format!(
+                "channel '{}' of the spec has a component of kind {}, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (it is longer than {MODEL_MAX_SAMPLES} samples, the most diagnosed at its own rate with such a model), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
+                ch.name,
+                c.kind().as_str()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Whether a channel of `spec` holds an ARMA or FARMA model, fitted at the log's own
 /// rate.
 pub fn rate_model(spec: &Spec) -> bool {
@@ -150,21 +169,11 @@ fn stand_in(c: &Component, rate_hz: f64, sd: f64) -> Option<Component> {
 /// an ARMA or FARMA model (fitted at the log's own rate: it cannot simulate the
 /// averaged log).
 pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> {
+    refuse_rate_model(spec, k)?;
     let mut out = spec.clone();
     out.sample_rate_hz = rate_hz / k as f64;
     let mut taken = TakenOut::default();
     for (j, ch) in out.channels.iter_mut().enumerate() {
-        if let Some(c) = ch
-            .components
-            .iter()
-            .find(|c| matches!(c.kind(), Kind::Arma | Kind::Farma))
-        {
-            return Err(Error::Usage(format!(
-                "channel '{}' of the spec has a component of kind {}, a model at the log's own rate: the log is averaged over blocks of {k} samples for the diagnosis (it is longer than {MODEL_MAX_SAMPLES} samples, the most diagnosed at its own rate with such a model), and that model cannot simulate the averaged log; raise --max-samples (0: never average) or diagnose a shorter log",
-                ch.name,
-                c.kind().as_str()
-            )));
-        }
         let sd = (ch
             .components
             .iter()
@@ -248,6 +257,22 @@ fn kinds_where(keep: impl Fn(Kind) -> bool) -> Vec<String> {
         .collect()
 }
 
+/// `prm` for one part of an averaged log's diagnosis, run at its own rate
+/// (`max_samples` 0): `kinds` the only candidates (those of them `prm.only_kinds`
+/// allows), `averaged` whether the part's log is the averaged one.
+pub fn params_for(prm: &GapParams, kinds: Vec<String>, averaged: bool) -> GapParams {
+    let only = match &prm.only_kinds {
+        Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
+        None => kinds,
+    };
+    GapParams {
+        only_kinds: Some(only),
+        max_samples: 0,
+        averaged,
+        ..prm.clone()
+    }
+}
+
 /// The log's first `n` samples, every channel and the temperature cut alike.
 fn excerpt<'a>(real: &RealLog<'a>, n: usize) -> RealLog<'a> {
     let cut = |v: &[(String, &'a [f64])]| -> Vec<(String, &'a [f64])> {
@@ -283,16 +308,9 @@ fn diagnose_excerpt(
     explain_replicas: usize,
 ) -> Result<Diagnosis> {
     let log = excerpt(real, excerpt_len(real, prm));
-    let only = match &prm.only_kinds {
-        Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
-        None => kinds,
-    };
     let p = GapParams {
-        only_kinds: Some(only),
-        max_samples: 0,
-        averaged: false,
         explain_replicas,
-        ..prm.clone()
+        ..params_for(prm, kinds, false)
     };
     super::diagnose_with_progress(&log, spec, &p, pb)
 }
@@ -487,13 +505,11 @@ k = 0.001
             std::path::Path::new("test.toml"),
         )
         .unwrap();
+        let kinds_of =
+            |s: &Spec| -> Vec<Kind> { s.channels[0].components.iter().map(|c| c.kind()).collect() };
         let (mut avg, taken) = spec_at(&spec, 100.0, 100).unwrap();
         assert_eq!(avg.sample_rate_hz, 1.0);
-        let kinds: Vec<Kind> = avg.channels[0]
-            .components
-            .iter()
-            .map(|c| c.kind())
-            .collect();
+        let kinds = kinds_of(&avg);
         // the rounding's stand-in: white noise of density q / sqrt(12 rate)
         assert_eq!(
             kinds,
@@ -511,13 +527,8 @@ k = 0.001
             .push(Component::ConstantBias { value: 1.0 });
         let back = restore(&avg, 100.0, &taken);
         assert_eq!(back.sample_rate_hz, 100.0);
-        let kinds: Vec<Kind> = back.channels[0]
-            .components
-            .iter()
-            .map(|c| c.kind())
-            .collect();
         assert_eq!(
-            kinds,
+            kinds_of(&back),
             [
                 Kind::WhiteNoise,
                 Kind::RateRandomWalk,

@@ -453,7 +453,7 @@ fn diagnose_averaged(
 ) -> Result<Diagnosis> {
     let rate_hz = real.rate_hz / k as f64;
     // a model at the log's own rate is refused before any work
-    averaged::spec_at(spec, real.rate_hz, k)?;
+    averaged::refuse_rate_model(spec, k)?;
     let first = if prm.excerpt_samples > 0 {
         averaged::first_pass(real, spec, prm, pb)
     } else {
@@ -467,15 +467,22 @@ fn diagnose_averaged(
     let mean = |v: &[f64]| averaged::block_means(v, k);
     let x = mean(real.x);
     let temperature = real.temperature_c.map(mean);
-    let others: Vec<(String, Vec<f64>)> = real
-        .others
-        .iter()
-        .map(|(s, v)| (s.clone(), mean(v)))
-        .collect();
     let scan: Vec<(String, Vec<f64>)> = real
         .scan
         .iter()
         .map(|(s, v)| (s.clone(), mean(v)))
+        .collect();
+    // the cross-axis channels are among the scanned ones: each averaged once
+    let others: Vec<(String, Vec<f64>)> = real
+        .others
+        .iter()
+        .map(|(s, v)| {
+            let m = scan
+                .iter()
+                .find(|(n, _)| n == s)
+                .map_or_else(|| mean(v), |(_, m)| m.clone());
+            (s.clone(), m)
+        })
         .collect();
     let log = RealLog {
         channel: real.channel.clone(),
@@ -492,17 +499,7 @@ fn diagnose_averaged(
             .map(|(s, v)| (s.clone(), v.as_slice()))
             .collect(),
     };
-    let kinds = averaged::candidate_kinds();
-    let only = match &prm.only_kinds {
-        Some(o) => o.iter().filter(|s| kinds.contains(s)).cloned().collect(),
-        None => kinds,
-    };
-    let p = GapParams {
-        only_kinds: Some(only),
-        max_samples: 0,
-        averaged: true,
-        ..prm.clone()
-    };
+    let p = averaged::params_for(prm, averaged::candidate_kinds(), true);
     let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
     d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &taken);
     d.averaged_by = k;

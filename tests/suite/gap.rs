@@ -4,7 +4,7 @@
 
 use farma::diagnosis::bank::{self, CHANNEL, Case};
 use farma::diagnosis::{Diagnosis, GapParams, RealLog, diagnose};
-use farma::simulator::Component;
+use farma::simulator::{Component, Spec};
 
 /// The bank's channel `x` (with its temperature) as the real side of a diagnosis.
 fn bank_log<'a>(x: &'a [f64], temp: Option<&'a [f64]>, rate_hz: f64) -> RealLog<'a> {
@@ -17,6 +17,25 @@ fn bank_log<'a>(x: &'a [f64], temp: Option<&'a [f64]>, rate_hz: f64) -> RealLog<
         spec_dir: None,
         scan: Vec::new(),
     }
+}
+
+/// The target channel of `spec` simulated over `n` samples at `rate_hz` (with the
+/// temperature profile `temp`, if any) from `seed`.
+fn simulate_target(
+    spec: &Spec,
+    n: usize,
+    rate_hz: f64,
+    temp: Option<&[f64]>,
+    seed: u64,
+) -> Vec<f64> {
+    let mut req = farma::simulator::SimRequest::new(n, rate_hz);
+    req.temperature_c = temp;
+    req.seed = Some(seed);
+    farma::simulator::simulate(spec, &req)
+        .unwrap()
+        .channel(CHANNEL)
+        .unwrap()
+        .to_vec()
 }
 
 fn run(case: &Case, n: usize, seed: u64, replicas: usize) -> Diagnosis {
@@ -287,7 +306,6 @@ fn diagnose_hidden_scale(
     het: Component,
     seed: u64,
 ) -> Diagnosis {
-    use farma::simulator::{SimRequest, simulate};
     let rate_hz = 10.0;
     let mut truth = bank::base_spec(rate_hz, true);
     truth.channels[0].components[0] = Component::WhiteNoise { n };
@@ -296,14 +314,7 @@ fn diagnose_hidden_scale(
     spec.channels[0].components[0] = Component::WhiteNoise {
         n: n * mean_square.sqrt(),
     };
-    let mut req = SimRequest::new(temp.len(), rate_hz);
-    req.temperature_c = Some(temp);
-    req.seed = Some(seed);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
+    let x = simulate_target(&truth, temp.len(), rate_hz, Some(temp), seed);
     let real = RealLog {
         channel: CHANNEL.into(),
         x: &x,
@@ -1363,19 +1374,11 @@ fn with_effects(
     extra: impl IntoIterator<Item = Component>,
     seed: u64,
 ) -> (Vec<f64>, Vec<f64>, farma::simulator::Spec) {
-    use farma::simulator::{SimRequest, simulate};
     let rate_hz = 10.0;
     let spec = bank::base_spec(rate_hz, true);
     let mut truth = spec.clone();
     truth.channels[0].components.extend(extra);
-    let mut req = SimRequest::new(temp.len(), rate_hz);
-    req.temperature_c = Some(&temp);
-    req.seed = Some(seed);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
+    let x = simulate_target(&truth, temp.len(), rate_hz, Some(&temp), seed);
     (x, temp, spec)
 }
 
@@ -1772,7 +1775,6 @@ fn a_temperature_bias_below_the_omnibus_threshold_is_found_by_the_candidate_test
 /// the averaged diagnosis, is in `spec_after` as it was, with the rate of the log.
 #[test]
 fn a_log_longer_than_max_samples_is_averaged_and_the_output_path_put_back() {
-    use farma::simulator::{SimRequest, simulate};
     let n = 72_000;
     let temp: Vec<f64> = (0..n)
         .map(|k| 20.0 + 15.0 * (k as f64 / n as f64 * std::f64::consts::PI).sin())
@@ -1791,14 +1793,7 @@ fn a_log_longer_than_max_samples_is_averaged_and_the_output_path_put_back() {
             coeffs: vec![0.01],
             reference_c: Some(25.0),
         });
-    let mut req = SimRequest::new(n, 10.0);
-    req.temperature_c = Some(&temp);
-    req.seed = Some(41);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
+    let x = simulate_target(&truth, n, 10.0, Some(&temp), 41);
     let real = bank_log(&x, Some(&temp), 10.0);
     let prm = GapParams {
         max_samples: 20_000,
@@ -1854,7 +1849,6 @@ fn a_log_longer_than_max_samples_is_averaged_and_the_output_path_put_back() {
 /// which.
 #[test]
 fn a_long_log_s_slow_effect_is_found_averaged_and_its_rounding_on_the_per_sample_part() {
-    use farma::simulator::{SimRequest, simulate};
     let (n, rate_hz) = (200_000, 100.0);
     let spec = bank::base_spec(rate_hz, false);
     let mut truth = spec.clone();
@@ -1867,13 +1861,7 @@ fn a_long_log_s_slow_effect_is_found_averaged_and_its_rounding_on_the_per_sample
             quantum: 0.05,
             on_angle: false,
         });
-    let mut req = SimRequest::new(n, rate_hz);
-    req.seed = Some(43);
-    let x = simulate(&truth, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
+    let x = simulate_target(&truth, n, rate_hz, None, 43);
     let real = bank_log(&x, None, rate_hz);
     let prm = GapParams {
         max_samples: 20_000,
@@ -1937,7 +1925,6 @@ fn a_long_log_s_slow_effect_is_found_averaged_and_its_rounding_on_the_per_sample
 /// averaged log), diagnosed at the log's own rate, and a note says so.
 #[test]
 fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_20() {
-    use farma::simulator::{SimRequest, simulate};
     let mut spec = bank::base_spec(10.0, false);
     spec.channels[0].components.push(Component::Arma {
         ar: vec![0.5],
@@ -1945,13 +1932,7 @@ fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_
         sigma: 0.01,
     });
     let n = 30_000;
-    let mut req = SimRequest::new(n, 10.0);
-    req.seed = Some(7);
-    let x = simulate(&spec, &req)
-        .unwrap()
-        .channel(CHANNEL)
-        .unwrap()
-        .to_vec();
+    let x = simulate_target(&spec, n, 10.0, None, 7);
     let real = bank_log(&x, None, 10.0);
     let prm = GapParams {
         max_samples: 10_000,
