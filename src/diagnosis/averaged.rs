@@ -26,7 +26,12 @@ use indicatif::ProgressBar;
 
 use super::{Diagnosis, GapParams, RealLog};
 use crate::error::{Error, Result};
-use crate::simulator::{Component, Kind, Spec};
+use std::f64::consts::PI;
+
+use super::block_filter;
+use crate::simulator::generate::output::{Fir, LowPass};
+use crate::simulator::spec::MAX_FIR_TAPS;
+use crate::simulator::{Component, Discretization, Kind, Spec};
 
 /// The longest channel diagnosed at its own rate, by default (2^20 samples: the
 /// ADIS16405 runs' 1e6 are not averaged; at 2^16 they are averaged by 16 and
@@ -111,43 +116,111 @@ pub struct TakenOut {
     /// Per channel: the index of its first stand-in and how many there are (they
     /// follow the channel's kept components; the averaged diagnosis adds after them).
     stand_ins: Vec<(usize, usize)>,
+    /// The block length K.
+    k: usize,
 }
 
-/// The component that stands in, in the averaged spec, for the
-/// per-sample component `c` of a channel at `rate_hz` whose white noise has sample
-/// standard deviation `sd` (None: nothing stands in).
+/// The component that stands in, in the averaged spec, for the per-sample component
+/// `c` of a channel at `rate_hz` averaged over blocks of `k` samples whose white noise
+/// has sample standard deviation `sd` (None: nothing stands in).
 /// - A rounding of the rate to `quantum` q adds an error uniform over +-q/2 to each
-///   sample, independent of the others while q is at most 1.5 `sd` (Sheppard's
+///   sample, independent of the others while q is at most 2 `sd` (Sheppard's
 ///   correction): white noise of density n = q / sqrt(12 rate_hz) (its sample variance
-///   n^2 rate_hz = q^2 / 12). Coarser, the error follows the signal and nothing stands
-///   in: a normal sample of sd 1 rounded to 1.5 has the variance 1 + q^2 / 12 to 0.1 %,
-///   rounded to 2, 2.5 % below it (numpy, 4e6 draws).
-/// - A rounding of the angle to steps of q / rate_hz: the rate's error is the first
-///   difference of a uniform angle error, whose block means are the angle quantization
-///   noise at any rate (`quantization`, IEEE 952 Q = angle quantum / sqrt(12) =
-///   q / (rate_hz sqrt(12))).
-/// - A low-pass filter: the block mean (a boxcar in continuous time) and the filter
-///   commute, so the block means of the filtered rate are the filter's output on the
-///   block means: it stands in for itself, discretized at the averaged rate by the
-///   zero-order hold (the continuous filter sampled, exact at any bandwidth for an
-///   input held over each interval; a bilinear filter's warping at the log's rate is
-///   lost). A filter much faster than the averaged rate settles within a block and
-///   leaves the block means nearly as they were, as its stand-in does.
-/// - Saturation, a FIR and outliers: nothing.
-fn stand_in(c: &Component, rate_hz: f64, sd: f64) -> Option<Component> {
+///   n^2 rate_hz = q^2 / 12). A normal sample of sd 1 rounded to q at a fixed offset has
+///   the variance 1 + q^2 / 12 to 0.1 % at q = 1.5, to 2.5 % at q = 2 (a tenth of the
+///   rounding's share, which leaving it out would miss), to 13 % at q = 2.5 and 31 % at
+///   q = 3 (numpy, 4e6 draws, the worst of 8 offsets): coarser, the error follows the
+///   signal and nothing stands in.
+/// - A rounding of the angle to steps of q / rate_hz: the same rounding at the averaged
+///   rate, of the rate quantum q / k (the same angle step). The block mean of the rate
+///   read from a rounded angle is (R(A_end) - R(A_start)) / (k dt), R the rounding and
+///   A the angle at the block's ends, and the angle at the end of each block is the
+///   integral of the block means: the stand-in is exact, at any quantum.
+/// - Outliers at `rate_hz` r of size s: the same outliers at the averaged rate, of
+///   size s / k (an outlier's share of its block mean), at r (at most the averaged
+///   rate); exact while two outliers in one block are rare (r k / rate_hz small).
+/// - A low-pass filter, or a FIR: [`filter_stand_in`].
+/// - Saturation: nothing.
+fn stand_in(c: &Component, rate_hz: f64, k: usize, sd: f64) -> Option<Component> {
     match c {
+        Component::Outliers {
+            rate_hz: r,
+            scale,
+            dof,
+        } => Some(Component::Outliers {
+            rate_hz: r.min(rate_hz / k as f64),
+            scale: scale / k as f64,
+            dof: *dof,
+        }),
         Component::OutputResolution {
             quantum,
             on_angle: false,
-        } if *quantum <= 1.5 * sd => Some(Component::WhiteNoise {
+        } if *quantum <= 2.0 * sd => Some(Component::WhiteNoise {
             n: quantum / (12.0 * rate_hz).sqrt(),
         }),
         Component::OutputResolution {
             quantum,
             on_angle: true,
-        } => Some(Component::Quantization {
-            q: quantum / (rate_hz * 12f64.sqrt()),
+        } => Some(Component::OutputResolution {
+            quantum: quantum / k as f64,
+            on_angle: true,
         }),
+        _ => None,
+    }
+}
+
+/// The component that stands in, in the averaged spec, for the output filter `c` (a
+/// low-pass or a FIR) of a channel at `rate_hz` averaged over blocks of `k` samples,
+/// whose white noise has sample variance `white_var` and whose other stand-ins are
+/// `others` ([`stand_in`]):
+/// - the FIR at the averaged rate of [`block_filter::block_mean_fir`]: the averaged
+///   white noise and the roundings' stand-ins through it have the spectrum of the block
+///   means of the white noise filtered and the roundings after it (the filter at the
+///   averaged rate would not: the block means of a filtered white noise are not the
+///   filter's output on the block means unless the filter is slow against a block);
+/// - when that FIR is longer than [`MAX_FIR_TAPS`] taps (a filter slow against a
+///   block, which then nearly commutes with the block mean) or the channel has no
+///   white noise: a low-pass as itself at the averaged rate, discretized by the
+///   zero-order hold; a FIR, nothing.
+fn filter_stand_in(
+    c: &Component,
+    rate_hz: f64,
+    k: usize,
+    white_var: f64,
+    others: &[Component],
+) -> Option<Component> {
+    let low_pass = |order: usize, bw: f64, damping: Option<f64>, disc| {
+        LowPass::with(order, bw, damping, disc, rate_hz)
+    };
+    let power: Box<dyn Fn(f64) -> f64> = match c {
+        Component::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+            discretization,
+        } => {
+            let f = low_pass(*order, *bandwidth_hz, *damping, *discretization);
+            Box::new(move |v| f.power_response(v * rate_hz / (2.0 * PI), rate_hz))
+        }
+        Component::OutputFir { taps } => {
+            let f = Fir::new(taps);
+            Box::new(move |v| f.power_response(v * rate_hz / (2.0 * PI), rate_hz))
+        }
+        _ => return None,
+    };
+    let avg_hz = rate_hz / k as f64;
+    // the rate roundings' stand-ins: white noise, its variance per averaged sample
+    let round_var: f64 = others
+        .iter()
+        .map(|o| match o {
+            Component::WhiteNoise { n } => n * n * avg_hz,
+            _ => 0.0,
+        })
+        .sum();
+    if let Some(taps) = block_filter::block_mean_fir(power, k, white_var, round_var, MAX_FIR_TAPS) {
+        return Some(Component::OutputFir { taps });
+    }
+    match c {
         Component::OutputFilter {
             order,
             bandwidth_hz,
@@ -157,7 +230,7 @@ fn stand_in(c: &Component, rate_hz: f64, sd: f64) -> Option<Component> {
             order: *order,
             bandwidth_hz: *bandwidth_hz,
             damping: *damping,
-            discretization: crate::simulator::Discretization::Zoh,
+            discretization: Discretization::Zoh,
         }),
         _ => None,
     }
@@ -172,7 +245,10 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
     refuse_rate_model(spec, k)?;
     let mut out = spec.clone();
     out.sample_rate_hz = rate_hz / k as f64;
-    let mut taken = TakenOut::default();
+    let mut taken = TakenOut {
+        k,
+        ..TakenOut::default()
+    };
     for (j, ch) in out.channels.iter_mut().enumerate() {
         let sd = (ch
             .components
@@ -189,10 +265,15 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
             .drain(..)
             .partition(|c| !acts_on_each_sample(c));
         ch.components = keep;
-        let stand: Vec<Component> = out_j
+        let mut stand: Vec<Component> = out_j
             .iter()
-            .filter_map(|c| stand_in(c, rate_hz, sd))
+            .filter_map(|c| stand_in(c, rate_hz, k, sd))
             .collect();
+        let filters: Vec<Component> = out_j
+            .iter()
+            .filter_map(|c| filter_stand_in(c, rate_hz, k, sd * sd, &stand))
+            .collect();
+        stand.extend(filters);
         taken.stand_ins.push((ch.components.len(), stand.len()));
         ch.components.extend(stand);
         taken.removed.extend(out_j.into_iter().map(|c| (j, c)));
@@ -203,12 +284,19 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
 /// `spec_after` of an averaged diagnosis at the log's own rate `rate_hz`, with the
 /// stand-ins [`spec_at`] put in taken out and the components it took out put back
 /// after each channel's others (the output path's components keep their order among
-/// themselves, which is all the simulator reads of it).
+/// themselves, which is all the simulator reads of it). Outliers the averaged
+/// diagnosis added (in the form of their block means, as `stand_in` puts them) are put at the
+/// log's rate: their size times K.
 pub fn restore(spec_after: &Spec, rate_hz: f64, taken: &TakenOut) -> Spec {
     let mut out = spec_after.clone();
     out.sample_rate_hz = rate_hz;
     for (j, &(at, n)) in taken.stand_ins.iter().enumerate() {
         let comps = &mut out.channels[j].components;
+        for c in comps.iter_mut().skip(at + n) {
+            if let Component::Outliers { scale, .. } = c {
+                *scale *= taken.k.max(1) as f64;
+            }
+        }
         if n > 0 && at + n <= comps.len() {
             comps.drain(at..at + n);
         }
@@ -219,10 +307,29 @@ pub fn restore(spec_after: &Spec, rate_hz: f64, taken: &TakenOut) -> Spec {
     out
 }
 
+/// An outliers effect of the averaged diagnosis, whose size is that of their block
+/// means of `k` samples (as `stand_in` puts them), put at the log's rate (its size times `k`), as
+/// [`restore`] puts it in `spec_after`.
+pub fn outliers_at_log_rate(e: &mut super::Effect, k: usize) {
+    if let Component::Outliers { scale, .. } = &mut e.component {
+        *scale *= k as f64;
+        if let Some(v) = e.params.get_mut("scale")
+            && let Some(x) = v.as_f64()
+        {
+            *v = serde_json::json!(x * k as f64);
+        }
+    }
+}
+
 /// The candidate kinds of an averaged diagnosis: every kind and its recalibration but
-/// the per-sample ones and the models at the log's own rate.
+/// the per-sample ones and the models at the log's own rate, and the outliers (their
+/// block means are outliers too, as `stand_in` puts them; not recalibrated: a stand-in's
+/// recalibration would not reach `spec_after`).
 pub fn candidate_kinds() -> Vec<String> {
-    kinds_where(|k| !(acts_on_each_sample_kind(k) || matches!(k, Kind::Arma | Kind::Farma)))
+    let mut v =
+        kinds_where(|k| !(acts_on_each_sample_kind(k) || matches!(k, Kind::Arma | Kind::Farma)));
+    v.push(Kind::Outliers.as_str().to_string());
+    v
 }
 
 /// The candidate kinds of the per-sample part ([`per_sample`]): the output path's, the
@@ -430,18 +537,25 @@ mod tests {
         assert_eq!(factor(11, 5), 3);
     }
 
-    /// The block means of a rounded white noise have the variance of white noise plus
-    /// the rounding's stand-in (rate and angle forms; the noise alone is 8 % below it
-    /// on the rate): 4e6 samples at 100 Hz, q = sd, averaged by 100 (the estimates'
-    /// relative sd about sqrt(2 / 4e4) = 0.7 %).
+    /// The block means of a rounded white noise have the variance and lag-1
+    /// autocorrelation of the rounding's stand-in (the rate rounded to 1 sd; the angle
+    /// rounded to 1 and 3 sd, its stand-in the same angle step at the averaged rate; the
+    /// noise alone is 8 % below it on the rate): 4e6 samples at 100 Hz, averaged by 100
+    /// (the estimates' relative sd about sqrt(2 / 4e4) = 0.7 %, the correlations' sd
+    /// about 0.005).
     #[test]
     fn a_rounding_s_stand_in_gives_its_block_means_variance() {
         use crate::simulator::{SimRequest, simulate};
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let var = |v: &[f64]| {
-            let m = v.iter().sum::<f64>() / v.len() as f64;
+            let m = mean(v);
             v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / v.len() as f64
         };
-        for on_angle in [false, true] {
+        let lag1 = |v: &[f64]| {
+            let m = mean(v);
+            v.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum::<f64>() / v.len() as f64 / var(v)
+        };
+        for (on_angle, quantum) in [(false, 1.0), (true, 1.0), (true, 3.0)] {
             let spec = Spec {
                 sample_rate_hz: 100.0,
                 temperature_channel: None,
@@ -449,16 +563,14 @@ mod tests {
                 channels: vec![crate::simulator::ChannelSpec {
                     name: "x".into(),
                     components: vec![
+                        Component::ConstantBias { value: 0.3 },
                         Component::WhiteNoise { n: 0.1 },
-                        Component::OutputResolution {
-                            quantum: 1.0,
-                            on_angle,
-                        },
+                        Component::OutputResolution { quantum, on_angle },
                     ],
                 }],
             };
             let (avg, _) = spec_at(&spec, 100.0, 100).unwrap();
-            assert_eq!(avg.channels[0].components.len(), 2);
+            assert_eq!(avg.channels[0].components.len(), 3);
             let mut req = SimRequest::new(4_000_000, 100.0);
             req.seed = Some(5);
             let full = simulate(&spec, &req).unwrap();
@@ -466,10 +578,22 @@ mod tests {
             let mut req = SimRequest::new(40_000, 1.0);
             req.seed = Some(6);
             let at = simulate(&avg, &req).unwrap();
-            let (want, got) = (var(&means), var(at.channel("x").unwrap()));
+            let at = at.channel("x").unwrap();
+            let (want, got) = (var(&means), var(at));
             assert!(
                 (got / want - 1.0).abs() < 0.03,
-                "on_angle {on_angle}: block means {want}, stand-in {got}"
+                "on_angle {on_angle} quantum {quantum}: block means {want}, stand-in {got}"
+            );
+            let (want1, got1) = (lag1(&means), lag1(at));
+            assert!(
+                (got1 - want1).abs() < 0.025,
+                "on_angle {on_angle} quantum {quantum}: lag-1 {want1} against {got1}"
+            );
+            assert!(
+                (mean(at) - mean(&means)).abs() < 0.01,
+                "{} {}",
+                mean(at),
+                mean(&means)
             );
             if !on_angle {
                 assert!(want > 1.05 * 0.01, "{want}");
@@ -521,10 +645,16 @@ k = 0.001
                 n: 0.05 / 1200f64.sqrt()
             }
         );
-        // an effect the averaged diagnosis adds follows the stand-ins and stays
+        // an effect the averaged diagnosis adds follows the stand-ins and stays; an
+        // outliers' size goes back to the log's rate
         avg.channels[0]
             .components
             .push(Component::ConstantBias { value: 1.0 });
+        avg.channels[0].components.push(Component::Outliers {
+            rate_hz: 0.1,
+            scale: 0.5,
+            dof: None,
+        });
         let back = restore(&avg, 100.0, &taken);
         assert_eq!(back.sample_rate_hz, 100.0);
         assert_eq!(
@@ -533,8 +663,17 @@ k = 0.001
                 Kind::WhiteNoise,
                 Kind::RateRandomWalk,
                 Kind::ConstantBias,
+                Kind::Outliers,
                 Kind::OutputResolution
             ]
+        );
+        assert_eq!(
+            back.channels[0].components[3],
+            Component::Outliers {
+                rate_hz: 0.1,
+                scale: 50.0,
+                dof: None
+            }
         );
         let mut arma = spec.clone();
         arma.channels[0].components.push(Component::Arma {
@@ -547,6 +686,8 @@ k = 0.001
         let kinds = candidate_kinds();
         assert!(kinds.contains(&"rate_random_walk".to_string()));
         assert!(kinds.contains(&"recalibrate:white_noise".to_string()));
+        assert!(kinds.contains(&"outliers".to_string()));
+        assert!(!kinds.contains(&"recalibrate:outliers".to_string()));
         assert!(
             !kinds
                 .iter()

@@ -32,6 +32,7 @@
 
 pub mod averaged;
 pub mod bank;
+pub mod block_filter;
 pub mod blocks;
 pub mod candidates;
 pub mod distance;
@@ -502,6 +503,9 @@ fn diagnose_averaged(
     let p = averaged::params_for(prm, averaged::candidate_kinds(), true);
     let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
     d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &taken);
+    for e in d.added.iter_mut().chain(&mut d.effects) {
+        averaged::outliers_at_log_rate(e, k);
+    }
     d.averaged_by = k;
     let left_out = if taken.removed.is_empty() {
         String::new()
