@@ -40,8 +40,9 @@ use crate::simulator::{Component, Discretization, Kind, Spec};
 pub const MAX_SAMPLES: usize = 1 << 20;
 
 /// The longest channel diagnosed at its own rate when the spec holds a model at that
-/// rate (ARMA, FARMA: [`rate_model`]), which cannot simulate an averaged log; a longer
-/// one is refused ([`spec_at`]).
+/// rate (ARMA, FARMA: [`rate_model`]), which cannot simulate an averaged log (a longer
+/// one is refused, [`spec_at`]), or a per-sample component that nothing stands in for
+/// ([`TakenOut::unmatched`]; a longer one is averaged without it).
 pub const MODEL_MAX_SAMPLES: usize = 1 << 20;
 
 /// An error when a channel of `spec` holds an ARMA or FARMA model ([`rate_model`]),
@@ -118,6 +119,10 @@ pub struct TakenOut {
     stand_ins: Vec<(usize, usize)>,
     /// The block length K.
     k: usize,
+    /// The per-sample components taken out that nothing stands in for (a rounding of
+    /// the rate coarser than 2 sd of the white noise, a saturation, a FIR too slow for
+    /// a short one at the averaged rate): (channel, component).
+    pub unmatched: Vec<(usize, Component)>,
 }
 
 /// The component that stands in, in the averaged spec, for the per-sample component
@@ -274,6 +279,13 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
             .filter_map(|c| filter_stand_in(c, rate_hz, k, sd * sd, &stand))
             .collect();
         stand.extend(filters);
+        for c in &out_j {
+            if stand_in(c, rate_hz, k, sd).is_none()
+                && filter_stand_in(c, rate_hz, k, sd * sd, &stand).is_none()
+            {
+                taken.unmatched.push((j, c.clone()));
+            }
+        }
         taken.stand_ins.push((ch.components.len(), stand.len()));
         ch.components.extend(stand);
         taken.removed.extend(out_j.into_iter().map(|c| (j, c)));

@@ -465,6 +465,38 @@ fn diagnose_averaged(
         .filter(|f| !f.added.is_empty())
         .map_or(spec, |f| &f.spec_after);
     let (spec_k, taken) = averaged::spec_at(start, real.rate_hz, k)?;
+    let own = spec.channels.iter().position(|c| c.name == real.channel);
+    let unmatched: Vec<&str> = taken
+        .unmatched
+        .iter()
+        .filter(|(j, _)| Some(*j) == own)
+        .map(|(_, c)| c.kind().as_str())
+        .collect();
+    if !unmatched.is_empty() && real.x.len() <= averaged::MODEL_MAX_SAMPLES {
+        // nothing stands in for such a component's block means: up to the same length
+        // as a model at the log's rate, the log is diagnosed at its own rate
+        let p = GapParams {
+            max_samples: 0,
+            ..prm.clone()
+        };
+        let mut d = diagnose_with_progress(real, spec, &p, pb)?;
+        d.notes.insert(
+            0,
+            format!(
+                "the spec{} holds per-sample components whose block means nothing stands in for at an averaged rate ({}: a rounding of the rate coarser than 2 sd of the white noise, a saturation, a slow FIR): the log's {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such components are",
+                if first.as_ref().is_some_and(|f| !f.added.is_empty()) {
+                    " (with what the per-sample part's first pass found on the log's first samples)"
+                } else {
+                    ""
+                },
+                unmatched.join(", "),
+                real.x.len(),
+                prm.max_samples,
+                averaged::MODEL_MAX_SAMPLES
+            ),
+        );
+        return Ok(d);
+    }
     let mean = |v: &[f64]| averaged::block_means(v, k);
     let x = mean(real.x);
     let temperature = real.temperature_c.map(mean);

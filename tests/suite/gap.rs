@@ -1951,3 +1951,39 @@ fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_
         d.notes[0]
     );
 }
+
+/// A spec with a rounding of the rate coarser than 2 sd of its white noise (3.2 sd)
+/// against a log longer than `max_samples` but within 2^20 samples: nothing stands in
+/// for the rounding's block means, so the log is diagnosed at its own rate, and a note
+/// says so; with a fine rounding (0.3 sd) the same log is averaged.
+#[test]
+fn a_coarse_rate_rounding_is_diagnosed_at_the_log_s_rate_within_2_pow_20() {
+    let n = 30_000;
+    let prm = GapParams {
+        max_samples: 10_000,
+        replicas: 5,
+        screen: false,
+        max_added: 1,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    for (quantum, averaged_by) in [(0.1, 1), (0.01, 3)] {
+        let mut spec = bank::base_spec(10.0, false);
+        spec.channels[0]
+            .components
+            .push(Component::OutputResolution {
+                quantum,
+                on_angle: false,
+            });
+        let x = simulate_target(&spec, n, 10.0, None, 8);
+        let real = bank_log(&x, None, 10.0);
+        let d = diagnose(&real, &spec, &prm).unwrap();
+        assert_eq!(
+            d.averaged_by, averaged_by,
+            "quantum {quantum}: {:?}",
+            d.notes
+        );
+        let note = d.notes[0].contains("nothing stands in") && d.notes[0].contains("own rate");
+        assert_eq!(note, averaged_by == 1, "{}", d.notes[0]);
+    }
+}
