@@ -120,22 +120,23 @@ pub struct TakenOut {
     /// The block length K.
     k: usize,
     /// The per-sample components taken out that nothing stands in for (a rounding of
-    /// the rate coarser than 2 sd of the white noise, a saturation, a FIR too slow for
+    /// the rate coarser than 1.5 sd of the white noise, a saturation, a FIR too slow for
     /// a short one at the averaged rate): (channel, component).
     pub unmatched: Vec<(usize, Component)>,
 }
 
 /// The component that stands in, in the averaged spec, for the per-sample component
-/// `c` of a channel at `rate_hz` averaged over blocks of `k` samples whose white noise
-/// has sample standard deviation `sd` (None: nothing stands in).
+/// `c` of a channel at `rate_hz` averaged over blocks of `k` samples whose white noise,
+/// through the channel's output filter, has sample standard deviation `sd` (None:
+/// nothing stands in).
 /// - A rounding of the rate to `quantum` q adds an error uniform over +-q/2 to each
-///   sample, independent of the others while q is at most 2 `sd` (Sheppard's
+///   sample, independent of the others while q is at most 1.5 `sd` (Sheppard's
 ///   correction): white noise of density n = q / sqrt(12 rate_hz) (its sample variance
 ///   n^2 rate_hz = q^2 / 12). A normal sample of sd 1 rounded to q at a fixed offset has
-///   the variance 1 + q^2 / 12 to 0.1 % at q = 1.5, to 2.5 % at q = 2 (a tenth of the
-///   rounding's share, which leaving it out would miss), to 13 % at q = 2.5 and 31 % at
-///   q = 3 (numpy, 4e6 draws, the worst of 8 offsets): coarser, the error follows the
-///   signal and nothing stands in.
+///   the variance 1 + q^2 / 12 to 0.1 % at q = 1.5, to 2.5 % at q = 2, 13 % at q = 2.5
+///   and 31 % at q = 3 (numpy, 4e6 draws, the worst of 8 offsets), an error that moves
+///   with the offset (a slow drift) and reads as a noise level changing in time:
+///   coarser than 1.5, the error follows the signal and nothing stands in.
 /// - A rounding of the angle to steps of q / rate_hz: the same rounding at the averaged
 ///   rate, of the rate quantum q / k (the same angle step). The block mean of the rate
 ///   read from a rounded angle is (R(A_end) - R(A_start)) / (k dt), R the rounding and
@@ -160,7 +161,7 @@ fn stand_in(c: &Component, rate_hz: f64, k: usize, sd: f64) -> Option<Component>
         Component::OutputResolution {
             quantum,
             on_angle: false,
-        } if *quantum <= 2.0 * sd => Some(Component::WhiteNoise {
+        } if *quantum <= 1.5 * sd => Some(Component::WhiteNoise {
             n: quantum / (12.0 * rate_hz).sqrt(),
         }),
         Component::OutputResolution {
@@ -172,6 +173,45 @@ fn stand_in(c: &Component, rate_hz: f64, k: usize, sd: f64) -> Option<Component>
         }),
         _ => None,
     }
+}
+
+/// The power response |H(e^(i v))|^2 of the output filter `c` (a low-pass or a FIR) at
+/// `rate_hz`, v in radians per sample; None for another component.
+fn filter_power(c: &Component, rate_hz: f64) -> Option<Box<dyn Fn(f64) -> f64>> {
+    let to_hz = rate_hz / (2.0 * PI);
+    match c {
+        Component::OutputFilter {
+            order,
+            bandwidth_hz,
+            damping,
+            discretization,
+        } => {
+            let f = LowPass::with(*order, *bandwidth_hz, *damping, *discretization, rate_hz);
+            Some(Box::new(move |v| f.power_response(v * to_hz, rate_hz)))
+        }
+        Component::OutputFir { taps } => {
+            let f = Fir::new(taps);
+            Some(Box::new(move |v| f.power_response(v * to_hz, rate_hz)))
+        }
+        _ => None,
+    }
+}
+
+/// The variance gain of a white noise through the output filters among `comps`:
+/// (1 / 2 pi) the integral of the power response over a period (the mean of 4096
+/// equally spaced values; 1 without a filter).
+fn noise_gain(comps: &[Component], rate_hz: f64) -> f64 {
+    comps
+        .iter()
+        .filter_map(|c| filter_power(c, rate_hz))
+        .map(|p| {
+            let n = 4096;
+            (0..n)
+                .map(|m| p(2.0 * PI * (m as f64 + 0.5) / n as f64))
+                .sum::<f64>()
+                / n as f64
+        })
+        .product()
 }
 
 /// The component that stands in, in the averaged spec, for the output filter `c` (a
@@ -194,25 +234,7 @@ fn filter_stand_in(
     white_var: f64,
     others: &[Component],
 ) -> Option<Component> {
-    let low_pass = |order: usize, bw: f64, damping: Option<f64>, disc| {
-        LowPass::with(order, bw, damping, disc, rate_hz)
-    };
-    let power: Box<dyn Fn(f64) -> f64> = match c {
-        Component::OutputFilter {
-            order,
-            bandwidth_hz,
-            damping,
-            discretization,
-        } => {
-            let f = low_pass(*order, *bandwidth_hz, *damping, *discretization);
-            Box::new(move |v| f.power_response(v * rate_hz / (2.0 * PI), rate_hz))
-        }
-        Component::OutputFir { taps } => {
-            let f = Fir::new(taps);
-            Box::new(move |v| f.power_response(v * rate_hz / (2.0 * PI), rate_hz))
-        }
-        _ => return None,
-    };
+    let power = filter_power(c, rate_hz)?;
     let avg_hz = rate_hz / k as f64;
     // the rate roundings' stand-ins: white noise, its variance per averaged sample
     let round_var: f64 = others
@@ -270,9 +292,11 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
             .drain(..)
             .partition(|c| !acts_on_each_sample(c));
         ch.components = keep;
+        // the rounding comes after the filter: its condition reads the filtered noise
+        let sd_out = sd * noise_gain(&out_j, rate_hz).sqrt();
         let mut stand: Vec<Component> = out_j
             .iter()
-            .filter_map(|c| stand_in(c, rate_hz, k, sd))
+            .filter_map(|c| stand_in(c, rate_hz, k, sd_out))
             .collect();
         let filters: Vec<Component> = out_j
             .iter()
@@ -280,7 +304,7 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
             .collect();
         stand.extend(filters);
         for c in &out_j {
-            if stand_in(c, rate_hz, k, sd).is_none()
+            if stand_in(c, rate_hz, k, sd_out).is_none()
                 && filter_stand_in(c, rate_hz, k, sd * sd, &stand).is_none()
             {
                 taken.unmatched.push((j, c.clone()));
@@ -611,6 +635,55 @@ mod tests {
                 assert!(want > 1.05 * 0.01, "{want}");
             }
         }
+    }
+
+    /// The rounding's condition reads the noise after the filter: a rounding to 1.2 sd
+    /// of the white noise stands in alone, but behind a 5 Hz low-pass at 100 Hz (which
+    /// keeps about a sixth of the noise's variance) it is 3 sd of what it rounds.
+    #[test]
+    fn a_rounding_behind_a_filter_is_judged_on_the_filtered_noise() {
+        let spec = |filter: bool| {
+            let mut components = vec![
+                Component::WhiteNoise { n: 0.1 },
+                Component::OutputResolution {
+                    quantum: 1.2,
+                    on_angle: false,
+                },
+            ];
+            if filter {
+                components.push(Component::OutputFilter {
+                    order: 1,
+                    bandwidth_hz: 5.0,
+                    damping: None,
+                    discretization: Discretization::Zoh,
+                });
+            }
+            Spec {
+                sample_rate_hz: 100.0,
+                temperature_channel: None,
+                seed: Some(3),
+                channels: vec![crate::simulator::ChannelSpec {
+                    name: "x".into(),
+                    components,
+                }],
+            }
+        };
+        let gain = noise_gain(&spec(true).channels[0].components, 100.0);
+        // order 1, a = exp(-2 pi 5 / 100): (1 - a)^2 / (1 - a^2) = (1 - a) / (1 + a)
+        let a = (-2.0 * PI * 5.0 / 100.0).exp();
+        assert!((gain - (1.0 - a) / (1.0 + a)).abs() < 1e-6, "{gain}");
+        let (_, alone) = spec_at(&spec(false), 100.0, 10).unwrap();
+        assert!(alone.unmatched.is_empty());
+        let (avg, behind) = spec_at(&spec(true), 100.0, 10).unwrap();
+        assert_eq!(behind.unmatched.len(), 1);
+        assert_eq!(behind.unmatched[0].1.kind(), Kind::OutputResolution);
+        // the filter still stands in, as a FIR
+        assert!(
+            avg.channels[0]
+                .components
+                .iter()
+                .any(|c| matches!(c, Component::OutputFir { .. }))
+        );
     }
 
     #[test]

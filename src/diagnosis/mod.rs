@@ -483,7 +483,7 @@ fn diagnose_averaged(
         d.notes.insert(
             0,
             format!(
-                "the spec{} holds per-sample components whose block means nothing stands in for at an averaged rate ({}: a rounding of the rate coarser than 2 sd of the white noise, a saturation, a slow FIR): the log's {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such components are",
+                "the spec{} holds per-sample components whose block means nothing stands in for at an averaged rate ({}: a rounding of the rate coarser than 1.5 sd of the white noise, a saturation, a slow FIR): the log's {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such components are",
                 if first.as_ref().is_some_and(|f| !f.added.is_empty()) {
                     " (with what the per-sample part's first pass found on the log's first samples)"
                 } else {

@@ -1952,7 +1952,7 @@ fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_
     );
 }
 
-/// A spec with a rounding of the rate coarser than 2 sd of its white noise (3.2 sd)
+/// A spec with a rounding of the rate coarser than 1.5 sd of its white noise (3.2 sd)
 /// against a log longer than `max_samples` but within 2^20 samples: nothing stands in
 /// for the rounding's block means, so the log is diagnosed at its own rate, and a note
 /// says so; with a fine rounding (0.3 sd) the same log is averaged.
