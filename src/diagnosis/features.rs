@@ -765,8 +765,14 @@ impl Layout {
                 let suu = b[3] - b[1] * b[1] / n;
                 let suy = b[4] - b[1] * b[2] / n;
                 // a bin whose lagged values have no spread (one level of a discrete
-                // series: suu is then rounding residue of b[3]) has no slope
-                if suu > 1e-9 * b[3] { suy / suu } else { 0.0 }
+                // series: suu is then rounding residue of b[3]; or a spread within a
+                // cell, the float noise of a level 0 that block means carry) has no
+                // slope
+                if suu > 1e-9 * b[3] && suu > n * cell * cell {
+                    suy / suu
+                } else {
+                    0.0
+                }
             })
             .collect()
     }

@@ -543,7 +543,7 @@ fn diagnose_averaged(
         String::new()
     } else {
         format!(
-            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as angle quantization noise, a low-pass filter as itself at the averaged rate) and are in spec_after (as they were, unless the per-sample part changes them)",
+            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as the same angle step at the averaged rate, outliers as outliers of a {k}-th of their size, a filter as the FIR at the averaged rate that gives the block means' spectrum) and are in spec_after (as they were, unless the per-sample part changes them)",
             taken
                 .removed
                 .iter()

@@ -1987,3 +1987,45 @@ fn a_coarse_rate_rounding_is_diagnosed_at_the_log_s_rate_within_2_pow_20() {
         assert_eq!(note, averaged_by == 1, "{}", d.notes[0]);
     }
 }
+
+/// A right spec with a first-order filter at 12 Hz and an angle rounding of 3 sd of the
+/// filtered noise, against a 100 Hz log averaged by 4 (25 Hz: the filter near the
+/// averaged Nyquist frequency): the stand-ins (the filter's block-mean FIR, the same
+/// angle step at 25 Hz) match the block means, so the averaged part is not
+/// significant and adds nothing.
+#[test]
+fn a_right_spec_with_a_fast_filter_and_an_angle_rounding_is_not_significant_averaged() {
+    let (n, rate_hz) = (80_000, 100.0);
+    let mut spec = bank::base_spec(rate_hz, false);
+    spec.channels[0].components.extend([
+        Component::ConstantBias { value: 0.02 },
+        Component::OutputFilter {
+            order: 1,
+            bandwidth_hz: 12.0,
+            damping: None,
+            discretization: farma::simulator::Discretization::Zoh,
+        },
+        Component::OutputResolution {
+            quantum: 0.1,
+            on_angle: true,
+        },
+    ]);
+    let x = simulate_target(&spec, n, rate_hz, None, 12);
+    let real = bank_log(&x, None, rate_hz);
+    let prm = GapParams {
+        max_samples: 20_000,
+        excerpt_samples: 0,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    assert_eq!(d.averaged_by, 4);
+    assert!(
+        !d.significant && d.added.is_empty(),
+        "gap {} (threshold {}), added {:?}; notes {:?}",
+        d.gap_before,
+        d.gap_threshold,
+        d.added.iter().map(|e| &e.kind).collect::<Vec<_>>(),
+        d.notes
+    );
+}
