@@ -16,19 +16,22 @@
 //! signal is its value at the block's centre, plus T''-terms of order (K dt)^2). It does not hold
 //! for what acts on each sample: the output path (filter, resolution, saturation), the
 //! outliers, and an ARMA or FARMA model fitted at the log's own rate. The first two are
-//! taken out of the spec for the averaged diagnosis and put back, unchanged, in
-//! `spec_after` (a note says so), and are not candidates (nor is the distinct-value
-//! share a feature, nor the log's printed precision read: a block mean of a rounded
-//! output lies on a grid of its own); a spec with an ARMA or FARMA
-//! component is refused (the averaged log cannot be simulated from it).
+//! taken out of the spec for the averaged diagnosis, stand-ins for their block means
+//! put in their place (`stand_in`: the same angle rounding at the averaged rate, the
+//! filter's block-mean FIR of [`block_filter`], ...), and put back, unchanged, in
+//! `spec_after` (a note says so); they are not candidates but for the outliers (nor is
+//! the distinct-value share a feature, nor the log's printed precision read: a block
+//! mean of a rounded output lies on a grid of its own). A spec with an ARMA or FARMA
+//! component, or with a per-sample component nothing stands in for, is diagnosed at
+//! the log's own rate up to [`MODEL_MAX_SAMPLES`]; above, the first is refused (the
+//! averaged log cannot be simulated from it) and the second averaged without it.
+
+use std::f64::consts::PI;
 
 use indicatif::ProgressBar;
 
-use super::{Diagnosis, GapParams, RealLog};
+use super::{Diagnosis, GapParams, RealLog, block_filter};
 use crate::error::{Error, Result};
-use std::f64::consts::PI;
-
-use super::block_filter;
 use crate::simulator::generate::output::{Fir, LowPass};
 use crate::simulator::spec::MAX_FIR_TAPS;
 use crate::simulator::{Component, Discretization, Kind, Spec};
