@@ -51,6 +51,20 @@ impl Blocks {
     /// `n_blocks` interleaved blocks over `n` samples, a share `train_fraction` of them
     /// for training. Needs at least one block in each part and 64 samples per block.
     pub fn interleaved(n: usize, n_blocks: usize, train_fraction: f64) -> Result<Blocks> {
+        Self::interleaved_with(n, n_blocks, train_fraction, MIN_PIECE)
+    }
+
+    /// [`Blocks::interleaved`] with block 0's pieces at least `min_piece` samples (at
+    /// least 64) instead of [`MIN_PIECE`]: a log averaged over blocks of K samples
+    /// takes MIN_PIECE / K, so that its pieces span the time they span in the log at
+    /// its own rate.
+    pub fn interleaved_with(
+        n: usize,
+        n_blocks: usize,
+        train_fraction: f64,
+        min_piece: usize,
+    ) -> Result<Blocks> {
+        let min_piece = min_piece.max(64);
         if !(train_fraction > 0.0 && train_fraction < 1.0) {
             return Err(Error::Usage(format!(
                 "--train-fraction must lie strictly between 0 and 1 (got {train_fraction})"
@@ -84,7 +98,7 @@ impl Blocks {
         // block 0 cut into pieces by halving from its end, alternating roles
         let l0 = n / n_blocks;
         let mut k = 0;
-        while k < MAX_START_HALVINGS && (l0 >> (k + 1)) >= MIN_PIECE {
+        while k < MAX_START_HALVINGS && (l0 >> (k + 1)) >= min_piece {
             k += 1;
         }
         let mut ranges = Vec::with_capacity(n_blocks + k);
@@ -199,6 +213,19 @@ mod tests {
         let first = b.ranges[0].len();
         assert!((MIN_PIECE..2 * MIN_PIECE).contains(&first), "{first}");
         assert_eq!(b.ranges.len(), 12 + 11);
+        // an averaged log's pieces span the same time as at the log's own rate: 216 000
+        // samples (8 blocks) and their means over blocks of 4 have the same piece ends
+        // in time
+        let full = Blocks::interleaved(216_000, 8, 0.5).unwrap();
+        let avg = Blocks::interleaved_with(54_000, 8, 0.5, MIN_PIECE / 4).unwrap();
+        assert_eq!(full.ranges.len(), avg.ranges.len());
+        for (f, a) in full.ranges.iter().zip(&avg.ranges) {
+            assert!(f.end.abs_diff(4 * a.end) < 4, "{f:?} {a:?}");
+        }
+        assert_eq!(full.train, avg.train);
+        // never below 64 samples
+        let b = Blocks::interleaved_with(54_000, 8, 0.5, 1).unwrap();
+        assert!(b.min_len() >= 64);
         // a short log: no piece below MIN_PIECE samples
         let b = Blocks::interleaved(12_000, 8, 0.5).unwrap();
         assert_eq!(b.ranges[0], 0..375);

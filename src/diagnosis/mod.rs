@@ -128,6 +128,10 @@ pub struct GapParams {
     /// own rate for the per-sample components, the output path and outliers
     /// ([`averaged::per_sample`]); 0: they are not diagnosed.
     pub excerpt_samples: usize,
+    /// Fewest samples in a piece of block 0 ([`blocks::MIN_PIECE`]; a log averaged
+    /// over blocks of K samples takes MIN_PIECE / K, at least 64: the pieces span the
+    /// time they span at the log's own rate).
+    pub min_piece: usize,
 }
 
 impl Default for GapParams {
@@ -147,6 +151,7 @@ impl Default for GapParams {
             max_samples: averaged::MAX_SAMPLES,
             averaged: false,
             excerpt_samples: averaged::EXCERPT_SAMPLES,
+            min_piece: blocks::MIN_PIECE,
         }
     }
 }
@@ -532,7 +537,10 @@ fn diagnose_averaged(
             .map(|(s, v)| (s.clone(), v.as_slice()))
             .collect(),
     };
-    let p = averaged::params_for(prm, averaged::candidate_kinds(), true);
+    let p = GapParams {
+        min_piece: blocks::MIN_PIECE / k,
+        ..averaged::params_for(prm, averaged::candidate_kinds(), true)
+    };
     let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
     d.spec_after = averaged::restore(&d.spec_after, real.rate_hz, &taken);
     for e in d.added.iter_mut().chain(&mut d.effects) {
@@ -749,7 +757,7 @@ fn diagnose_log(
         ),
         ensemble_bytes,
     )?;
-    let blocks = Blocks::interleaved(n, prm.n_blocks, prm.train_fraction)?;
+    let blocks = Blocks::interleaved_with(n, prm.n_blocks, prm.train_fraction, prm.min_piece)?;
     let max_rounds = 2 * prm.max_added + 2;
     pb.set_length(max_rounds as u64 + 2);
     pb.set_message("ensemble");
