@@ -39,7 +39,7 @@ use crate::simulator::{Component, Discretization, Kind, Spec};
 /// The longest channel diagnosed at its own rate, by default (2^20 samples: the
 /// ADIS16405 runs' 1e6 are not averaged; at 2^16 they are averaged by 16 and
 /// diagnosed about 6x faster in a tenth of the memory, at a cost in accuracy that
-/// BENCHMARKS.md gives: 93 of the bank's 114 development cases against 96, 29 of 36
+/// BENCHMARKS.md gives: 94 of the bank's 114 development cases against 96, 29 of 36
 /// held out against 32, the twenty-sixth session).
 pub const MAX_SAMPLES: usize = 1 << 20;
 
