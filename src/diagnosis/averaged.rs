@@ -298,22 +298,24 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
         ch.components = keep;
         // the rounding comes after the filter: its condition reads the filtered noise
         let sd_out = sd * noise_gain(&out_j, rate_hz).sqrt();
-        let mut stand: Vec<Component> = out_j
-            .iter()
-            .filter_map(|c| stand_in(c, rate_hz, k, sd_out))
-            .collect();
-        let filters: Vec<Component> = out_j
-            .iter()
-            .filter_map(|c| filter_stand_in(c, rate_hz, k, sd * sd, &stand))
-            .collect();
-        stand.extend(filters);
+        // the roundings' and outliers' stand-ins first; the filter's reads them and
+        // follows them, as the output path orders it
+        let mut stand: Vec<Component> = Vec::new();
+        let mut pending: Vec<&Component> = Vec::new();
         for c in &out_j {
-            if stand_in(c, rate_hz, k, sd_out).is_none()
-                && filter_stand_in(c, rate_hz, k, sd * sd, &stand).is_none()
-            {
-                taken.unmatched.push((j, c.clone()));
+            match stand_in(c, rate_hz, k, sd_out) {
+                Some(s) => stand.push(s),
+                None => pending.push(c),
             }
         }
+        let mut filters = Vec::new();
+        for c in pending {
+            match filter_stand_in(c, rate_hz, k, sd * sd, &stand) {
+                Some(f) => filters.push(f),
+                None => taken.unmatched.push((j, c.clone())),
+            }
+        }
+        stand.extend(filters);
         taken.stand_ins.push((ch.components.len(), stand.len()));
         ch.components.extend(stand);
         taken.removed.extend(out_j.into_iter().map(|c| (j, c)));

@@ -390,13 +390,11 @@ pub fn diagnose_with_progress(
         return diagnose_averaged(real, spec, prm, pb, k);
     }
     if k > 1 {
-        let p = GapParams {
-            max_samples: 0,
-            ..prm.clone()
-        };
-        let mut d = diagnose_with_progress(real, spec, &p, pb)?;
-        d.notes.insert(
-            0,
+        return at_own_rate(
+            real,
+            spec,
+            prm,
+            pb,
             format!(
                 "the spec holds an ARMA or FARMA model at the log's own rate, which cannot simulate an averaged log: its {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such a model are",
                 real.x.len(),
@@ -404,7 +402,6 @@ pub fn diagnose_with_progress(
                 averaged::MODEL_MAX_SAMPLES
             ),
         );
-        return Ok(d);
     }
     let found = if prm.keep_events {
         Vec::new()
@@ -447,6 +444,24 @@ pub fn diagnose_with_progress(
     Ok(d)
 }
 
+/// [`diagnose_with_progress`] of `real` at its own rate (`max_samples` 0) whatever its
+/// length, `note` first among the notes: why it was not averaged.
+fn at_own_rate(
+    real: &RealLog,
+    spec: &Spec,
+    prm: &GapParams,
+    pb: &ProgressBar,
+    note: String,
+) -> Result<Diagnosis> {
+    let p = GapParams {
+        max_samples: 0,
+        ..prm.clone()
+    };
+    let mut d = diagnose_with_progress(real, spec, &p, pb)?;
+    d.notes.insert(0, note);
+    Ok(d)
+}
+
 /// [`diagnose_with_progress`] of a log averaged over blocks of `k` samples, at its rate
 /// over `k` ([`averaged`]): the spec without its per-sample components, the candidates
 /// without theirs, and `spec_after` at the log's own rate with them put back.
@@ -465,10 +480,9 @@ fn diagnose_averaged(
     } else {
         None
     };
-    let start = first
-        .as_ref()
-        .filter(|f| !f.added.is_empty())
-        .map_or(spec, |f| &f.spec_after);
+    let from_first = first.as_ref().filter(|f| !f.added.is_empty());
+    let start_from_first = from_first.is_some();
+    let start = from_first.map_or(spec, |f| &f.spec_after);
     let (spec_k, taken) = averaged::spec_at(start, real.rate_hz, k)?;
     let own = spec.channels.iter().position(|c| c.name == real.channel);
     let unmatched: Vec<&str> = taken
@@ -480,16 +494,14 @@ fn diagnose_averaged(
     if !unmatched.is_empty() && real.x.len() <= averaged::MODEL_MAX_SAMPLES {
         // nothing stands in for such a component's block means: up to the same length
         // as a model at the log's rate, the log is diagnosed at its own rate
-        let p = GapParams {
-            max_samples: 0,
-            ..prm.clone()
-        };
-        let mut d = diagnose_with_progress(real, spec, &p, pb)?;
-        d.notes.insert(
-            0,
+        return at_own_rate(
+            real,
+            spec,
+            prm,
+            pb,
             format!(
-                "the spec{} holds per-sample components whose block means nothing stands in for at an averaged rate ({}: a rounding of the rate coarser than 1.5 sd of the white noise, a saturation, a slow FIR): the log's {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such components are",
-                if first.as_ref().is_some_and(|f| !f.added.is_empty()) {
+                "the spec{} holds per-sample components whose block means nothing stands in for at an averaged rate ({}: a rounding of the rate coarser than 1.5 sd of the white noise after the output filter, a saturation, a slow FIR): the log's {} samples (more than --max-samples {}) were diagnosed at its own rate, as logs of up to {} samples with such components are",
+                if start_from_first {
                     " (with what the per-sample part's first pass found on the log's first samples)"
                 } else {
                     ""
@@ -500,7 +512,6 @@ fn diagnose_averaged(
                 averaged::MODEL_MAX_SAMPLES
             ),
         );
-        return Ok(d);
     }
     let mean = |v: &[f64]| averaged::block_means(v, k);
     let x = mean(real.x);
