@@ -46,6 +46,7 @@ fn main() {
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     };
     let prm = GapParams {
         replicas: 20,
@@ -110,6 +111,7 @@ fn main() {
                     others: vec![],
                     spec_dir: None,
                     scan: Vec::new(),
+                    beyond: &[],
                 };
                 let d = diagnose(
                     &real,

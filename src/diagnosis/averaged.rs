@@ -1,8 +1,8 @@
 //! Long logs diagnosed at a lower rate: a channel of more than `max_samples` samples is
 //! averaged over consecutive blocks of K samples (K the least factor that leaves
 //! `max_samples` or fewer) and diagnosed at rate / K, so that the ensemble's memory is
-//! bounded whatever the log's length (about 2 GB at the default 2^20 samples and 20
-//! replicas, about 200 MB at 2^16; BENCHMARKS.md). What acts on each sample is diagnosed
+//! bounded whatever the log's length (about 260 MB at the default 2^17 samples and 20
+//! replicas, 2 GB at 2^20; BENCHMARKS.md). What acts on each sample is diagnosed
 //! on the log's first samples at its own rate ([`per_sample`]).
 //!
 //! What the averaged diagnosis sees: every effect whose block means of K samples are,
@@ -36,12 +36,12 @@ use crate::simulator::generate::output::{Fir, LowPass};
 use crate::simulator::spec::MAX_FIR_TAPS;
 use crate::simulator::{Component, Discretization, Kind, Spec};
 
-/// The longest channel diagnosed at its own rate, by default (2^20 samples: the
-/// ADIS16405 runs' 1e6 are not averaged; at 2^16 they are averaged by 16 and
-/// diagnosed about 6x faster in a tenth of the memory, at a cost in accuracy that
-/// BENCHMARKS.md gives: 94 of the bank's 114 development cases against 96, 29 of 36
-/// held out against 32, the twenty-sixth session).
-pub const MAX_SAMPLES: usize = 1 << 20;
+/// The longest channel diagnosed at its own rate, by default: 2^17 samples. The
+/// ADIS16405 runs' 1e6 samples are averaged by 8 and diagnosed in 8.7 s and 263 MB on
+/// 2 cores, against 55 s and 1.9 GB at their own rate (2^20); on the bank's four
+/// development parts it got 97 of 114 cases right against 96 at 2^20 and 94 at 2^16
+/// (BENCHMARKS.md, the twenty-seventh session).
+pub const MAX_SAMPLES: usize = 1 << 17;
 
 /// The longest channel diagnosed at its own rate when the spec holds a model at that
 /// rate (ARMA, FARMA: [`rate_model`]), which cannot simulate an averaged log (a longer
@@ -127,6 +127,35 @@ pub struct TakenOut {
     /// the rate coarser than 1.5 sd of the white noise, a saturation, a FIR too slow for
     /// a short one at the averaged rate): (channel, component).
     pub unmatched: Vec<(usize, Component)>,
+    /// Per component taken out, in order: what stands in for it, in words.
+    pub said: Vec<String>,
+}
+
+impl TakenOut {
+    /// The indices of channel `j`'s stand-ins in the averaged spec (empty when it has
+    /// none).
+    pub fn stand_ins_of(&self, j: usize) -> std::ops::Range<usize> {
+        self.stand_ins.get(j).map_or(0..0, |&(at, n)| at..at + n)
+    }
+}
+
+/// What stands in for the per-sample component `c` (averaged over blocks of `k`), in
+/// words: `s` is its stand-in, None when nothing does.
+fn said(c: &Component, s: Option<&Component>, k: usize) -> String {
+    let what = match (c, s) {
+        (_, None) => "nothing stands in".to_string(),
+        (Component::Outliers { .. }, _) => format!("outliers of 1/{k} of their size"),
+        (Component::OutputResolution { on_angle: true, .. }, _) => {
+            "the same angle step at the averaged rate".into()
+        }
+        (Component::OutputResolution { .. }, _) => "white noise of its variance q^2/12".into(),
+        (_, Some(Component::OutputFir { taps })) => format!(
+            "a FIR of {} taps at the averaged rate that gives the block means' spectrum",
+            taps.len()
+        ),
+        (_, Some(_)) => "itself at the averaged rate (zero-order hold)".into(),
+    };
+    format!("{}: {what}", c.kind())
 }
 
 /// The component that stands in, in the averaged spec, for the per-sample component
@@ -304,13 +333,18 @@ pub fn spec_at(spec: &Spec, rate_hz: f64, k: usize) -> Result<(Spec, TakenOut)> 
         let mut pending: Vec<&Component> = Vec::new();
         for c in &out_j {
             match stand_in(c, rate_hz, k, sd_out) {
-                Some(s) => stand.push(s),
+                Some(s) => {
+                    taken.said.push(said(c, Some(&s), k));
+                    stand.push(s)
+                }
                 None => pending.push(c),
             }
         }
         let mut filters = Vec::new();
         for c in pending {
-            match filter_stand_in(c, rate_hz, k, sd * sd, &stand) {
+            let f = filter_stand_in(c, rate_hz, k, sd * sd, &stand);
+            taken.said.push(said(c, f.as_ref(), k));
+            match f {
                 Some(f) => filters.push(f),
                 None => taken.unmatched.push((j, c.clone())),
             }
@@ -422,7 +456,13 @@ pub fn params_for(prm: &GapParams, kinds: Vec<String>, averaged: bool) -> GapPar
     }
 }
 
-/// The log's first `n` samples, every channel and the temperature cut alike.
+/// The samples after the per-sample part's excerpt that its estimators read as
+/// training data ([`RealLog::beyond`]), at most: 2^20 (16 excerpts of the default
+/// 2^16), a bound on the passes' time whatever the log's length.
+pub const BEYOND_SAMPLES: usize = 1 << 20;
+
+/// The log's first `n` samples, every channel and the temperature cut alike; the
+/// diagnosed channel's next [`BEYOND_SAMPLES`] (at most) are the excerpt's `beyond`.
 fn excerpt<'a>(real: &RealLog<'a>, n: usize) -> RealLog<'a> {
     let cut = |v: &[(String, &'a [f64])]| -> Vec<(String, &'a [f64])> {
         v.iter()
@@ -437,6 +477,7 @@ fn excerpt<'a>(real: &RealLog<'a>, n: usize) -> RealLog<'a> {
         others: cut(&real.others),
         spec_dir: real.spec_dir.clone(),
         scan: cut(&real.scan),
+        beyond: &real.x[n..real.x.len().min(n.saturating_add(BEYOND_SAMPLES))],
     }
 }
 
@@ -570,12 +611,14 @@ mod tests {
 
     #[test]
     fn the_factor_is_the_least_that_fits() {
-        assert_eq!(factor(1_000_000, MAX_SAMPLES), 1);
+        assert_eq!(factor(1_000_000, 1 << 20), 1);
+        assert_eq!(factor(1_000_000, MAX_SAMPLES), 8);
         assert_eq!(factor(1_000_000, 1 << 16), 16);
         assert_eq!(factor(100, 0), 1);
-        assert_eq!(factor(100_000_000, MAX_SAMPLES), 96);
-        assert!(100_000_000usize.div_ceil(96) <= MAX_SAMPLES);
-        assert!(100_000_000usize.div_ceil(95) > MAX_SAMPLES);
+        assert_eq!(factor(100_000_000, 1 << 20), 96);
+        assert_eq!(factor(100_000_000, MAX_SAMPLES), 763);
+        assert!(100_000_000usize.div_ceil(763) <= MAX_SAMPLES);
+        assert!(100_000_000usize.div_ceil(762) > MAX_SAMPLES);
         assert_eq!(factor(11, 5), 3);
     }
 

@@ -132,6 +132,11 @@ pub struct GapParams {
     /// over blocks of K samples takes MIN_PIECE / K, at least 64: the pieces span the
     /// time they span at the log's own rate).
     pub min_piece: usize,
+    /// The diagnosed channel's components (by index) that stand in for per-sample
+    /// components at an averaged rate ([`averaged::spec_at`]; set by the diagnosis of
+    /// a long log): no candidate replaces or recalibrates them, since `spec_after` puts
+    /// the components they stand in for back. Empty: none.
+    pub stand_ins: std::ops::Range<usize>,
 }
 
 impl Default for GapParams {
@@ -152,6 +157,7 @@ impl Default for GapParams {
             averaged: false,
             excerpt_samples: averaged::EXCERPT_SAMPLES,
             min_piece: blocks::MIN_PIECE,
+            stand_ins: 0..0,
         }
     }
 }
@@ -173,6 +179,11 @@ pub struct RealLog<'a> {
     /// numeric column but the diagnosed, time and temperature ones (the cross-axis
     /// channels among them). Empty: no event can be found.
     pub scan: Vec<(String, &'a [f64])>,
+    /// Samples of the channel after `x` that no part of this diagnosis scores (the
+    /// rest of a log whose first samples are diagnosed, the per-sample part): read as
+    /// training data only, by the estimators that count rare events (the outliers'
+    /// spikes). Empty for a whole log.
+    pub beyond: &'a [f64],
 }
 
 /// One candidate effect, scored.
@@ -547,9 +558,11 @@ fn diagnose_averaged(
             .iter()
             .map(|(s, v)| (s.clone(), v.as_slice()))
             .collect(),
+        beyond: &[],
     };
     let p = GapParams {
         min_piece: blocks::MIN_PIECE / k,
+        stand_ins: own.map_or(0..0, |j| taken.stand_ins_of(j)),
         ..averaged::params_for(prm, averaged::candidate_kinds(), true)
     };
     let mut d = diagnose_with_progress(&log, &spec_k, &p, pb)?;
@@ -562,13 +575,8 @@ fn diagnose_averaged(
         String::new()
     } else {
         format!(
-            "; the spec's per-sample components ({}) were left out of it (a rounding of the rate standing in as white noise, of the angle as the same angle step at the averaged rate, outliers as outliers of a {k}-th of their size, a filter as the FIR at the averaged rate that gives the block means' spectrum) and are in spec_after (as they were, unless the per-sample part changes them)",
-            taken
-                .removed
-                .iter()
-                .map(|(_, c)| c.kind().as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+            "; the spec's per-sample components were left out of it, each with a stand-in for its block means ({}), and are in spec_after (as they were, unless the per-sample part changes them)",
+            taken.said.join("; ")
         )
     };
     let per_sample = if prm.excerpt_samples > 0 {
@@ -691,6 +699,7 @@ fn explain_by_replicas(
                 .collect(),
             spec_dir: real.spec_dir.clone(),
             scan: Vec::new(),
+            beyond: &[],
         };
         let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden())?;
         gaps.push(dr.gap_after);
@@ -1051,6 +1060,7 @@ fn diagnose_log(
         sim: &sim,
         withheld: &withheld,
         real: real.x,
+        beyond: real.beyond,
         temperature: temperature.as_ref(),
         others: &real.others,
         sim_others: &sim_others,
@@ -1092,6 +1102,7 @@ fn diagnose_log(
             sim: &sim,
             train: &withheld[1 - f],
             real: real.x,
+            beyond: real.beyond,
             temperature: temperature.as_ref(),
             others: &real.others,
             sim_others: &sim_others,
@@ -1107,7 +1118,10 @@ fn diagnose_log(
         // a step may give several (cross_axis: one per other channel); the round's
         // best is held shed too, and restored once the round is over
         let held: RefCell<Vec<Proposal>> = RefCell::new(Vec::new());
-        let allowed = |p: &Proposal| prm.only_kinds.as_ref().is_none_or(|k| k.contains(&p.kind));
+        let allowed = |p: &Proposal| {
+            prm.only_kinds.as_ref().is_none_or(|k| k.contains(&p.kind))
+                && p.replaces.is_none_or(|i| !prm.stand_ins.contains(&i))
+        };
         let mut hold = |mut p: Proposal| {
             if !allowed(&p) {
                 return;

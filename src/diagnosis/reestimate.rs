@@ -115,6 +115,8 @@ pub(super) struct Refit<'a> {
     /// The withheld layouts of fold 1 and fold 2 (each fold trains on the other's).
     pub withheld: &'a [Layout; 2],
     pub real: &'a [f64],
+    /// The channel's samples after `real` that only train ([`crate::diagnosis::RealLog::beyond`]).
+    pub beyond: &'a [f64],
     pub temperature: Option<&'a Temperature>,
     pub others: &'a [(String, &'a [f64])],
     pub sim_others: &'a [Vec<Vec<f64>>],
@@ -504,6 +506,7 @@ impl Refit<'_> {
             sim: self.sim,
             train: &self.withheld[1 - f],
             real: self.real,
+            beyond: self.beyond,
             temperature: self.temperature,
             others: self.others,
             sim_others: self.sim_others,

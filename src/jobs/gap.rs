@@ -79,6 +79,7 @@ impl GapJob {
             others,
             spec_dir: self.spec_path.parent().map(|p| p.to_path_buf()),
             scan,
+            beyond: &[],
         })
     }
 

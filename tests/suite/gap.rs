@@ -16,6 +16,7 @@ fn bank_log<'a>(x: &'a [f64], temp: Option<&'a [f64]>, rate_hz: f64) -> RealLog<
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     }
 }
 
@@ -323,6 +324,7 @@ fn diagnose_hidden_scale(
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     };
     let prm = GapParams {
         replicas: 12,
@@ -1202,6 +1204,7 @@ fn spikes_in_one_half_of_the_blocks_are_not_scored_and_the_reason_says_so() {
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     };
     let d = diagnose(&real, &case.spec, &prm).unwrap();
     let nt = d
@@ -1399,6 +1402,7 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     };
     let prm = GapParams {
         replicas: 12,
@@ -1653,6 +1657,7 @@ fn diagnose_warmup_beside_bias(amplitude: f64) -> Diagnosis {
         others: vec![],
         spec_dir: None,
         scan: Vec::new(),
+        beyond: &[],
     };
     let prm = GapParams {
         replicas: 12,
@@ -1955,7 +1960,8 @@ fn a_spec_with_a_model_at_the_log_s_rate_is_diagnosed_at_that_rate_within_2_pow_
 /// A spec with a rounding of the rate coarser than 1.5 sd of its white noise (3.2 sd)
 /// against a log longer than `max_samples` but within 2^20 samples: nothing stands in
 /// for the rounding's block means, so the log is diagnosed at its own rate, and a note
-/// says so; with a fine rounding (0.3 sd) the same log is averaged.
+/// says so; with a fine rounding (0.3 sd) the same log is averaged, and the rounding's
+/// stand-in is not recalibrated.
 #[test]
 fn a_coarse_rate_rounding_is_diagnosed_at_the_log_s_rate_within_2_pow_20() {
     let n = 30_000;
@@ -1985,6 +1991,17 @@ fn a_coarse_rate_rounding_is_diagnosed_at_the_log_s_rate_within_2_pow_20() {
         );
         let note = d.notes[0].contains("nothing stands in") && d.notes[0].contains("own rate");
         assert_eq!(note, averaged_by == 1, "{}", d.notes[0]);
+        if averaged_by > 1 {
+            // the rounding's stand-in (white noise, component 3 of the averaged spec)
+            // is no candidate's to recalibrate; the spec's own white noise is
+            let recal: Vec<u64> = d
+                .effects
+                .iter()
+                .filter(|e| e.kind == "recalibrate:white_noise")
+                .filter_map(|e| e.params["component"].as_u64())
+                .collect();
+            assert_eq!(recal, [1], "{:?}", d.effects);
+        }
     }
 }
 
@@ -2028,4 +2045,44 @@ fn a_right_spec_with_a_fast_filter_and_an_angle_rounding_is_not_significant_aver
         d.added.iter().map(|e| &e.kind).collect::<Vec<_>>(),
         d.notes
     );
+}
+
+/// Outliers too rare for the per-sample part's excerpt alone (about 3 in its 3000 s,
+/// fewer than 3 spikes more than the simulations in a training half) in a log four
+/// times as long, diagnosed averaged: the samples after the excerpt train the outliers'
+/// estimate too (`RealLog::beyond`), so they are added, at about their rate.
+#[test]
+fn outliers_too_rare_for_the_excerpt_are_counted_on_the_rest_of_the_log() {
+    let (n, rate_hz) = (120_000, 10.0);
+    let truth_rate_hz = 0.001;
+    let mut spec = bank::base_spec(rate_hz, false);
+    let base = spec.clone();
+    spec.channels[0].components.push(Component::Outliers {
+        rate_hz: truth_rate_hz,
+        scale: 0.6,
+        dof: None,
+    });
+    let x = simulate_target(&spec, n, rate_hz, None, 21);
+    let real = bank_log(&x, None, rate_hz);
+    let prm = GapParams {
+        max_samples: 30_000,
+        excerpt_samples: 30_000,
+        replicas: 10,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &base, &prm).unwrap();
+    assert_eq!(d.averaged_by, 4);
+    let first = d
+        .per_sample_first
+        .as_ref()
+        .expect("the per-sample part's first pass");
+    let e = first
+        .added
+        .iter()
+        .find(|e| e.kind == "outliers")
+        .unwrap_or_else(|| panic!("no outliers added: {:?}", first.not_tried));
+    let r = e.params["rate_hz"].as_f64().unwrap();
+    assert!((r / truth_rate_hz).ln().abs() < 0.7, "rate {r} Hz");
+    assert!(e.note.contains("after the excerpt"), "{}", e.note);
 }

@@ -184,6 +184,7 @@ mod tests {
                 sim: &sim,
                 train: &train,
                 real: &real,
+                beyond: &[],
                 temperature: None,
                 others: &others,
                 sim_others: &sim_others,

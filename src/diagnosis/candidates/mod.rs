@@ -303,6 +303,9 @@ pub struct Context<'a> {
     pub sim: &'a SimBase<'a>,
     pub train: &'a Layout,
     pub real: &'a [f64],
+    /// The channel's samples after `real` that no part scores, training data only
+    /// ([`crate::diagnosis::RealLog::beyond`]); empty for a whole log.
+    pub beyond: &'a [f64],
     pub temperature: Option<&'a Temperature>,
     /// Other spec channels present in the real log: (name, real values).
     pub others: &'a [(String, &'a [f64])],
@@ -1087,6 +1090,7 @@ mod tests {
                 sim,
                 train: &trains[f],
                 real: &real[0],
+                beyond: &[],
                 temperature: None,
                 others,
                 sim_others: &ens[f].2,
@@ -1238,6 +1242,7 @@ mod tests {
             sim: &sim,
             train: &train,
             real: &real,
+            beyond: &[],
             temperature: None,
             others: &[],
             sim_others: &[],

@@ -54,13 +54,13 @@ const BAND_SD: f64 = 4.0;
 
 /// The spikes of `x` on `ranges` (module doc): their sizes |s_t| above the threshold
 /// of 6 robust sd, the number of local maxima of |s_t| in the band [`BAND_SD`] .. 6
-/// robust sd, and the threshold.
+/// robust sd, and the robust sd (1.4826 times the median |s_t|; 0 with no s_t).
 fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
-    let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let mut all: Vec<f64> = ranges
         .iter()
         .flat_map(|r| {
-            (r.start + 1..r.end - 1).map(move |t| (x[t] - 0.5 * (x[t - 1] + x[t + 1])).abs())
+            (r.start + 1..r.end.saturating_sub(1))
+                .map(move |t| (x[t] - 0.5 * (x[t - 1] + x[t + 1])).abs())
         })
         .collect();
     if all.is_empty() {
@@ -69,6 +69,14 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
     let sd = 1.4826 * all[mid];
+    let (sizes, band) = spikes_at(x, ranges, sd);
+    (sizes, band, sd)
+}
+
+/// The spikes of `x` on `ranges` and the count of local maxima in the band below them
+/// ([`spikes`]) at the robust sd `sd` given.
+fn spikes_at(x: &[f64], ranges: &[Range<usize>], sd: f64) -> (Vec<f64>, usize) {
+    let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let thr = THRESHOLD_SD * sd;
     let band_lo = BAND_SD * sd;
     let mut sizes = Vec::new();
@@ -85,7 +93,7 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
             }
         }
     }
-    (sizes, band, thr)
+    (sizes, band)
 }
 
 /// The number of spikes of `x` on `ranges` and of local maxima in the band below
@@ -178,20 +186,41 @@ fn normal_tail(c: f64) -> f64 {
 /// (fewer than 3 spikes more than the simulations': the two counts).
 fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, String>> {
     let ranges = cx.ranges();
-    let (sizes, band_real, thr) = spikes(cx.real, ranges);
-    let c_real = sizes.len();
+    let (mut sizes, mut band_real, sd) = spikes(cx.real, ranges);
+    let thr = THRESHOLD_SD * sd;
     let (sum_spikes, sum_band) = cx
         .target
         .iter()
         .map(|t| spike_count(t, ranges))
         .fold((0, 0), |(a, b), (c, d)| (a + c, b + d));
     let m = cx.target.len() as f64;
-    let (c_ens, band_ens) = (sum_spikes as f64 / m, sum_band as f64 / m);
+    let (mut c_ens, mut band_ens) = (sum_spikes as f64 / m, sum_band as f64 / m);
+    // the samples after the excerpt train too: their spikes at the training part's
+    // robust sd, and the simulations' counts per training sample over their length
+    let mut t_train = cx.n_train() as f64 / cx.rate_hz();
+    let mut after = String::new();
+    if cx.beyond.len() > 4 && sd > 0.0 && cx.n_train() > 0 {
+        let (b_sizes, b_band) = spikes_at(cx.beyond, &[0..cx.beyond.len()], sd);
+        let per = cx.beyond.len() as f64 / cx.n_train() as f64;
+        after = format!(
+            " (of them {} and {b_band} in the {} samples after the excerpt, against {:.1} and {:.1})",
+            b_sizes.len(),
+            cx.beyond.len(),
+            c_ens * per,
+            band_ens * per
+        );
+        c_ens *= 1.0 + per;
+        band_ens *= 1.0 + per;
+        band_real += b_band;
+        sizes.extend(b_sizes);
+        t_train += cx.beyond.len() as f64 / cx.rate_hz();
+    }
+    let c_real = sizes.len();
     let excess = c_real as f64 - c_ens;
     if excess < 3.0 || c_real == 0 || thr <= 0.0 {
         return Ok(Err(format!(
             "no more spikes in the training part than in the simulations ({c_real} above 6 \
-             robust sd against {c_ens:.1})"
+             robust sd against {c_ens:.1}{after})"
         )));
     }
     let m2 = sizes.iter().map(|s| s * s).sum::<f64>() / c_real as f64;
@@ -223,10 +252,9 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
         excess,
     };
     let (scale_t, dof_t, _, scale_range) = student_fit(&sizes, thr, Some(band));
-    let t_train = cx.n_train() as f64 / cx.rate_hz();
     let counts = format!(
         "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the \
-         simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd)"
+         simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd){after}"
     );
     // the proposal of one amplitude form: the rate from the excess count and the
     // share of spikes of that form above the threshold
