@@ -200,7 +200,8 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     let mut t_train = cx.n_train() as f64 / cx.rate_hz();
     let mut after = String::new();
     if cx.beyond.len() > 4 && sd > 0.0 && cx.n_train() > 0 {
-        let (b_sizes, b_band) = spikes_at(cx.beyond, &[0..cx.beyond.len()], sd);
+        let whole = 0..cx.beyond.len();
+        let (b_sizes, b_band) = spikes_at(cx.beyond, std::slice::from_ref(&whole), sd);
         let per = cx.beyond.len() as f64 / cx.n_train() as f64;
         after = format!(
             " (of them {} and {b_band} in the {} samples after the excerpt, against {:.1} and {:.1})",
