@@ -27,7 +27,7 @@ Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
 A run that fails, times out or prints no JSON is wrong.
 
 Prints a table per part and category, and each case of the development parts (a
-held-out part, heldout or heldout2, prints its aggregates only unless --cases), and
+held-out part, heldout, heldout2 or path7, prints its aggregates only unless --cases), and
 writes RESULTS/scores.csv (one row per case; scores_<part>.csv with --part).
 """
 
@@ -137,7 +137,7 @@ def main():
     ap.add_argument("--rescore", action="store_true")
     ap.add_argument("--cases", action="store_true",
                     help="print the held-out parts' cases too (by default a held-out part, "
-                         "heldout or heldout2, prints its aggregates only: tuning must not "
+                         "heldout, heldout2 or path7, prints its aggregates only: tuning must not "
                          "read them)")
     ap.add_argument("--oracle", action="store_true",
                     help="also check each pair member's detectability: run the pair's "
@@ -155,7 +155,7 @@ def main():
 
     def shown(part):
         # a held-out part's cases are not printed unless asked for
-        return a.cases or not part.startswith("heldout")
+        return a.cases or not (part.startswith("heldout") or part == "path7")
     a.extra = extra
     out = a.out or os.path.join(a.bank, "results")
     parts = ["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2"] if a.part == "all" else [a.part]
