@@ -37,8 +37,8 @@ use crate::simulator::spec::MAX_FIR_TAPS;
 use crate::simulator::{Component, Discretization, Kind, Spec};
 
 /// The longest channel diagnosed at its own rate, by default: 2^17 samples. The
-/// ADIS16405 runs' 1e6 samples are averaged by 8 and diagnosed in 8.7 s and 263 MB on
-/// 2 cores, against 55 s and 1.9 GB at their own rate (2^20); on the bank's four
+/// ADIS16405 runs' 1e6 samples are averaged by 8: ADIS run 1 is diagnosed in 8.5-8.7 s
+/// and 262 MB on 2 cores, against 53 s and 2.0 GB at its own rate (2^20); on the bank's four
 /// development parts it got 97 of 114 cases right against 96 at 2^20 and 94 at 2^16
 /// (BENCHMARKS.md, the twenty-seventh session).
 pub const MAX_SAMPLES: usize = 1 << 17;
@@ -589,7 +589,7 @@ pub fn per_sample(
             };
             d.notes.push(format!(
                 "the per-sample part (per_sample): the log's first {n} samples ({seconds:.1} s) at {} Hz, first against the spec as given with the output path and outliers as candidates (added: {}; per_sample_first), then against the spec after the averaged diagnosis with the per-sample kinds as candidates: gap {:.3} -> {:.3} (threshold {:.3}{}), added: {}",
-                real.rate_hz,
+                crate::fmt::num(real.rate_hz),
                 list(first_added),
                 e.gap_before,
                 e.gap_after,

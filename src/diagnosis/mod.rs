@@ -587,8 +587,9 @@ fn diagnose_averaged(
     d.notes.insert(
         0,
         format!(
-            "the log's {} samples were averaged over blocks of {k} and diagnosed at {rate_hz} Hz ({} samples; --max-samples {}): effects at time scales of {:.3} s and more are diagnosed there; the output path (filter, resolution, saturation) and outliers, which act on each sample, {per_sample}{left_out}",
+            "the log's {} samples were averaged over blocks of {k} and diagnosed at {} Hz ({} samples; --max-samples {}): effects at time scales of {:.3} s and more are diagnosed there; the output path (filter, resolution, saturation) and outliers, which act on each sample, {per_sample}{left_out}",
             real.x.len(),
+            crate::fmt::num(rate_hz),
             x.len(),
             prm.max_samples,
             k as f64 / real.rate_hz
