@@ -489,6 +489,9 @@ fn excerpt_len(real: &RealLog, prm: &GapParams) -> usize {
 
 /// The diagnosis of the log's first samples ([`excerpt_len`]) at its own rate against
 /// `spec`, with `kinds` (those of them `prm.only_kinds` allows) the only candidates.
+/// The test-stand events of the samples after the excerpt (`beyond`) are replaced as
+/// the diagnosis replaces those of the excerpt ([`super::events`]; not with
+/// `--keep-events`): a knock there is no outlier of the sensor.
 fn diagnose_excerpt(
     real: &RealLog,
     spec: &Spec,
@@ -497,7 +500,22 @@ fn diagnose_excerpt(
     kinds: Vec<String>,
     explain_replicas: usize,
 ) -> Result<Diagnosis> {
-    let log = excerpt(real, excerpt_len(real, prm));
+    let n = excerpt_len(real, prm);
+    let cleaned: Vec<f64>;
+    let mut log = excerpt(real, n);
+    if !prm.keep_events && !log.beyond.is_empty() {
+        let end = n + log.beyond.len();
+        let scan: Vec<(String, &[f64])> = real
+            .scan
+            .iter()
+            .map(|(s, v)| (s.clone(), &v[n.min(v.len())..end.min(v.len())]))
+            .collect();
+        let found = super::events::detect(&real.channel, log.beyond, &scan, real.rate_hz);
+        if !found.is_empty() {
+            cleaned = super::events::replaced(log.beyond, &found)?;
+            log.beyond = &cleaned;
+        }
+    }
     let p = GapParams {
         explain_replicas,
         ..params_for(prm, kinds, false)

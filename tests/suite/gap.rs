@@ -2086,3 +2086,50 @@ fn outliers_too_rare_for_the_excerpt_are_counted_on_the_rest_of_the_log() {
     assert!((r / truth_rate_hz).ln().abs() < 0.7, "rate {r} Hz");
     assert!(e.note.contains("after the excerpt"), "{}", e.note);
 }
+
+/// Knocks after the per-sample part's excerpt, seen at once on the diagnosed channel
+/// and two others, are test-stand events there too: replaced before the outliers'
+/// spikes are counted, so that they are no outliers; with `keep_events` they count.
+#[test]
+fn knocks_after_the_excerpt_are_events_not_outliers() {
+    let (n, rate_hz) = (120_000, 10.0);
+    let spec = bank::base_spec(rate_hz, false);
+    let mut x = simulate_target(&spec, n, rate_hz, None, 31);
+    let mut y = simulate_target(&spec, n, rate_hz, None, 32);
+    let mut z = simulate_target(&spec, n, rate_hz, None, 33);
+    let sd = sd_of(&x);
+    // six knocks of 30 sd, one sample each, on all three channels at once
+    for t in [40_000, 52_000, 64_000, 76_000, 88_000, 100_000] {
+        for v in [&mut x, &mut y, &mut z] {
+            v[t] += 30.0 * sd;
+        }
+    }
+    let spikes_after = |keep_events: bool| -> String {
+        let mut real = bank_log(&x, None, rate_hz);
+        real.scan = vec![("y".to_string(), &y[..]), ("z".to_string(), &z[..])];
+        let prm = GapParams {
+            max_samples: 30_000,
+            excerpt_samples: 30_000,
+            replicas: 10,
+            max_added: 1,
+            explain_replicas: 0,
+            keep_events,
+            ..GapParams::default()
+        };
+        let d = diagnose(&real, &spec, &prm).unwrap();
+        let first = d
+            .per_sample_first
+            .expect("the per-sample part's first pass");
+        first
+            .not_tried
+            .iter()
+            .map(|t| t.reason.clone())
+            .chain(first.effects.iter().map(|e| e.note.clone()))
+            .find(|s| s.contains("after the excerpt"))
+            .expect("the outliers' counts")
+    };
+    let replaced = spikes_after(false);
+    assert!(replaced.contains("of these, 0 spikes"), "{replaced}");
+    let kept = spikes_after(true);
+    assert!(!kept.contains("of these, 0 spikes"), "{kept}");
+}

@@ -204,7 +204,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
         let (b_sizes, b_band) = spikes_at(cx.beyond, std::slice::from_ref(&whole), sd);
         let per = cx.beyond.len() as f64 / cx.n_train() as f64;
         after = format!(
-            " (of them {} and {b_band} in the {} samples after the excerpt, against {:.1} and {:.1})",
+            "; of these, {} spikes and {b_band} local maxima in the band in the {} samples after the excerpt, which train only, against {:.1} and {:.1}",
             b_sizes.len(),
             cx.beyond.len(),
             c_ens * per,
@@ -255,7 +255,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     let (scale_t, dof_t, _, scale_range) = student_fit(&sizes, thr, Some(band));
     let counts = format!(
         "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the \
-         simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd){after}"
+         simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd{after})"
     );
     // the proposal of one amplitude form: the rate from the excess count and the
     // share of spikes of that form above the threshold
