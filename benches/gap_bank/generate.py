@@ -59,7 +59,7 @@ CONTRACT_KINDS = set(ACCEPT) - {"output_filter"}
 PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2": 29_311_021,
              "dev3": 30_017_003, "dev4": 31_204_011, "dev5": 32_405_017,
              "path6": 33_606_029, "dev6": 34_808_041, "path7": 35_010_053,
-             "dev7": 36_212_061}
+             "dev7": 36_212_061, "heldout3": 37_414_073}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -541,6 +541,16 @@ PAIRS = {
     # dev3's large sizes, every case longer than 2^17 samples and at most 2^20 (what
     # the default --max-samples 2^17 averages and 2^20 did not)
     "dev7": None,
+    # a third held-out draw (twenty-eighth session, written before that session's changes
+    # and scored once at its end): pairs that no other part has, sized as heldout2's
+    "heldout3": [[("thermal_rate", ""), ("gauss_markov", "")],
+                 [("heteroskedastic", ""), ("sinusoid", "")],
+                 [("outliers", ""), ("warmup", "long")],
+                 [("bias_instability", ""), ("constant_bias", "")],
+                 [("rate_ramp", ""), ("sinusoid", "")],
+                 [("quantization", "angle"), ("rate_ramp", "")],
+                 [("output_filter", "2"), ("rate_random_walk", "")],
+                 [("heteroskedastic", ""), ("rate_random_walk", "")]],
     # held out from the pair (twenty-third session, scored once after it was written)
     "path7": [[("quantization", "rate"), ("output_filter", "2")],
               [("quantization", "angle"), ("output_filter", "1")],
@@ -554,6 +564,7 @@ NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst"
            "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "dev2": [("bias_step", ""), ("burst", ""), ("telegraph", ""), ("bias_step", ""), ("burst", "")],
            "heldout2": [("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", ""), ("bias_step", "")],
+           "heldout3": [("telegraph", ""), ("bias_step", ""), ("burst", ""), ("bias_step", ""), ("burst", "")],
            "dev3": [],
            # a development part of non-candidates only, at sizes from small to large
            "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4,
@@ -578,20 +589,21 @@ GRID = {
     "dev6": [(100, 2400), (100, 1200), (10, 7200), (100, 5400)],
     "path7": [(100, 2700), (10, 4 * 3600), (100, 900), (10, 2 * 3600)],
     "dev7": [(10, 4 * 3600), (10, 6 * 3600), (100, 1800), (100, 3600), (10, 8 * 3600)],
+    "heldout3": [(10, 3 * 3600), (10, 6 * 3600), (100, 3600), (100, 1200), (10, 2 * 3600)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0, "heldout3": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
             "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
             "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"],
             "dev5": ["sine", "ramp", "steps"], "path6": ["drift", "ramp", "steps"],
             "dev6": ["steps", "drift", "ramp"], "path7": ["cycle", "soak_ramp", "rw_drift"],
-            "dev7": ["ramp", "steps", "sine"]}
+            "dev7": ["ramp", "steps", "sine"], "heldout3": ["rw_drift", "cycle", "soak_ramp"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
           "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
           "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)],
           "dev5": [(-20, 60), (0, 45), (-35, 75)], "path6": [(0, 40), (-10, 50), (10, 45)],
           "dev6": [(-5, 45), (5, 35), (-15, 55)], "path7": [(-30, 70), (0, 60), (15, 50)],
-          "dev7": [(-15, 50), (0, 40), (-25, 65)]}
+          "dev7": [(-15, 50), (0, 40), (-25, 65)], "heldout3": [(-35, 65), (-10, 60), (5, 45)]}
 
 
 def size_for(part, rng, category="single"):
@@ -608,7 +620,7 @@ def size_for(part, rng, category="single"):
     if part == "dev5":
         # each kind once small and once large (make_part passes which)
         return float(rng.uniform(0.6, 0.9)) if category == "small" else float(rng.uniform(2.2, 4.0))
-    if part == "heldout2":
+    if part in ("heldout2", "heldout3"):
         # a pair's members share one size: the held-out's larger sizes only, so that
         # each member can show beside the other (the first held-out part's small pairs
         # mostly could not, BENCHMARKS "The tenth session"); the rest as the held-out's
@@ -660,7 +672,7 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "heldout", "heldout2", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "heldout", "heldout2", "heldout3", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
     parts = ["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2"] if a.part == "all" else [a.part]

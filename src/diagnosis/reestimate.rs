@@ -23,8 +23,8 @@ use super::candidates::{self, Context, Proposal};
 use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
-    Effect, EnsembleStats, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply, form,
-    joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
+    Effect, EnsembleStats, JointBest, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply,
+    form, joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -193,6 +193,16 @@ impl Refit<'_> {
     /// Adds `a` to the search: its proposals applied to both folds' states, its step
     /// recorded, then the earlier effects re-estimated ([`Refit::after_addition`]).
     pub fn add(&self, s: &mut Search, a: Added) -> Result<()> {
+        self.push(s, a);
+        if self.enabled {
+            self.after_addition(s)?;
+        }
+        Ok(())
+    }
+
+    /// Adds `a` to the search (its proposals applied to both folds' states, its step
+    /// recorded), nothing estimated again.
+    fn push(&self, s: &mut Search, a: Added) {
         let ([p0, p1], mut eff, e, step) = a;
         s.slots.push([
             apply(&mut s.sts[0], self.channel, p0),
@@ -203,10 +213,6 @@ impl Refit<'_> {
         *s.ens_now = e;
         *s.gap_now = eff.gap_after;
         s.added.push(eff);
-        if self.enabled {
-            self.after_addition(s)?;
-        }
-        Ok(())
     }
 
     /// Without re-estimation (the default): once a round's addition and backward steps
@@ -422,6 +428,50 @@ impl Refit<'_> {
             "output_resolution and {filter} added as a pair: the rounding alone takes the gap from {gap_was:.3} to {gap_res:.3}, with the filter fitted by simulation beside it to {gap_pair:.3} (the round's best single effect, {}, to {:.3})",
             best.0, best.1
         )))
+    }
+
+    /// Adds the round's best joint pair of biases `j` ([`candidates::joint`]), which the
+    /// caller found to beat the round's best single effect (`best`: its kind and gap)
+    /// by the margin a forward step needs: two steps, one per member, each an effect
+    /// that reports the pair's gap and can be taken back like any other. Returns the
+    /// note that says so.
+    pub fn joint_pair(&self, s: &mut Search, j: JointBest, best: (&str, f64)) -> Result<String> {
+        let JointBest {
+            gap_after: g,
+            ens,
+            families,
+            props: [[a0, b0], [a1, b1]],
+        } = j;
+        let gap_was = *s.gap_now;
+        let (ka, kb) = (a0.kind.clone(), b0.kind.clone());
+        let joint = |mut eff: Effect, other: &str| {
+            eff.note = format!(
+                "{}; estimated jointly with {other} (backfitting on the training residual) and added with it as a pair",
+                eff.note
+            );
+            eff
+        };
+        let ea = joint(
+            Round::effect_of(&[a0.clone(), a1.clone()], g, families.clone(), gap_was),
+            &kb,
+        );
+        let eb = joint(
+            Round::effect_of(&[b0.clone(), b1.clone()], g, families, gap_was),
+            &ka,
+        );
+        let step_a = Step {
+            runner_up: Some(best.0.to_string()),
+            runner_up_gap_after: Some(best.1),
+            ..Step::plain("add", ka.clone(), gap_was, g)
+        };
+        // the first member alone is not scored: the state is re-estimated (with
+        // --reestimate) only once both are in
+        self.push(s, ([a0, a1], ea, ens.clone(), step_a));
+        self.add(s, ([b0, b1], eb, ens, Step::plain("add", kb.clone(), g, g)))?;
+        Ok(format!(
+            "{ka} and {kb} added as a pair, estimated jointly: together they take the gap from {gap_was:.3} to {g:.3} (the round's best single effect, {}, to {:.3})",
+            best.0, best.1
+        ))
     }
 
     /// Rival `r` of a round estimated again on both folds' states of `t` (its kind
