@@ -181,6 +181,7 @@ fn task_keys(kind: &TaskKind) -> &'static [&'static str] {
             "max_effects",
             "reestimate",
             "screen",
+            "joint_pairs",
             "keep_events",
             "explain_replicas",
             "max_samples",

@@ -504,6 +504,7 @@ fn run_task(
                     max_added: opt_usize(task, "max_effects")?.unwrap_or(d.max_added),
                     reestimate: opt_bool(task, "reestimate")?.unwrap_or(d.reestimate),
                     screen: opt_bool(task, "screen")?.unwrap_or(d.screen),
+                    joint_pairs: opt_bool(task, "joint_pairs")?.unwrap_or(d.joint_pairs),
                     keep_events: opt_bool(task, "keep_events")?.unwrap_or(d.keep_events),
                     explain_replicas: opt_usize(task, "explain_replicas")?
                         .unwrap_or(d.explain_replicas),

@@ -52,13 +52,14 @@ pub struct GapArgs {
     /// there is below 1.3 times the round's lowest are scored on the rest.
     #[arg(long)]
     pub no_screen: bool,
-    /// Also score, in the first round, the two pairs of biases (constant bias, ramp,
-    /// warm-up, sinusoid, temperature bias, thermal rate) that fit the training
-    /// residual best when estimated together, and add the better pair when it beats
-    /// the round's best single effect by the margin a forward step needs (experimental:
-    /// two missing biases that bend each other's single fits)
+    /// Single candidates only; by default the first round also scores the two pairs of
+    /// biases (constant bias, ramp, warm-up, sinusoid, temperature bias, thermal rate)
+    /// that fit the training residual best when estimated together, and adds the
+    /// better pair when it beats the round's best single effect by the margin a
+    /// forward step needs and by more than a tie (two missing biases that bend each
+    /// other's single fits)
     #[arg(long)]
-    pub joint_pairs: bool,
+    pub no_joint_pairs: bool,
     /// Keep test-stand events (shocks seen on the diagnosed channel and at least two
     /// other channels at once) in the real log; by default each is replaced by the
     /// stretch before it and listed in `events_excluded`.
@@ -117,7 +118,7 @@ pub fn run(a: GapArgs, progress: &Progress) -> Result<()> {
             max_added: a.max_effects,
             reestimate: a.reestimate,
             screen: !a.no_screen,
-            joint_pairs: a.joint_pairs,
+            joint_pairs: !a.no_joint_pairs,
             keep_events: a.keep_events,
             explain_replicas: a.explain_replicas,
             max_samples: a.max_samples,

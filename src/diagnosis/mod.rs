@@ -107,12 +107,10 @@ pub struct GapParams {
     /// for those within [`SCREEN_RATIO`] of the round's best so far (the default);
     /// false: every candidate on every replica.
     pub screen: bool,
-    /// In the first round, score pairs of biases estimated jointly
+    /// While nothing is kept yet, score pairs of biases estimated jointly
     /// ([`candidates::joint`]) beside the single candidates, and add the best pair when
-    /// it beats the round's best single effect by `min_shrink`; false (the default):
-    /// single candidates only. Off by default: it is not yet scored on the whole bank,
-    /// and it costs about 0.5 s on ADIS run 1, where the margin on the cost bar is
-    /// about that (BENCHMARKS.md, "The twenty-eighth session").
+    /// it beats the round's best single effect by `min_shrink` and by more than a tie
+    /// (the default); false: single candidates only.
     pub joint_pairs: bool,
     /// Keep the test-stand events ([`events`]) in the real log; false (the default):
     /// each is found and replaced by the stretch before it.
@@ -157,7 +155,7 @@ impl Default for GapParams {
             min_shrink: 0.05,
             reestimate: false,
             screen: true,
-            joint_pairs: false,
+            joint_pairs: true,
             keep_events: false,
             explain_replicas: EXPLAIN_REPLICAS,
             only_kinds: None,
@@ -1309,6 +1307,7 @@ fn diagnose_log(
                             ens: e,
                             families,
                             props: [pf0, pf1],
+                            feats: f,
                         });
                     }
                 }
@@ -1378,7 +1377,7 @@ fn diagnose_log(
         };
         // the runner-up, for the parsimony rule of a tie
         let second_eff = second.map(|s| s.0);
-        let Some((eff, e, p, _)) = best else {
+        let Some((eff, e, p, best_feats)) = best else {
             notes.push("no candidate effect could be estimated".into());
             break;
         };
@@ -1418,15 +1417,20 @@ fn diagnose_log(
             None => None,
         };
         // a joint pair of biases that beats the round's best single effect by the
-        // margin a forward step needs, unless that single effect already brings the
-        // gap within the spread of the spec's own simulations (where the search stops)
+        // margin a forward step needs and by more than a tie (2 jackknife sd of the
+        // difference: within that the single effect, of fewer free parameters, is the
+        // simpler explanation), unless that single effect already brings the gap within
+        // the spread of the spec's own simulations (where the search stops)
+        let pair_beats = |j: &JointBest| {
+            j.gap_after <= floor_gap
+                && j.gap_after <= eff.gap_after * (1.0 - prm.min_shrink)
+                && eff.gap_after > cal.gap_threshold
+                && eff.gap_after - j.gap_after
+                    > 2.0 * jackknife_sd(&j.feats, &best_feats, &real_feats, &ens_before, &defs)
+        };
         let pair_note = match (pair_note, best_joint) {
             (Some(note), _) => Some(note),
-            (None, Some(j))
-                if j.gap_after <= floor_gap
-                    && j.gap_after <= eff.gap_after * (1.0 - prm.min_shrink)
-                    && eff.gap_after > cal.gap_threshold =>
-            {
+            (None, Some(j)) if pair_beats(&j) => {
                 Some(refit.joint_pair(&mut search, j, (&eff.kind, eff.gap_after))?)
             }
             (None, _) => None,
@@ -2090,6 +2094,8 @@ pub(super) struct JointBest {
     ens: EnsembleStats,
     families: Vec<(Statistic, f64)>,
     props: [[Proposal; 2]; 2],
+    /// Each replica's features with both added (for the tie with the best single).
+    feats: Vec<Vec<f64>>,
 }
 
 #[derive(Default)]

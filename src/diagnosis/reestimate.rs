@@ -441,6 +441,7 @@ impl Refit<'_> {
             ens,
             families,
             props: [[a0, b0], [a1, b1]],
+            ..
         } = j;
         let gap_was = *s.gap_now;
         let (ka, kb) = (a0.kind.clone(), b0.kind.clone());

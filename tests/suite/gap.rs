@@ -2133,3 +2133,55 @@ fn knocks_after_the_excerpt_are_events_not_outliers() {
     let kept = spikes_after(true);
     assert!(!kept.contains("of these, 0 spikes"), "{kept}");
 }
+
+/// A warm-up and a rate ramp missing at once, opposite in sign (the warm-up rises out
+/// of a dip while the ramp climbs): the first round's joint pair of biases adds both,
+/// estimated together, as two `add` steps with the pair's gap and a note.
+#[test]
+fn a_warmup_and_a_ramp_missing_together_are_added_as_a_joint_pair() {
+    let (n, rate_hz) = (36_000, 10.0);
+    let mut base = bank::base_spec(rate_hz, false);
+    base.channels[0]
+        .components
+        .push(Component::ConstantBias { value: 0.0 });
+    let mut truth = base.clone();
+    truth.channels[0].components.extend([
+        Component::Warmup {
+            amplitude: -0.06,
+            tau_s: 600.0,
+        },
+        Component::RateRamp { r: 0.06 / 3600.0 },
+    ]);
+    let x = simulate_target(&truth, n, rate_hz, None, 41);
+    let real = bank_log(&x, None, rate_hz);
+    let prm = GapParams {
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &base, &prm).unwrap();
+    assert!(
+        d.notes
+            .iter()
+            .any(|n| n.contains("added as a pair, estimated jointly")),
+        "{:?} {:?}",
+        d.notes,
+        d.steps
+    );
+    let kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+    assert!(
+        kinds.contains(&"warmup") && kinds.contains(&"rate_ramp"),
+        "{kinds:?}"
+    );
+    assert_eq!(d.steps[0].action, "add");
+    assert_eq!(d.steps[1].action, "add");
+    assert_eq!(d.steps[0].gap_after, d.steps[1].gap_after);
+    let r = d
+        .added
+        .iter()
+        .find(|e| e.kind == "rate_ramp")
+        .unwrap()
+        .params["r"]
+        .as_f64()
+        .unwrap();
+    assert!((r / (0.06 / 3600.0) - 1.0).abs() < 0.3, "r {r}");
+}

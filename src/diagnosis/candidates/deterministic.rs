@@ -45,7 +45,7 @@ pub(super) fn constant_bias(cx: &Context, tr: &Training, out: &mut Found) {
 pub(super) fn rate_ramp(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     let (res, ranges) = (&tr.res, &tr.ranges);
     let u = cx.unit(Component::RateRamp { r: 1.0 })?;
-    if let Some((b, _)) = ls_w(res, &[&u], true, ranges, tr.w()) {
+    if let Some((b, _)) = ls_w(res, &tr.regs(&[&u]), true, ranges, tr.w()) {
         let sig: Vec<f64> = u.iter().map(|v| v * b[0]).collect();
         out.same(
             "rate_ramp",
@@ -67,7 +67,7 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
             amplitude: 1.0,
             tau_s: tau,
         })?;
-        Ok(ls_w(res, &[&u], true, ranges, tr.w()).map(|(b, rss)| (b[0], rss, u)))
+        Ok(ls_w(res, &tr.regs(&[&u]), true, ranges, tr.w()).map(|(b, rss)| (b[0], rss, u)))
     };
     let grid = log_grid(5.0 / fs.min(1.0), duration_s / 2.0, 24);
     // the grid's fits in parallel (each keeps only its RSS), the best chosen in order

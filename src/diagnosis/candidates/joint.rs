@@ -29,7 +29,7 @@ use super::{Context, Found, Proposal, Step, Training, run_step};
 use crate::error::Result;
 
 /// Backfitting passes over a pair (each pass estimates both members once).
-const PASSES: usize = 4;
+const PASSES: usize = 2;
 
 /// The most pairs a round scores, the lowest training residual first.
 pub const JOINT_PAIRS: usize = 2;
@@ -47,11 +47,33 @@ fn pair_steps() -> [Step; 6] {
     ]
 }
 
-/// One fold's estimate of `step` on the training residual `res`: the first proposal
-/// the step hands (each of these steps hands at most one), when its signal is the same
-/// in every replica.
-fn estimate(cx: &Context, base: &Training, step: &Step, res: Vec<f64>) -> Result<Option<Proposal>> {
-    let tr = base.with_res(res);
+/// Whether the least squares of `step` take a co-regressor ([`Training::regs`]).
+fn takes_co(step: &Step) -> bool {
+    matches!(
+        step,
+        Step::RateRamp | Step::Warmup | Step::TemperatureBias | Step::ThermalRate
+    )
+}
+
+/// One fold's estimate of `step` beside the other member `other` (None: alone): the
+/// first proposal the step hands (each of these steps hands at most one), when its
+/// signal is the same in every replica. A step whose least squares take a
+/// co-regressor fits the training residual with the other's signal beside its own,
+/// the other's size free (variable projection: Golub and Pereyra 1973, "The
+/// differentiation of pseudo-inverses and nonlinear least squares problems", SIAM J.
+/// Numer. Anal. 10); the others (the constant bias, the sinusoid's periodogram) fit the
+/// residual less the other's signal.
+fn estimate(
+    cx: &Context,
+    base: &Training,
+    step: &Step,
+    other: Option<&Proposal>,
+) -> Result<Option<Proposal>> {
+    let tr = match other {
+        None => base.with_res(base.res.clone(), None),
+        Some(o) if takes_co(step) => base.with_res(base.res.clone(), Some(signal(o).to_vec())),
+        Some(o) => base.with_res(less(&base.res, &[signal(o)]), None),
+    };
     let mut got: Option<Proposal> = None;
     let mut sink = |p: Proposal| {
         if got.is_none() {
@@ -94,10 +116,16 @@ fn fold_singles(
     only: Option<&[String]>,
 ) -> Result<(Training, Vec<Option<Proposal>>)> {
     let tr = Training::light(cx);
+    let comps = &cx.spec.channels[cx.channel].components;
     let mut singles = Vec::new();
     for s in &pair_steps() {
-        let p = estimate(cx, &tr, s, tr.res.clone())?;
-        singles.push(p.filter(|p| only.is_none_or(|ks| ks.contains(&p.kind))));
+        let asked =
+            only.is_none_or(|ks| super::step_kind(s, comps).is_some_and(|k| ks.contains(&k)));
+        singles.push(if asked {
+            estimate(cx, &tr, s, None)?
+        } else {
+            None
+        });
     }
     Ok((tr, singles))
 }
@@ -129,10 +157,10 @@ fn proxy_ratio(
 /// best single's.
 type Fitted = ([Proposal; 2], f64);
 
-/// Pair (i, j) fitted by backfitting in one fold, from the single estimate of i:
-/// j on the residual less i, then for each further pass i on the residual less j and
-/// j on the residual less i ([`PASSES`] passes); the proposals and their training RSS
-/// over the best single's.
+/// Pair (i, j) fitted in one fold, from the single estimate of i: j beside i
+/// ([`estimate`]), then for each further pass i beside j and j beside i ([`PASSES`]
+/// passes), both sizes fitted at once after each pass ([`rescaled_jointly`]); the
+/// proposals and their training RSS over the best single's.
 fn backfit(
     cx: &Context,
     tr: &Training,
@@ -148,12 +176,12 @@ fn backfit(
     for pass in 0..PASSES {
         if pass > 0 {
             let Some(bb) = b.as_ref() else { break };
-            match estimate(cx, tr, &steps[i], less(&tr.res, &[signal(bb)]))? {
+            match estimate(cx, tr, &steps[i], Some(bb))? {
                 Some(p) => a = p,
                 None => return Ok(None),
             }
         }
-        let Some(bb) = estimate(cx, tr, &steps[j], less(&tr.res, &[signal(&a)]))? else {
+        let Some(bb) = estimate(cx, tr, &steps[j], Some(&a))? else {
             return Ok(None);
         };
         let (a2, b2) = rescaled_jointly(tr, a, bb);

@@ -389,6 +389,10 @@ struct Training {
     line: OnceLock<Option<deterministic::Line>>,
     /// What the noise fits read ([`Training::noise_avar`]), computed on first use.
     noise: OnceLock<NoiseAvar>,
+    /// Another effect's signal that the least squares of the deterministic fits take
+    /// as one more regressor, its size free ([`Training::regs`]): the joint fit of a
+    /// pair ([`joint`]) by variable projection. None: the effect alone.
+    co: Option<Vec<f64>>,
 }
 
 /// The training Allan variance the noise fits read: A(m) and A(m) - E(m) of the real
@@ -451,12 +455,14 @@ impl Training {
             weights,
             line: OnceLock::new(),
             noise: OnceLock::new(),
+            co: None,
         }
     }
 
-    /// The same training part with the residual `res` in place of its own (for the
-    /// deterministic fits of [`joint`]: the residual less another effect's signal).
-    fn with_res(&self, res: Vec<f64>) -> Self {
+    /// The same training part with the residual `res` in place of its own and the
+    /// co-regressor `co` (for the deterministic fits of [`joint`]: the residual less
+    /// another effect's signal, or the residual with that signal's shape beside).
+    fn with_res(&self, res: Vec<f64>, co: Option<Vec<f64>>) -> Self {
         Training {
             n: self.n,
             fs: self.fs,
@@ -469,7 +475,16 @@ impl Training {
             weights: self.weights.clone(),
             line: OnceLock::new(),
             noise: OnceLock::new(),
+            co,
         }
+    }
+
+    /// The regressors `regs` of a deterministic fit, followed by the co-regressor when
+    /// there is one ([`Training::co`]): its coefficient comes last, after the fit's own.
+    fn regs<'a>(&'a self, regs: &[&'a [f64]]) -> Vec<&'a [f64]> {
+        let mut v = regs.to_vec();
+        v.extend(self.co.as_deref());
+        v
     }
 
     /// The weights of the deterministic fits ([`Training::weights`]), if any.
@@ -1237,9 +1252,10 @@ mod tests {
     /// A warm-up and a rate ramp missing at once: each single fit bends towards the
     /// other (the ramp's slope takes the warm-up's decay as a fall, the warm-up's
     /// amplitude the ramp's early rise); backfitted as a pair ([`joint::joint_pairs`])
-    /// both come back nearer the truth than either fitted alone (single fits on this
-    /// log: r 0.000145 for 0.0005, amplitude 0.143 for 0.3; joint: 0.000434, 0.279, tau
-    /// 65 s for 80 s).
+    /// both come back near the truth, nearer than either fitted alone (single fits on
+    /// this log: r 0.000145 for 0.0005, amplitude 0.143 for 0.3; joint: 0.000467,
+    /// 0.284, tau 75.7 s for 80 s; with plain backfitting instead of the variable
+    /// projection, four passes reached only 0.000434, 0.279 and 65 s).
     #[test]
     fn a_warmup_and_a_ramp_missing_together_are_fitted_jointly() {
         let n = 60_000;
@@ -1306,9 +1322,9 @@ mod tests {
         let r2 = ramp_of(&pair[0][0]).unwrap();
         let (a2, tau2) = warmup_of(&pair[0][1]).unwrap();
         let rel = |x: f64, t: f64| (x / t - 1.0).abs();
-        assert!(rel(r2, 0.0005) < 0.2, "joint r {r2}");
-        assert!(rel(a2, 0.3) < 0.15, "joint amplitude {a2}");
-        assert!(rel(tau2, 80.0) < 0.3, "joint tau {tau2}");
+        assert!(rel(r2, 0.0005) < 0.1, "joint r {r2}");
+        assert!(rel(a2, 0.3) < 0.1, "joint amplitude {a2}");
+        assert!(rel(tau2, 80.0) < 0.1, "joint tau {tau2}");
         assert!(
             rel(r1, 0.0005) > 2.0 * rel(r2, 0.0005),
             "single r {r1}, joint {r2}"

@@ -48,11 +48,11 @@ pub(super) fn temperature_bias(
         coeffs: vec![0.0, 1.0],
         reference_c: Some(tm),
     })?;
-    let quadratic = ls_weighted(res, &[&u1, &u2], true, ranges, tr.w())
+    let quadratic = ls_weighted(res, &tr.regs(&[&u1, &u2]), true, ranges, tr.w())
         .and_then(|(b, _)| with_reference(b[0], b[1], b[2]));
     let form = match quadratic {
         Some(f) => Some(f),
-        None => ls_weighted(res, &[&u1], true, ranges, tr.w())
+        None => ls_weighted(res, &tr.regs(&[&u1]), true, ranges, tr.w())
             .and_then(|(b, _)| with_reference(b[0], b[1], 0.0)),
     };
     let Some((coeffs, delta)) = form else {
@@ -148,7 +148,7 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     let fit = |sm: f64, lag: f64| -> Result<Option<ThermalFit>> {
         let u = unit(sm, lag)?;
         Ok(
-            ls_weighted(res, &[&u], true, ranges, tr.w()).map(|(beta, rss)| ThermalFit {
+            ls_weighted(res, &tr.regs(&[&u]), true, ranges, tr.w()).map(|(beta, rss)| ThermalFit {
                 beta,
                 smoothing_s: sm,
                 lag_s: lag,
@@ -182,7 +182,7 @@ pub(super) fn thermal_rate(cx: &Context, tr: &Training, out: &mut Found) -> Resu
     let undetermined_from = if by_smoothing[k].smoothing_s == top_sm && top_sm > 0.0 {
         let lens: Vec<usize> = ranges.iter().map(|r| r.len()).collect();
         let by_range =
-            |f: &ThermalFit| rss_by_range(res, &[&f.unit], &f.beta, true, ranges, tr.w());
+            |f: &ThermalFit| rss_by_range(res, &tr.regs(&[&f.unit]), &f.beta, true, ranges, tr.w());
         let top = by_range(&by_smoothing[k]);
         (0..k)
             .find(|&i| !clearly_better(&by_range(&by_smoothing[i]), &top, &lens))
