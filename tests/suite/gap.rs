@@ -1404,8 +1404,11 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
         scan: Vec::new(),
         beyond: &[],
     };
+    // single candidates only: the joint pair of the two biases would take both in the
+    // first round ([`the_biases_of_the_search_tests_are_found_as_a_joint_pair`])
     let prm = GapParams {
         replicas: 12,
+        joint_pairs: false,
         ..GapParams::default()
     };
     let d = diagnose(&real, &spec, &prm).unwrap();
@@ -1472,6 +1475,7 @@ fn a_bound_is_left_as_it_is_when_its_copy_would_pass_the_memory_limit() {
         dir.path().join("out").to_str().unwrap(),
         "--memory-limit",
         "0.08",
+        "--no-joint-pairs",
     ]);
     assert!(
         out.status.success(),
@@ -1646,7 +1650,9 @@ fn warmup_beside_bias_log(amplitude: f64) -> (Vec<f64>, Vec<f64>, farma::simulat
     )
 }
 
-/// `d` of [`warmup_beside_bias_log`] (12 replicas).
+/// `d` of [`warmup_beside_bias_log`] (12 replicas), single candidates only: the joint
+/// pair of the two biases would take both in the first round
+/// ([`the_biases_of_the_search_tests_are_found_as_a_joint_pair`]).
 fn diagnose_warmup_beside_bias(amplitude: f64) -> Diagnosis {
     let (x, temp, spec) = warmup_beside_bias_log(amplitude);
     let real = RealLog {
@@ -1661,6 +1667,7 @@ fn diagnose_warmup_beside_bias(amplitude: f64) -> Diagnosis {
     };
     let prm = GapParams {
         replicas: 12,
+        joint_pairs: false,
         ..GapParams::default()
     };
     diagnose(&real, &spec, &prm).unwrap()
@@ -2184,4 +2191,48 @@ fn a_warmup_and_a_ramp_missing_together_are_added_as_a_joint_pair() {
         .as_f64()
         .unwrap();
     assert!((r / (0.06 / 3600.0) - 1.0).abs() < 0.3, "r {r}");
+}
+
+/// The logs of the search tests above (a warm-up of 0.08 or 0.15 beside a temperature
+/// bias on a climbing temperature; a thermal rate beside a temperature bias), at the
+/// default: the first round's joint pair of biases adds the two true effects at once,
+/// and the gap closes.
+#[test]
+fn the_biases_of_the_search_tests_are_found_as_a_joint_pair() {
+    let pair = |d: &Diagnosis, want: [&str; 2]| {
+        let mut kinds: Vec<&str> = d.added.iter().map(|e| e.kind.as_str()).collect();
+        kinds.sort();
+        assert_eq!(kinds, want, "{:?} {:?}", d.steps, d.notes);
+        assert!(
+            d.notes
+                .iter()
+                .any(|n| n.contains("added as a pair, estimated jointly")),
+            "{:?}",
+            d.notes
+        );
+        assert!(
+            d.gap_after <= d.gap_threshold,
+            "gap {} -> {} ({kinds:?})",
+            d.gap_before,
+            d.gap_after
+        );
+    };
+    for amplitude in [0.08, 0.15] {
+        let (x, temp, spec) = warmup_beside_bias_log(amplitude);
+        let real = bank_log(&x, Some(&temp), 10.0);
+        let prm = GapParams {
+            replicas: 12,
+            ..GapParams::default()
+        };
+        let d = diagnose(&real, &spec, &prm).unwrap();
+        pair(&d, ["temperature_bias", "warmup"]);
+    }
+    let (x, temp, spec) = thermal_beside_bias_log();
+    let real = bank_log(&x, Some(&temp), 10.0);
+    let prm = GapParams {
+        replicas: 12,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    pair(&d, ["temperature_bias", "thermal_rate"]);
 }
