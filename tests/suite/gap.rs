@@ -2236,3 +2236,47 @@ fn the_biases_of_the_search_tests_are_found_as_a_joint_pair() {
     let d = diagnose(&real, &spec, &prm).unwrap();
     pair(&d, ["temperature_bias", "thermal_rate"]);
 }
+
+/// A white noise whose scale grows with temperature, 1 + 0.05 (T - 20 degC), on a
+/// log whose temperature climbs from 0 to 40 degC, diagnosed averaged: the
+/// heteroskedastic term the averaged part adds carries its reference temperature, so
+/// that the per-sample part, which simulates only the log's first quarter (mean near
+/// 5 degC), sees the same scale there and adds nothing. With the reference left to the
+/// simulator's default, the mean of the temperature it is given (5 degC there), the
+/// first quarter's simulated noise came out about 4 times the log's (gap 19.9) and the
+/// per-sample part scaled the white noise down twice.
+#[test]
+fn a_heteroskedastic_term_keeps_its_reference_in_the_per_sample_part() {
+    let (n, rate_hz) = (120_000, 10.0);
+    let temp: Vec<f64> = (0..n).map(|k| 40.0 * k as f64 / n as f64).collect();
+    let (x, temp, spec) = with_effects(
+        temp,
+        [Component::Heteroskedastic {
+            of: farma::simulator::Kind::WhiteNoise,
+            slope: 0.05,
+            floor: 0.1,
+            reference_c: Some(20.0),
+        }],
+        51,
+    );
+    let real = bank_log(&x, Some(&temp), rate_hz);
+    let prm = GapParams {
+        max_samples: 30_000,
+        excerpt_samples: 30_000,
+        replicas: 10,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    let ps = d.per_sample.as_ref().expect("the per-sample part");
+    assert!(
+        ps.added.is_empty(),
+        "{:?} (gap {} -> {})",
+        ps.steps,
+        ps.gap_before,
+        ps.gap_after
+    );
+    let het = added(&d, "heteroskedastic");
+    let r = het.params["reference_c"].as_f64().expect("a reference");
+    assert!((r - 20.0).abs() < 10.0, "{}", het.params);
+}

@@ -649,11 +649,14 @@ fn estimate_heteroskedastic(
         ..
     } = fit;
     let f = (v_mod / v).sqrt();
+    // the reference written out, the mean temperature included: the simulator's default
+    // is the mean of whatever temperature it is given, which for the log's first
+    // samples (the per-sample part of a long log) or another profile is not this log's
     let comp = Component::Heteroskedastic {
         of,
         slope,
         floor,
-        reference_c,
+        reference_c: Some(reference_c.unwrap_or(tm)),
     };
     let level = scaled(&comps[k], f).expect("noise kinds scale");
     // (s - 1) x times f, plus (f - 1) x: (f s - 1) x
