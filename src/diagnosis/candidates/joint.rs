@@ -11,24 +11,29 @@
 //! Every pair of the six biases (constant bias, rate ramp, warm-up, sinusoid,
 //! temperature bias, thermal rate) that both folds estimate alone is ranked by the
 //! training residual sum of squares of both single signals fitted at once (each
-//! rescaled), over the best single's; the [`JOINT_PAIRS`] best are fitted by
-//! backfitting (Buja, Hastie and Tibshirani 1989, "Linear smoothers and additive
-//! models", Ann. Statist. 17): the first member from its single fit, the second on the
-//! residual less the first, then for each further pass the first on the residual less
-//! the second and the second again, `PASSES` passes, each fit the member's own
-//! estimator (its intercept, grids and golden-section searches included). After each
-//! pass both sizes are fitted at once by least squares on the two signals, which
-//! plain backfitting approaches only slowly when the signals overlap. The diagnosis
-//! scores each pair on the withheld part like any other candidate and adds the better
-//! pair only when it beats the round's best single effect by the margin a forward step
-//! needs (`GapParams::joint_pairs`, off by default).
+//! rescaled), over the best single's. The [`JOINT_PAIRS`] best are fitted together:
+//! the first member from its single fit, then the second beside the first, and for
+//! each further pass the first beside the second and the second again (`PASSES`
+//! passes). Each fit is the member's own estimator (its intercept, grids and
+//! golden-section searches included) with the other member's signal as one more
+//! regressor of its least squares, its size free (variable projection: Golub and
+//! Pereyra 1973); the constant bias and the sinusoid, whose estimators are no such
+//! least squares, are fitted to the residual less the other (backfitting: Buja,
+//! Hastie and Tibshirani 1989, "Linear smoothers and additive models", Ann. Statist.
+//! 17). After each pass both sizes are fitted at once by least squares on the two
+//! signals. Plain backfitting alone converged slowly where the two signals overlap
+//! (BENCHMARKS.md, the twenty-eighth session). The diagnosis scores each pair on the
+//! withheld part like any other candidate and adds the better pair only when it beats
+//! the round's best single effect by the margin a forward step needs and by more than
+//! a tie (`GapParams::joint_pairs`, on by default).
 
 use serde_json::Value;
 
 use super::{Context, Found, Proposal, Step, Training, run_step};
 use crate::error::Result;
 
-/// Backfitting passes over a pair (each pass estimates both members once).
+/// Passes over a pair (each pass estimates both members once; a third pass changed
+/// nothing in the unit test).
 const PASSES: usize = 2;
 
 /// The most pairs a round scores, the lowest training residual first.
@@ -161,7 +166,7 @@ type Fitted = ([Proposal; 2], f64);
 /// ([`estimate`]), then for each further pass i beside j and j beside i ([`PASSES`]
 /// passes), both sizes fitted at once after each pass ([`rescaled_jointly`]); the
 /// proposals and their training RSS over the best single's.
-fn backfit(
+fn fit_pair(
     cx: &Context,
     tr: &Training,
     singles: &[Option<Proposal>],
@@ -240,7 +245,7 @@ fn rescale(p: &Proposal, s: f64) -> Option<Proposal> {
 /// withheld part; the two folds estimate in parallel): every pair of `pair_steps`
 /// kinds that `only` keeps (when given) and that both folds estimate alone is ranked
 /// by the larger of the two folds' `proxy_ratio`; the [`JOINT_PAIRS`] lowest are
-/// fitted by `backfit` in both folds and returned, `[fold 1's, fold 2's]`, when
+/// fitted by `fit_pair` in both folds and returned, `[fold 1's, fold 2's]`, when
 /// their training RSS is below the best single bias's in both.
 pub fn joint_pairs(cxs: [&Context; 2], only: Option<&[String]>) -> Result<Vec<[[Proposal; 2]; 2]>> {
     let (f0, f1) = rayon::join(|| fold_singles(cxs[0], only), || fold_singles(cxs[1], only));
@@ -260,7 +265,7 @@ pub fn joint_pairs(cxs: [&Context; 2], only: Option<&[String]>) -> Result<Vec<[[
     let keys: Vec<(usize, usize)> = ranked.iter().take(JOINT_PAIRS).map(|r| r.1).collect();
     let fit = |f: usize| -> Result<Vec<Option<Fitted>>> {
         keys.iter()
-            .map(|&k| backfit(cxs[f], &folds[f].0, &folds[f].1, k, bests[f]))
+            .map(|&k| fit_pair(cxs[f], &folds[f].0, &folds[f].1, k, bests[f]))
             .collect()
     };
     let (p0, p1) = rayon::join(|| fit(0), || fit(1));
