@@ -29,7 +29,7 @@
 
 use serde_json::Value;
 
-use super::{Context, Found, Proposal, Step, Training, run_step};
+use super::{Context, Found, Proposal, Step, Training, bias_steps, run_step};
 use crate::error::Result;
 
 /// Passes over a pair (each pass estimates both members once; a third pass changed
@@ -38,19 +38,6 @@ const PASSES: usize = 2;
 
 /// The most pairs a round scores, the lowest training residual first.
 pub const JOINT_PAIRS: usize = 2;
-
-/// The biases a pair is made of (the steps of [`super::propose`] that estimate a
-/// deterministic signal from the residual's mean).
-fn pair_steps() -> [Step; 6] {
-    [
-        Step::ConstantBias,
-        Step::RateRamp,
-        Step::Warmup,
-        Step::Sinusoid,
-        Step::TemperatureBias,
-        Step::ThermalRate,
-    ]
-}
 
 /// Whether the least squares of `step` take a co-regressor ([`Training::regs`]).
 fn takes_co(step: &Step) -> bool {
@@ -114,7 +101,7 @@ fn rss(tr: &Training, x: &[f64]) -> f64 {
     super::lsq::ls_weighted(x, &[], true, &tr.ranges, tr.w()).map_or(f64::INFINITY, |(_, r)| r)
 }
 
-/// One fold's single estimates of [`pair_steps`] that `only` keeps (None where a step
+/// One fold's single estimates of [`bias_steps`] that `only` keeps (None where a step
 /// gives none), with the fold's training part.
 fn fold_singles(
     cx: &Context,
@@ -123,7 +110,7 @@ fn fold_singles(
     let tr = Training::light(cx);
     let comps = &cx.spec.channels[cx.channel].components;
     let mut singles = Vec::new();
-    for s in &pair_steps() {
+    for s in &bias_steps() {
         let asked =
             only.is_none_or(|ks| super::step_kind(s, comps).is_some_and(|k| ks.contains(&k)));
         singles.push(if asked {
@@ -173,7 +160,7 @@ fn fit_pair(
     (i, j): (usize, usize),
     best: f64,
 ) -> Result<Option<Fitted>> {
-    let steps = pair_steps();
+    let steps = bias_steps();
     let Some(mut a) = singles[i].clone() else {
         return Ok(None);
     };
@@ -242,7 +229,7 @@ fn rescale(p: &Proposal, s: f64) -> Option<Proposal> {
 }
 
 /// The pairs to score, for both folds' states (`cxs[f]` trains on the other fold's
-/// withheld part; the two folds estimate in parallel): every pair of `pair_steps`
+/// withheld part; the two folds estimate in parallel): every pair of `bias_steps`
 /// kinds that `only` keeps (when given) and that both folds estimate alone is ranked
 /// by the larger of the two folds' `proxy_ratio`; the [`JOINT_PAIRS`] lowest are
 /// fitted by `fit_pair` in both folds and returned, `[fold 1's, fold 2's]`, when
@@ -251,7 +238,7 @@ pub fn joint_pairs(cxs: [&Context; 2], only: Option<&[String]>) -> Result<Vec<[[
     let (f0, f1) = rayon::join(|| fold_singles(cxs[0], only), || fold_singles(cxs[1], only));
     let folds = [f0?, f1?];
     let bests = folds.each_ref().map(|(tr, s)| best_single_rss(tr, s));
-    let n = pair_steps().len();
+    let n = bias_steps().len();
     let mut ranked: Vec<(f64, (usize, usize))> = Vec::new();
     for i in 0..n {
         for j in i + 1..n {

@@ -660,17 +660,24 @@ enum Step {
     Recalibrate(usize),
 }
 
-/// The steps of [`propose`] for a target channel of `n_comps` components.
-fn steps(n_comps: usize) -> Vec<Step> {
-    let mut s = vec![
+/// The steps that estimate a bias, a deterministic signal fitted to the residual's
+/// mean, in [`propose`]'s order: the kinds an exchange step and a joint pair
+/// ([`joint`]) are made of.
+fn bias_steps() -> [Step; 6] {
+    [
         Step::ConstantBias,
         Step::RateRamp,
         Step::Warmup,
         Step::Sinusoid,
         Step::TemperatureBias,
         Step::ThermalRate,
-        Step::Heteroskedastic,
-    ];
+    ]
+}
+
+/// The steps of [`propose`] for a target channel of `n_comps` components.
+fn steps(n_comps: usize) -> Vec<Step> {
+    let mut s = bias_steps().to_vec();
+    s.push(Step::Heteroskedastic);
     s.extend(
         noise::unit_components()
             .into_iter()
