@@ -215,6 +215,16 @@ fn text(d: &crate::diagnosis::Diagnosis) -> String {
             e.params
         );
     }
+    for j in &d.joint_pairs {
+        let _ = writeln!(
+            s,
+            "  pair {:<29} gap {:>9.3}  {}: {}",
+            format!("{} + {}", j.kinds[0], j.kinds[1]),
+            j.gap_after,
+            if j.added { "added" } else { "not added" },
+            j.reason
+        );
+    }
     let _ = writeln!(
         s,
         "\nadded: {}",

@@ -304,6 +304,9 @@ pub struct Diagnosis {
     /// matches the log on the withheld part (true also when nothing was significant).
     pub explained: bool,
     pub not_tried: Vec<NotTried>,
+    /// The pairs of biases estimated jointly and scored ([`candidates::joint`]), each
+    /// with whether it was added and why (or why not).
+    pub joint_pairs: Vec<JointTried>,
     /// The spec with the added effects.
     pub spec_after: Spec,
     /// Feature layout of the withheld part, the real log's features there, and the
@@ -987,6 +990,7 @@ fn diagnose_log(
     let mut slots: Vec<[Slot; 2]> = Vec::new();
     let mut steps: Vec<Step> = Vec::new();
     let mut not_tried = Vec::new();
+    let mut joint_tried: Vec<JointTried> = Vec::new();
     let score = |f: &[Vec<f64>]| -> (f64, EnsembleStats, Vec<(Statistic, f64)>) {
         let e = EnsembleStats::new(f, &defs, None);
         let z = e.z(&real_feats);
@@ -1281,6 +1285,8 @@ fn diagnose_log(
         // where two missing biases bend each other's single fits most); the best is
         // kept for the decision below
         let mut best_joint: Option<JointBest> = None;
+        // each scored pair's kinds and gap after
+        let mut pairs_scored: Vec<([String; 2], f64)> = Vec::new();
         if prm.joint_pairs && added.is_empty() {
             for [pf0, pf1] in candidates::joint::joint_pairs([&cx(0), &cx(1)], only)? {
                 let sum = |ps: &[Proposal; 2]| -> Vec<f64> {
@@ -1301,6 +1307,7 @@ fn diagnose_log(
                 });
                 if let Ok(f) = f {
                     let (g, e, families) = score(&f);
+                    pairs_scored.push(([pf0[0].kind.clone(), pf0[1].kind.clone()], g));
                     if best_joint.as_ref().is_none_or(|b| g < b.gap_after) {
                         best_joint = Some(JointBest {
                             gap_after: g,
@@ -1421,16 +1428,62 @@ fn diagnose_log(
         // difference: within that the single effect, of fewer free parameters, is the
         // simpler explanation), unless that single effect already brings the gap within
         // the spread of the spec's own simulations (where the search stops)
-        let pair_beats = |j: &JointBest| {
-            j.gap_after <= floor_gap
-                && j.gap_after <= eff.gap_after * (1.0 - prm.min_shrink)
-                && eff.gap_after > cal.gap_threshold
-                && eff.gap_after - j.gap_after
-                    > 2.0 * jackknife_sd(&j.feats, &best_feats, &real_feats, &ens_before, &defs)
+        let pair_beats = |j: &JointBest| -> std::result::Result<String, String> {
+            let pct = 100.0 * prm.min_shrink;
+            if eff.gap_after <= cal.gap_threshold {
+                return Err(format!(
+                    "{} alone brings the gap within the threshold {:.3}",
+                    eff.kind, cal.gap_threshold
+                ));
+            }
+            if j.gap_after > floor_gap || j.gap_after > eff.gap_after * (1.0 - prm.min_shrink) {
+                return Err(format!(
+                    "does not beat {} ({:.3}) or the gap now ({gap_was:.3}) by {pct:.0} %",
+                    eff.kind, eff.gap_after
+                ));
+            }
+            let sd = jackknife_sd(&j.feats, &best_feats, &real_feats, &ens_before, &defs);
+            if eff.gap_after - j.gap_after > 2.0 * sd {
+                Ok(format!(
+                    "beats {} ({:.3}) by {pct:.0} % or more and by more than 2 jackknife sd ({sd:.3})",
+                    eff.kind, eff.gap_after
+                ))
+            } else {
+                Err(format!(
+                    "ties with {} ({:.3}) within 2 jackknife sd ({sd:.3}): the single effect is the simpler explanation",
+                    eff.kind, eff.gap_after
+                ))
+            }
         };
+        let best_pair_verdict = best_joint.as_ref().map(|j| {
+            if pair_note.is_some() {
+                Err(
+                    "a coarse output resolution with a fitted filter was added as a pair instead"
+                        .to_string(),
+                )
+            } else {
+                pair_beats(j)
+            }
+        });
+        let best_pair_gap = best_joint.as_ref().map(|j| j.gap_after);
+        for (kinds, g) in pairs_scored {
+            let verdict = match (&best_pair_verdict, best_pair_gap) {
+                (Some(v), Some(bg)) if g == bg => v.clone(),
+                (_, Some(bg)) => Err(format!("another pair scored lower ({bg:.3})")),
+                _ => Err(String::new()),
+            };
+            joint_tried.push(JointTried {
+                kinds,
+                gap_after: g,
+                best_single: eff.kind.clone(),
+                best_single_gap_after: eff.gap_after,
+                added: verdict.is_ok(),
+                reason: verdict.unwrap_or_else(|e| e),
+            });
+        }
         let pair_note = match (pair_note, best_joint) {
             (Some(note), _) => Some(note),
-            (None, Some(j)) if pair_beats(&j) => {
+            (None, Some(j)) if matches!(best_pair_verdict, Some(Ok(_))) => {
                 Some(refit.joint_pair(&mut search, j, (&eff.kind, eff.gap_after))?)
             }
             (None, _) => None,
@@ -1794,6 +1847,7 @@ fn diagnose_log(
         support,
         jumps: level,
         not_tried,
+        joint_pairs: joint_tried,
         spec_after: sts[0].spec.clone(),
         defs,
         real: real_feats,
@@ -2086,6 +2140,22 @@ fn label(e: &Effect) -> String {
 /// with its proposals (one per fold) and features, and the runner-up's features (for
 /// the tie test). At equal gaps the earlier candidate ranks first, as a stable sort
 /// would put it.
+/// A pair of biases estimated jointly and scored in a round ([`candidates::joint`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct JointTried {
+    /// The two kinds, as the pair was estimated (the first member first).
+    pub kinds: [String; 2],
+    /// The gap on the withheld part with both added.
+    pub gap_after: f64,
+    /// The round's best single effect, which the pair had to beat, and its gap after.
+    pub best_single: String,
+    pub best_single_gap_after: f64,
+    /// The pair was added (as two `add` steps).
+    pub added: bool,
+    /// Why it was added, or why not.
+    pub reason: String,
+}
+
 /// A round's best joint pair of biases ([`candidates::joint`]): its gap, ensemble
 /// statistics and family gaps with both members added, and the proposals, fold 1's
 /// pair then fold 2's.

@@ -447,7 +447,7 @@ impl Refit<'_> {
         let (ka, kb) = (a0.kind.clone(), b0.kind.clone());
         let joint = |mut eff: Effect, other: &str| {
             eff.note = format!(
-                "{}; estimated jointly with {other} (backfitting on the training residual) and added with it as a pair",
+                "{}; estimated jointly with {other} (each with the other's signal beside its own on the training residual) and added with it as a pair",
                 eff.note
             );
             eff

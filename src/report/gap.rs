@@ -395,6 +395,19 @@ pub fn gap_page(real: &str, spec: &str, done: &[Diagnosis]) -> Result<String> {
         for n in &d.not_tried {
             p.p("note", &format!("not tried: {}: {}", n.kind, n.reason));
         }
+        for j in &d.joint_pairs {
+            p.p(
+                "note",
+                &format!(
+                    "joint pair {} + {}: gap after {:.3}, {}: {}",
+                    j.kinds[0],
+                    j.kinds[1],
+                    j.gap_after,
+                    if j.added { "added" } else { "not added" },
+                    j.reason
+                ),
+            );
+        }
         for n in &d.notes {
             p.p("note", &format!("note: {n}"));
         }

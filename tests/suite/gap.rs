@@ -2182,6 +2182,28 @@ fn a_warmup_and_a_ramp_missing_together_are_added_as_a_joint_pair() {
     assert_eq!(d.steps[0].action, "add");
     assert_eq!(d.steps[1].action, "add");
     assert_eq!(d.steps[0].gap_after, d.steps[1].gap_after);
+    // every pair scored is reported, the added one with the reason it won, the other
+    // with why not; the JSON carries the same list
+    let added: Vec<_> = d.joint_pairs.iter().filter(|j| j.added).collect();
+    assert_eq!(added.len(), 1, "{:?}", d.joint_pairs);
+    let mut won = added[0].kinds.clone();
+    won.sort();
+    assert_eq!(won, ["rate_ramp", "warmup"], "{:?}", d.joint_pairs);
+    assert_eq!(added[0].gap_after, d.steps[1].gap_after);
+    assert!(added[0].reason.contains("jackknife"), "{}", added[0].reason);
+    assert!(
+        added[0].gap_after < added[0].best_single_gap_after,
+        "{:?}",
+        added[0]
+    );
+    for j in d.joint_pairs.iter().filter(|j| !j.added) {
+        assert!(j.gap_after >= added[0].gap_after, "{j:?}");
+        assert!(!j.reason.is_empty(), "{j:?}");
+    }
+    let js = farma::diagnosis::report::to_json(&d);
+    let listed = js["joint_pairs"].as_array().unwrap();
+    assert_eq!(listed.len(), d.joint_pairs.len());
+    assert!(listed.iter().any(|j| j["added"] == true));
     let r = d
         .added
         .iter()
