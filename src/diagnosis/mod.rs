@@ -1715,7 +1715,7 @@ fn diagnose_log(
                         .any(|e| e.step == Some(id) && ensemble::is_deterministic(&e.component))
             })
             && added.iter().any(|e| {
-                e.step != Some(newest) && reestimate::EXCHANGE_KINDS.contains(&e.kind.as_str())
+                e.step != Some(newest) && candidates::bias_kinds().contains(&e.kind.as_str())
             })
         {
             let copy_bytes = states_copy_bytes(&sts);

@@ -29,17 +29,6 @@ use super::{
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
 
-/// The kinds an exchange step ([`Refit::exchange`]) takes out and puts in: the
-/// deterministic biases, regressions on time and temperature.
-pub(super) const EXCHANGE_KINDS: [&str; 6] = [
-    "constant_bias",
-    "rate_ramp",
-    "warmup",
-    "sinusoid",
-    "temperature_bias",
-    "thermal_rate",
-];
-
 /// Most candidates besides a round's best tried with the earlier effects re-estimated
 /// (each costs a copy of both folds' ensembles and one re-estimation per kept effect).
 pub(super) const RIVALS: usize = 4;
@@ -570,10 +559,10 @@ impl Refit<'_> {
     /// Regression", 2nd ed., chapter 3): after a round's addition (step `newest`; the
     /// caller asks only when it is a bias itself, the one kind of addition that changes
     /// the residual's mean, which the biases are fitted to), each
-    /// earlier kept bias of [`EXCHANGE_KINDS`] (not a recalibration or a replacement)
+    /// earlier kept bias of [`candidates::bias_kinds`] (not a recalibration or a replacement)
     /// is first taken back outright with the others estimated again without it
     /// ([`Refit::take_back_refitted`]); when that leaves it, it is taken out of both
-    /// folds' states and every other kind of [`EXCHANGE_KINDS`]
+    /// folds' states and every other kind of [`candidates::bias_kinds`]
     /// the channel then lacks is estimated in its place, with the later effects in the
     /// residual. The best of these, when its gap is within [`SCREEN_RATIO`] times the
     /// gap now, is made on a copy of the search, and the kept effects are backfitted
@@ -592,7 +581,7 @@ impl Refit<'_> {
             .filter(|e| {
                 e.step != Some(newest)
                     && e.replaces.is_none()
-                    && EXCHANGE_KINDS.contains(&e.kind.as_str())
+                    && candidates::bias_kinds().contains(&e.kind.as_str())
             })
             .filter_map(|e| e.step)
             .collect();
@@ -620,9 +609,8 @@ impl Refit<'_> {
                         .any(|c| c.kind().as_str() == k)
                 })
             };
-            let others: Vec<&str> = EXCHANGE_KINDS
-                .iter()
-                .copied()
+            let others: Vec<&str> = candidates::bias_kinds()
+                .into_iter()
                 .filter(|&k| k != kind && !present(k))
                 .collect();
             if others.is_empty() {

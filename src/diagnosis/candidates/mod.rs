@@ -674,6 +674,22 @@ fn bias_steps() -> [Step; 6] {
     ]
 }
 
+/// The kinds of [`bias_steps`], in the same order (contracts.md section 2 names).
+pub(crate) fn bias_kinds() -> [&'static str; 6] {
+    bias_steps().map(|s| {
+        match s {
+            Step::ConstantBias => Kind::ConstantBias,
+            Step::RateRamp => Kind::RateRamp,
+            Step::Warmup => Kind::Warmup,
+            Step::Sinusoid => Kind::Sinusoid,
+            Step::TemperatureBias => Kind::TemperatureBias,
+            Step::ThermalRate => Kind::ThermalRate,
+            _ => unreachable!("bias_steps holds the six biases only"),
+        }
+        .as_str()
+    })
+}
+
 /// The steps of [`propose`] for a target channel of `n_comps` components.
 fn steps(n_comps: usize) -> Vec<Step> {
     let mut s = bias_steps().to_vec();
