@@ -2302,3 +2302,85 @@ fn a_heteroskedastic_term_keeps_its_reference_in_the_per_sample_part() {
     let r = het.params["reference_c"].as_f64().expect("a reference");
     assert!((r - 20.0).abs() < 10.0, "{}", het.params);
 }
+
+/// A spec that has its sensor's output filter (second order at 0.7 Hz on a 10 Hz log,
+/// which cuts most of the white noise's short-time variance) against a log of that
+/// spec whose white noise scales with temperature. The noise fits compare the log's
+/// short-time statistics with the ensemble's outputs, through the filter: the
+/// heteroskedastic term's slope comes out near the truth and the gap closes, and the
+/// white noise's recalibration on a log of the spec itself stays near 1. With the
+/// ensemble read before the filter (the pre-path sums), nothing was added here.
+#[test]
+fn the_noise_fits_read_the_ensemble_through_the_spec_s_output_filter() {
+    let (n, rate_hz) = (72_000, 10.0);
+    let filter = Component::OutputFilter {
+        order: 2,
+        bandwidth_hz: 0.7,
+        damping: None,
+        discretization: Default::default(),
+    };
+    let temp: Vec<f64> = (0..n).map(|k| -10.0 + 50.0 * k as f64 / n as f64).collect();
+    let mut spec = bank::base_spec(rate_hz, true);
+    spec.channels[0].components.push(filter);
+    let mut truth = spec.clone();
+    truth.channels[0]
+        .components
+        .push(Component::Heteroskedastic {
+            of: farma::simulator::Kind::WhiteNoise,
+            slope: 0.04,
+            floor: 0.1,
+            reference_c: Some(15.0),
+        });
+    let x = simulate_target(&truth, n, rate_hz, Some(&temp), 61);
+    let real = bank_log(&x, Some(&temp), rate_hz);
+    let prm = GapParams {
+        replicas: 12,
+        explain_replicas: 0,
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    assert!(
+        !d.not_tried.iter().any(|t| t.kind == "heteroskedastic"),
+        "{:?}",
+        d.not_tried
+    );
+    assert_eq!(
+        d.added.first().map(|e| e.kind.as_str()),
+        Some("heteroskedastic"),
+        "{:?}",
+        d.steps
+    );
+    let p = &d.added[0].params;
+    let at = p["reference_c"].as_f64().unwrap();
+    // the truth's slope about the estimate's reference: 0.04 / (1 + 0.04 (at - 15))
+    let want = 0.04 / (1.0 + 0.04 * (at - 15.0));
+    let slope = p["slope"].as_f64().unwrap();
+    assert!(
+        (slope / want - 1.0).abs() < 0.2,
+        "slope {slope} for {want}: {p}"
+    );
+    assert!(
+        d.gap_after <= d.gap_threshold,
+        "{} -> {}",
+        d.gap_before,
+        d.gap_after
+    );
+
+    // the spec against a log of itself: the white noise's size factor near 1
+    let y = simulate_target(&spec, n, rate_hz, Some(&temp), 62);
+    let real = bank_log(&y, Some(&temp), rate_hz);
+    let prm = GapParams {
+        replicas: 12,
+        explain_replicas: 0,
+        only_kinds: Some(vec!["recalibrate:white_noise".into()]),
+        ..GapParams::default()
+    };
+    let d = diagnose(&real, &spec, &prm).unwrap();
+    let f = d
+        .effects
+        .iter()
+        .find(|e| e.kind == "recalibrate:white_noise")
+        .map(|e| e.params["factor"].as_f64().unwrap())
+        .expect("the white noise's recalibration scored");
+    assert!((f - 1.0).abs() < 0.1, "factor {f}");
+}

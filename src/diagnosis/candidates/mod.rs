@@ -337,6 +337,48 @@ impl Context<'_> {
         let xs: Vec<&[f64]> = xs.collect();
         mean_in_order(xs.par_iter().map(|x| self.avar(x)).collect())
     }
+    /// Replica `r`'s signal of the target channel's component `k` as the output shows
+    /// it: through the channel's output filter (a low-pass or a FIR: the path's linear
+    /// stage; the saturation and the resolution act on the sum and are left out), from
+    /// rest as the simulator runs it; the signal itself when the channel has no filter.
+    /// A noise fit that compares the log's short-time variance with a component's must
+    /// read the component here: a filter that cuts the log's high frequencies cuts the
+    /// component's too, and its unfiltered variance would put the filter's loss on the
+    /// component's size.
+    fn part_as_output(&self, r: usize, k: usize) -> std::borrow::Cow<'_, [f64]> {
+        let x: &[f64] = &self.parts[r][k];
+        let filters: Vec<Component> = self.spec.channels[self.channel]
+            .components
+            .iter()
+            .filter(|c| c.kind() == Kind::OutputFilter)
+            .cloned()
+            .collect();
+        if filters.is_empty() {
+            return std::borrow::Cow::Borrowed(x);
+        }
+        let mut y = x.to_vec();
+        super::path::PathStage::of(&filters, self.rate_hz()).apply(&mut y);
+        std::borrow::Cow::Owned(y)
+    }
+
+    /// Replica `r`'s output of the target channel: its pre-path sum through the
+    /// channel's output path (filter, saturation, resolution), from rest as the
+    /// simulator runs it; the sum itself when the channel has no path. What the log's
+    /// statistics are compared with.
+    fn target_as_output(&self, r: usize) -> std::borrow::Cow<'_, [f64]> {
+        let x: &[f64] = &self.target[r];
+        let path = super::path::PathStage::of(
+            &self.spec.channels[self.channel].components,
+            self.rate_hz(),
+        );
+        if path.is_empty() {
+            return std::borrow::Cow::Borrowed(x);
+        }
+        let mut y = x.to_vec();
+        path.apply(&mut y);
+        std::borrow::Cow::Owned(y)
+    }
+
     /// The signal of `c` added to the target channel, simulated once (deterministic
     /// effects: the same in every replica).
     fn unit(&self, c: Component) -> Result<Vec<f64>> {
@@ -421,7 +463,13 @@ impl Training {
     fn new(cx: &Context) -> Self {
         let mut tr = Training::light(cx);
         tr.a_real = cx.avar(cx.real);
-        let a_ens = cx.mean_avar(cx.target.iter().map(|v| v.as_slice()));
+        // the ensemble's outputs, as the log shows its own (through the output path)
+        let a_ens = mean_in_order(
+            (0..cx.target.len())
+                .into_par_iter()
+                .map(|r| cx.avar(&cx.target_as_output(r)))
+                .collect(),
+        );
         tr.ms = cx.train.adev_factors().to_vec();
         tr.excess = tr.a_real.iter().zip(&a_ens).map(|(a, e)| a - e).collect();
         tr

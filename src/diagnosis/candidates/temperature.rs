@@ -22,6 +22,7 @@ use super::{Context, Delta, Found, Proposal, Training};
 use crate::diagnosis::features::Temperature;
 use crate::error::Result;
 use crate::simulator::Component;
+use rayon::prelude::*;
 
 /// temperature_bias: coefficients of T - Tm and (T - Tm)^2 with an intercept c0, by
 /// least squares of the training residual, written in the simulator's form
@@ -580,13 +581,27 @@ fn estimate_heteroskedastic(
         s / c.max(1.0)
     };
     let m = cx.target.len().max(1) as f64;
-    let total: f64 = cx.target.iter().map(|t| var_d(t)).sum::<f64>() / m;
+    // the ensemble's outputs' (through the output path), as the log's differences are
+    let total: f64 = (0..cx.target.len())
+        .into_par_iter()
+        .map(|r| var_d(&cx.target_as_output(r)))
+        .collect::<Vec<f64>>()
+        .iter()
+        .sum::<f64>()
+        / m;
     let mut best: Option<(usize, f64)> = None;
     for (k, c) in comps.iter().enumerate() {
         if !c.kind().is_noise() || matches!(c, Component::Farma(_)) {
             continue;
         }
-        let v: f64 = cx.parts.iter().map(|p| var_d(&p[k])).sum::<f64>() / m;
+        // as the output shows it (through the channel's output filter)
+        let v: f64 = (0..cx.parts.len())
+            .into_par_iter()
+            .map(|r| var_d(&cx.part_as_output(r, k)))
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum::<f64>()
+            / m;
         if best.is_none_or(|b| v > b.1) {
             best = Some((k, v));
         }
