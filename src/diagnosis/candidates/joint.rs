@@ -63,7 +63,9 @@ fn estimate(
 ) -> Result<Option<Proposal>> {
     let tr = match other {
         None => base.with_res(base.res.clone(), None),
-        Some(o) if takes_co(step) => base.with_res(base.res.clone(), Some(signal(o).to_vec())),
+        Some(o) if takes_co(step) && !is_constant(o) => {
+            base.with_res(base.res.clone(), Some(signal(o).to_vec()))
+        }
         Some(o) => base.with_res(less(&base.res, &[signal(o)]), None),
     };
     let mut got: Option<Proposal> = None;
@@ -78,6 +80,16 @@ fn estimate(
     };
     run_step(cx, &tr, step, &mut out)?;
     Ok(got.filter(|p| matches!(p.delta, super::Delta::Same(_))))
+}
+
+/// Whether `p` is a constant bias, whose signal is the intercept of every least
+/// squares here: beside it, another member is fitted to the residual less it (its own
+/// intercept takes the level), and the joint sizes take no intercept.
+fn is_constant(p: &Proposal) -> bool {
+    matches!(
+        p.component,
+        crate::simulator::Component::ConstantBias { .. }
+    )
 }
 
 /// The signal of a deterministic proposal.
@@ -132,8 +144,11 @@ fn best_single_rss(tr: &Training, singles: &[Option<Proposal>]) -> f64 {
 }
 
 /// The cheap ranking of pair (i, j) in one fold: the training RSS of the residual on
-/// both single estimates' signals at once (each rescaled, with an intercept: their
-/// shapes as each fitted alone), over the best single's RSS.
+/// both single estimates' signals at once (each rescaled: their shapes as each fitted
+/// alone), over the best single's RSS. No intercept: the signals are added as they
+/// are, so a level they leave counts against them, as it does on the withheld part
+/// (where a constant bias the spec lacks shows in every window's mean); with one, a
+/// pair with the constant bias ranked as its other member alone.
 fn proxy_ratio(
     tr: &Training,
     singles: &[Option<Proposal>],
@@ -141,7 +156,7 @@ fn proxy_ratio(
     best: f64,
 ) -> Option<f64> {
     let (a, b) = (singles[i].as_ref()?, singles[j].as_ref()?);
-    super::lsq::ls_weighted(&tr.res, &[signal(a), signal(b)], true, &tr.ranges, tr.w())
+    super::lsq::ls_weighted(&tr.res, &[signal(a), signal(b)], false, &tr.ranges, tr.w())
         .map(|(_, r)| r / best)
 }
 
@@ -192,12 +207,18 @@ fn fit_pair(
 /// that plain backfitting approaches only slowly when the two signals overlap. Left as
 /// they are when a factor is not positive or a member has no size to scale.
 fn rescaled_jointly(tr: &Training, a: Proposal, b: Proposal) -> (Proposal, Proposal) {
-    let Some((beta, _)) =
-        super::lsq::ls_weighted(&tr.res, &[signal(&a), signal(&b)], true, &tr.ranges, tr.w())
-    else {
+    let intercept = !is_constant(&a) && !is_constant(&b);
+    let Some((beta, _)) = super::lsq::ls_weighted(
+        &tr.res,
+        &[signal(&a), signal(&b)],
+        intercept,
+        &tr.ranges,
+        tr.w(),
+    ) else {
         return (a, b);
     };
-    let (sa, sb) = (beta[1], beta[2]);
+    let k = usize::from(intercept);
+    let (sa, sb) = (beta[k], beta[k + 1]);
     if !(sa > 0.0 && sb > 0.0 && sa.is_finite() && sb.is_finite()) {
         return (a, b);
     }
@@ -258,10 +279,7 @@ pub fn joint_pairs(cxs: [&Context; 2], only: Option<&[String]>) -> Result<Vec<[[
     let (p0, p1) = rayon::join(|| fit(0), || fit(1));
     let mut out = Vec::new();
     for (a, b) in p0?.into_iter().zip(p1?) {
-        if let (Some((p, r0)), Some((q, r1))) = (a, b)
-            && r0 < 1.0
-            && r1 < 1.0
-        {
+        if let (Some((p, _)), Some((q, _))) = (a, b) {
             out.push([p, q]);
         }
     }

@@ -1406,6 +1406,69 @@ mod tests {
         );
     }
 
+    /// A constant bias and a rate ramp missing together (a spec without a constant
+    /// bias): the pair is among those fitted jointly, with both sizes near the truth.
+    /// Ranked with an intercept, the pair scored as the ramp alone (the constant is the
+    /// intercept) and was not among the two fitted.
+    #[test]
+    fn a_constant_bias_and_a_ramp_missing_together_are_fitted_as_a_pair() {
+        let n = 60_000;
+        let base = spec(vec![Component::WhiteNoise { n: 0.02 }]);
+        let mut truth = base.clone();
+        truth.channels[0].components.extend([
+            Component::ConstantBias { value: -0.05 },
+            Component::RateRamp { r: 0.0002 },
+        ]);
+        let real = SimBase {
+            n_samples: n,
+            rate_hz: 100.0,
+            temperature_c: None,
+            seed: 5,
+            replicas: 1,
+            base_dir: None,
+        }
+        .channels(&truth, &["x".to_string()])
+        .unwrap()
+        .pop()
+        .unwrap()
+        .pop()
+        .unwrap();
+        let (sim, train, target, parts) = gm_state(&base, &real, 10);
+        let cx = Context {
+            spec: &base,
+            channel: 0,
+            sim: &sim,
+            train: &train,
+            real: &real,
+            beyond: &[],
+            temperature: None,
+            others: &[],
+            sim_others: &[],
+            target: &target,
+            parts: &parts,
+        };
+        let pairs = joint::joint_pairs([&cx, &cx], None).unwrap();
+        let of = |p: &[Proposal; 2]| {
+            let mut c = None;
+            let mut r = None;
+            for q in p {
+                match q.component {
+                    Component::ConstantBias { value } => c = Some(value),
+                    Component::RateRamp { r: v } => r = Some(v),
+                    _ => {}
+                }
+            }
+            c.zip(r)
+        };
+        let (c, r) = pairs
+            .iter()
+            .find_map(|p| of(&p[0]))
+            .expect("the constant bias and the ramp as a pair");
+        let rel = |x: f64, t: f64| (x / t - 1.0).abs();
+        assert!(rel(c, -0.05) < 0.1, "joint constant {c}");
+        assert!(rel(r, 0.0002) < 0.1, "joint r {r}");
+    }
+
     #[test]
     fn the_closed_form_gauss_markov_avar_is_the_simulated_mean_and_finds_tau() {
         let n = 40_000;
