@@ -11,7 +11,8 @@
 //! Every pair of the six biases (constant bias, rate ramp, warm-up, sinusoid,
 //! temperature bias, thermal rate) that both folds estimate alone is ranked by the
 //! training residual sum of squares of both single signals fitted at once (each
-//! rescaled), over the best single's. The [`JOINT_PAIRS`] best are fitted together:
+//! rescaled, no intercept: a level the pair leaves counts against it), over the best
+//! single's. The [`JOINT_PAIRS`] best are fitted together:
 //! the first member from its single fit, then the second beside the first, and for
 //! each further pass the first beside the second and the second again (`PASSES`
 //! passes). Each fit is the member's own estimator (its intercept, grids and
@@ -21,7 +22,7 @@
 //! least squares, are fitted to the residual less the other (backfitting: Buja,
 //! Hastie and Tibshirani 1989, "Linear smoothers and additive models", Ann. Statist.
 //! 17). After each pass both sizes are fitted at once by least squares on the two
-//! signals. Plain backfitting alone converged slowly where the two signals overlap
+//! signals (with an intercept unless a member is the constant bias, which is one). Plain backfitting alone converged slowly where the two signals overlap
 //! (BENCHMARKS.md, the twenty-eighth session). The diagnosis scores each pair on the
 //! withheld part like any other candidate and adds the better pair only when it beats
 //! the round's best single effect by the margin a forward step needs and by more than
@@ -253,8 +254,9 @@ fn rescale(p: &Proposal, s: f64) -> Option<Proposal> {
 /// withheld part; the two folds estimate in parallel): every pair of `bias_steps`
 /// kinds that `only` keeps (when given) and that both folds estimate alone is ranked
 /// by the larger of the two folds' `proxy_ratio`; the [`JOINT_PAIRS`] lowest are
-/// fitted by `fit_pair` in both folds and returned, `[fold 1's, fold 2's]`, when
-/// their training RSS is below the best single bias's in both.
+/// fitted by `fit_pair` in both folds and returned, `[fold 1's, fold 2's]`, whenever
+/// both folds fit them (the withheld score judges them against the single effects; a
+/// training RSS about the mean cannot see the level a constant bias sets).
 pub fn joint_pairs(cxs: [&Context; 2], only: Option<&[String]>) -> Result<Vec<[[Proposal; 2]; 2]>> {
     let (f0, f1) = rayon::join(|| fold_singles(cxs[0], only), || fold_singles(cxs[1], only));
     let folds = [f0?, f1?];
