@@ -22,7 +22,8 @@
 //! least squares, are fitted to the residual less the other (backfitting: Buja,
 //! Hastie and Tibshirani 1989, "Linear smoothers and additive models", Ann. Statist.
 //! 17). After each pass both sizes are fitted at once by least squares on the two
-//! signals (with an intercept unless a member is the constant bias, which is one). Plain backfitting alone converged slowly where the two signals overlap
+//! signals (with an intercept unless a member is the constant bias, which is one).
+//! Plain backfitting alone converged slowly where the two signals overlap
 //! (BENCHMARKS.md, the twenty-eighth session). The diagnosis scores each pair on the
 //! withheld part like any other candidate and adds the better pair only when it beats
 //! the round's best single effect by the margin a forward step needs and by more than
