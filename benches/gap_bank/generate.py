@@ -60,7 +60,7 @@ PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2
              "dev3": 30_017_003, "dev4": 31_204_011, "dev5": 32_405_017,
              "path6": 33_606_029, "dev6": 34_808_041, "path7": 35_010_053,
              "dev7": 36_212_061, "heldout3": 37_414_073,
-             "dev8": 38_616_083, "heldout4": 39_818_101}
+             "dev8": 38_616_083, "heldout4": 39_818_101, "dev9": 40_020_119}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -585,6 +585,9 @@ def draw_pairs(seed, n):
 # session changed anything, to score pairs on twice the held-out cases
 PAIRS["dev8"] = draw_pairs(38_616_083, 16)
 PAIRS["heldout4"] = draw_pairs(39_818_101, 16)
+# a ninth development draw (twenty-ninth session): non-candidates only, as dev4's, at
+# other sizes, rates and profiles, to see whether the joint pairs explain them
+PAIRS["dev9"] = []
 
 NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
            "heldout": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst", ""), ("telegraph", "")],
@@ -594,7 +597,8 @@ NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst"
            "dev3": [],
            # a development part of non-candidates only, at sizes from small to large
            "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4,
-           "dev5": [], "path6": [], "dev6": [], "path7": [], "dev7": [], "dev8": [], "heldout4": []}
+           "dev5": [], "path6": [], "dev6": [], "path7": [], "dev7": [], "dev8": [], "heldout4": [],
+           "dev9": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 5}
 
 # correct specs: truth components in their exact contract forms, all in the spec
 CORRECT = [[], [("temperature_bias", "exact")], [("warmup", "exact"), ("gauss_markov", "")],
@@ -618,28 +622,31 @@ GRID = {
     "heldout3": [(10, 3 * 3600), (10, 6 * 3600), (100, 3600), (100, 1200), (10, 2 * 3600)],
     "dev8": [(10, 3 * 3600), (10, 5 * 3600), (100, 2400), (100, 1800), (10, 4 * 3600)],
     "heldout4": [(10, 4 * 3600), (10, 7 * 3600), (100, 3000), (100, 1500), (10, 9000)],
+    "dev9": [(10, 3 * 3600), (10, 4 * 3600), (100, 1200), (100, 2400), (10, 6 * 3600)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0, "heldout3": 1, "dev8": 1, "heldout4": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0, "heldout3": 1, "dev8": 1, "heldout4": 1, "dev9": 1}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
             "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
             "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"],
             "dev5": ["sine", "ramp", "steps"], "path6": ["drift", "ramp", "steps"],
             "dev6": ["steps", "drift", "ramp"], "path7": ["cycle", "soak_ramp", "rw_drift"],
             "dev7": ["ramp", "steps", "sine"], "heldout3": ["rw_drift", "cycle", "soak_ramp"],
-            "dev8": ["cycle", "rw_drift", "ramp"], "heldout4": ["soak_ramp", "sine", "steps"]}
+            "dev8": ["cycle", "rw_drift", "ramp"], "heldout4": ["soak_ramp", "sine", "steps"],
+            "dev9": ["cycle", "sine", "drift"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
           "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
           "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)],
           "dev5": [(-20, 60), (0, 45), (-35, 75)], "path6": [(0, 40), (-10, 50), (10, 45)],
           "dev6": [(-5, 45), (5, 35), (-15, 55)], "path7": [(-30, 70), (0, 60), (15, 50)],
           "dev7": [(-15, 50), (0, 40), (-25, 65)], "heldout3": [(-35, 65), (-10, 60), (5, 45)],
-          "dev8": [(-20, 55), (0, 45), (-30, 70)], "heldout4": [(-40, 70), (-5, 55), (10, 50)]}
+          "dev8": [(-20, 55), (0, 45), (-30, 70)], "heldout4": [(-40, 70), (-5, 55), (10, 50)],
+          "dev9": [(-10, 50), (-25, 60), (5, 40)]}
 
 
 def size_for(part, rng, category="single"):
     if part in ("dev3", "dev7"):
         return float(rng.uniform(2.5, 4.0))
-    if part == "dev4":
+    if part in ("dev4", "dev9"):
         return float(rng.uniform(0.6, 4.0))
     if part == "path6":
         return float(rng.uniform(0.8, 4.0))
@@ -671,7 +678,7 @@ def size_for(part, rng, category="single"):
 def make_part(part):
     rng = np.random.default_rng(PART_SEED[part])
     plan = []
-    for k, v in (SINGLES if part not in ("dev3", "dev4", "path6", "dev6", "path7", "dev7", "dev8", "heldout4") else []):
+    for k, v in (SINGLES if part not in ("dev3", "dev4", "path6", "dev6", "path7", "dev7", "dev8", "heldout4", "dev9") else []):
         plan.append(("single", [(k, v)], f"single_{k}" + (f"_{v}" if v else "")))
     if part == "dev5":
         plan = [(c, e, n + "_" + sz) for sz in ("small", "large") for c, e, n in plan]
@@ -679,7 +686,7 @@ def make_part(part):
         plan.append(("pair", pr, "pair_" + "+".join(k for k, _ in pr)))
     for i, (k, v) in enumerate(NONCAND[part]):
         plan.append(("non_candidate", [(k, v)], f"noncand_{k}_{i}"))
-    for i, eff in enumerate(CORRECT if part not in ("dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "heldout4") else []):
+    for i, eff in enumerate(CORRECT if part not in ("dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "heldout4", "dev9") else []):
         plan.append(("correct", eff, f"correct_{i}" + ("_" + "+".join(k for k, _ in eff) if eff else "")))
     cases = []
     khz_left = KHZ[part]
@@ -704,7 +711,7 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "heldout", "heldout2", "heldout3", "heldout4", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "dev9", "heldout", "heldout2", "heldout3", "heldout4", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
     parts = ["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2"] if a.part == "all" else [a.part]
