@@ -1405,7 +1405,7 @@ fn a_thermal_rate_fitted_at_its_bound_is_estimated_again_beside_a_temperature_bi
         beyond: &[],
     };
     // single candidates only: the joint pair of the two biases would take both in the
-    // first round ([`the_biases_of_the_search_tests_are_found_as_a_joint_pair`])
+    // first round ([`the_biases_of_the_search_tests_are_found_together`])
     let prm = GapParams {
         replicas: 12,
         joint_pairs: false,
@@ -1651,8 +1651,8 @@ fn warmup_beside_bias_log(amplitude: f64) -> (Vec<f64>, Vec<f64>, farma::simulat
 }
 
 /// `d` of [`warmup_beside_bias_log`] (12 replicas), single candidates only: the joint
-/// pair of the two biases would take both in the first round
-/// ([`the_biases_of_the_search_tests_are_found_as_a_joint_pair`]).
+/// pair of the two biases can take both in the first round
+/// ([`the_biases_of_the_search_tests_are_found_together`]).
 fn diagnose_warmup_beside_bias(amplitude: f64) -> Diagnosis {
     let (x, temp, spec) = warmup_beside_bias_log(amplitude);
     let real = RealLog {
