@@ -346,19 +346,13 @@ impl Context<'_> {
     /// component's too, and its unfiltered variance would put the filter's loss on the
     /// component's size.
     fn part_as_output(&self, r: usize, k: usize) -> std::borrow::Cow<'_, [f64]> {
-        let x: &[f64] = &self.parts[r][k];
         let filters: Vec<Component> = self.spec.channels[self.channel]
             .components
             .iter()
             .filter(|c| c.kind() == Kind::OutputFilter)
             .cloned()
             .collect();
-        if filters.is_empty() {
-            return std::borrow::Cow::Borrowed(x);
-        }
-        let mut y = x.to_vec();
-        super::path::PathStage::of(&filters, self.rate_hz()).apply(&mut y);
-        std::borrow::Cow::Owned(y)
+        self.through(&filters, &self.parts[r][k])
     }
 
     /// Replica `r`'s output of the target channel: its pre-path sum through the
@@ -366,11 +360,16 @@ impl Context<'_> {
     /// simulator runs it; the sum itself when the channel has no path. What the log's
     /// statistics are compared with.
     fn target_as_output(&self, r: usize) -> std::borrow::Cow<'_, [f64]> {
-        let x: &[f64] = &self.target[r];
-        let path = super::path::PathStage::of(
+        self.through(
             &self.spec.channels[self.channel].components,
-            self.rate_hz(),
-        );
+            &self.target[r],
+        )
+    }
+
+    /// `x` through the output-path stages among `comps` ([`super::path::PathStage`]),
+    /// from rest; `x` itself when there is none.
+    fn through<'b>(&self, comps: &[Component], x: &'b [f64]) -> std::borrow::Cow<'b, [f64]> {
+        let path = super::path::PathStage::of(comps, self.rate_hz());
         if path.is_empty() {
             return std::borrow::Cow::Borrowed(x);
         }
@@ -1290,6 +1289,43 @@ mod tests {
 
     /// A state of `spec`'s ensemble (M replicas on n samples at 100 Hz) against the
     /// real log `real`, trained on the first half of 8 blocks.
+    /// Channel "x" of `truth` simulated once at `rate_hz` (no temperature): a test's
+    /// real log.
+    fn real_of(truth: &Spec, n: usize, rate_hz: f64, seed: u64) -> Vec<f64> {
+        SimBase {
+            n_samples: n,
+            rate_hz,
+            temperature_c: None,
+            seed,
+            replicas: 1,
+            base_dir: None,
+        }
+        .channels(truth, &["x".to_string()])
+        .unwrap()
+        .pop()
+        .unwrap()
+        .pop()
+        .unwrap()
+    }
+
+    /// The estimation context of channel 0 of `spec` against `real` on the state `st`
+    /// ([`gm_state`]): no temperature, no other channel.
+    fn cx_of<'a>(spec: &'a Spec, real: &'a [f64], st: &'a GmState) -> Context<'a> {
+        Context {
+            spec,
+            channel: 0,
+            sim: &st.0,
+            train: &st.1,
+            real,
+            beyond: &[],
+            temperature: None,
+            others: &[],
+            sim_others: &[],
+            target: &st.2,
+            parts: &st.3,
+        }
+    }
+
     fn gm_state(spec: &Spec, real: &[f64], m: usize) -> GmState {
         let n = real.len();
         let sim = SimBase {
@@ -1342,34 +1378,9 @@ mod tests {
             },
             Component::RateRamp { r: 0.0005 },
         ]);
-        let real = SimBase {
-            n_samples: n,
-            rate_hz: 100.0,
-            temperature_c: None,
-            seed: 4,
-            replicas: 1,
-            base_dir: None,
-        }
-        .channels(&truth, &["x".to_string()])
-        .unwrap()
-        .pop()
-        .unwrap()
-        .pop()
-        .unwrap();
-        let (sim, train, target, parts) = gm_state(&base, &real, 10);
-        let cx = Context {
-            spec: &base,
-            channel: 0,
-            sim: &sim,
-            train: &train,
-            real: &real,
-            beyond: &[],
-            temperature: None,
-            others: &[],
-            sim_others: &[],
-            target: &target,
-            parts: &parts,
-        };
+        let real = real_of(&truth, n, 100.0, 4);
+        let st = gm_state(&base, &real, 10);
+        let cx = cx_of(&base, &real, &st);
         let ramp_of = |p: &Proposal| match p.component {
             Component::RateRamp { r } => Some(r),
             _ => None,
@@ -1419,34 +1430,9 @@ mod tests {
             Component::ConstantBias { value: -0.05 },
             Component::RateRamp { r: 0.0002 },
         ]);
-        let real = SimBase {
-            n_samples: n,
-            rate_hz: 100.0,
-            temperature_c: None,
-            seed: 5,
-            replicas: 1,
-            base_dir: None,
-        }
-        .channels(&truth, &["x".to_string()])
-        .unwrap()
-        .pop()
-        .unwrap()
-        .pop()
-        .unwrap();
-        let (sim, train, target, parts) = gm_state(&base, &real, 10);
-        let cx = Context {
-            spec: &base,
-            channel: 0,
-            sim: &sim,
-            train: &train,
-            real: &real,
-            beyond: &[],
-            temperature: None,
-            others: &[],
-            sim_others: &[],
-            target: &target,
-            parts: &parts,
-        };
+        let real = real_of(&truth, n, 100.0, 5);
+        let st = gm_state(&base, &real, 10);
+        let cx = cx_of(&base, &real, &st);
         let pairs = joint::joint_pairs([&cx, &cx], None).unwrap();
         let of = |p: &[Proposal; 2]| {
             let mut c = None;
