@@ -429,8 +429,9 @@ pub fn diagnose_with_progress(
         events::detect(&real.channel, real.x, &real.scan, real.rate_hz)
     };
     if found.is_empty() {
-        let mut d = diagnose_log(real, spec, prm, pb)?;
-        explain_or_note(real, spec, prm, &mut d, pb);
+        let mut ens = None;
+        let mut d = diagnose_log(real, spec, prm, pb, &mut ens)?;
+        explain_or_note(real, spec, prm, &mut d, pb, ens);
         return Ok(d);
     }
     // the diagnosed and cross-axis channels with the spans replaced
@@ -448,8 +449,9 @@ pub fn diagnose_with_progress(
             .collect(),
         ..real.clone()
     };
-    let mut d = diagnose_log(&clean, spec, prm, pb)?;
-    explain_or_note(&clean, spec, prm, &mut d, pb);
+    let mut ens = None;
+    let mut d = diagnose_log(&clean, spec, prm, pb, &mut ens)?;
+    explain_or_note(&clean, spec, prm, &mut d, pb, ens);
     let seconds: f64 = found.iter().map(|e| e.end_s - e.start_s).sum();
     d.notes.insert(
         0,
@@ -616,8 +618,9 @@ fn explain_or_note(
     prm: &GapParams,
     d: &mut Diagnosis,
     pb: &ProgressBar,
+    ensemble: Option<Simulated>,
 ) {
-    if let Err(e) = explain_by_replicas(real, spec, prm, d, pb) {
+    if let Err(e) = explain_by_replicas(real, spec, prm, d, pb, ensemble) {
         d.notes.push(format!(
             "the spec after could not be simulated and diagnosed again ({e}): `explained` is judged against the gap threshold"
         ));
@@ -644,6 +647,7 @@ fn explain_by_replicas(
     prm: &GapParams,
     d: &mut Diagnosis,
     pb: &ProgressBar,
+    ensemble: Option<Simulated>,
 ) -> Result<()> {
     // the threshold can be neither below the gap threshold nor above the cap: outside
     // the two, re-diagnoses change nothing
@@ -671,8 +675,29 @@ fn explain_by_replicas(
         seed: Some(d.seed),
         ..prm.clone()
     };
+    // every re-diagnosis compares its log with the same ensemble of `spec` as the
+    // diagnosis did (the same seed, length, rate, temperature and channels): the
+    // diagnosis's own, when it is given, else simulated once by the first
+    let mut shared = ensemble;
+    // each simulation can only raise the threshold, and `verdict` only turns true as
+    // the threshold rises: once the gap after is within the threshold so far and the
+    // verdict is settled (true there, or false even at the cap), the simulations left
+    // would change neither `explained` nor whether the gap is closed
+    let false_at_cap = !verdict(d.gap_after, cap, &d.support, d.jumps.as_ref()).0;
+    let threshold_of = |gaps: &[f64]| {
+        d.gap_threshold
+            .max(1.1 * gaps.iter().copied().fold(0.0, f64::max))
+            .min(cap)
+    };
     let mut gaps = Vec::with_capacity(prm.explain_replicas);
     for r in 0..prm.explain_replicas as u64 {
+        let so_far = threshold_of(&gaps);
+        if !gaps.is_empty()
+            && d.gap_after <= so_far
+            && (false_at_cap || verdict(d.gap_after, so_far, &d.support, d.jumps.as_ref()).0)
+        {
+            break;
+        }
         pb.set_message(format!(
             "the spec after, simulation {} of {}, diagnosed again",
             r + 1,
@@ -711,19 +736,26 @@ fn explain_by_replicas(
             scan: Vec::new(),
             beyond: &[],
         };
-        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden())?;
+        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden(), &mut shared)?;
         gaps.push(dr.gap_after);
     }
-    let largest = gaps.iter().copied().fold(0.0, f64::max);
-    let threshold = d.gap_threshold.max(1.1 * largest).min(cap);
+    let threshold = threshold_of(&gaps);
     let (explained, why_not) = verdict(d.gap_after, threshold, &d.support, d.jumps.as_ref());
     d.notes
         .retain(|n| !n.starts_with("unexplained:") && !n.starts_with("not explained:"));
     d.notes.push(format!(
-        "the gap after {:.3} is above the gap threshold {:.3}: {} simulations of the spec after, each diagnosed again with the added kinds estimated anew, end at gaps {}; `explained` is judged against {threshold:.3} (1.1 x the largest, at least the gap threshold, at most {EXPLAIN_CAP} x the noise floor)",
+        "the gap after {:.3} is above the gap threshold {:.3}: {} simulations of the spec after{}, each diagnosed again with the added kinds estimated anew, end at gaps {}; `explained` is judged against {threshold:.3} (1.1 x the largest, at least the gap threshold, at most {EXPLAIN_CAP} x the noise floor)",
         d.gap_after,
         d.gap_threshold,
         gaps.len(),
+        if gaps.len() < prm.explain_replicas {
+            format!(
+                " (of up to {}: the gap after is within the threshold so far and the verdict is settled, which more simulations, only raising the threshold, would not change)",
+                prm.explain_replicas
+            )
+        } else {
+            String::new()
+        },
         gaps.iter()
             .map(|g| format!("{g:.3}"))
             .collect::<Vec<_>>()
@@ -738,12 +770,66 @@ fn explain_by_replicas(
     Ok(())
 }
 
-/// [`diagnose_with_progress`] of a real log already cleaned of its events.
+/// The spec's ensemble as a diagnosis simulates it: per replica, the other channels
+/// (cross-axis statistics) and the target channel's component signals and their
+/// pre-path sum. A pure function of the spec, the seed, the replicas and the log's
+/// length, rate, temperature and channel names, so that diagnoses of several logs
+/// that share them (`explain_by_replicas`) simulate it once.
+struct Simulated {
+    others: Vec<Vec<Vec<f64>>>,
+    parts: PartSignals,
+    target: Vec<Arc<Vec<f64>>>,
+}
+
+impl Simulated {
+    fn new(
+        sim: &ensemble::SimBase,
+        spec: &Spec,
+        channel: usize,
+        other_names: &[String],
+    ) -> Result<Simulated> {
+        let others = sim.channels(spec, other_names)?;
+        let (mut parts, target) = pre_path_parts(sim, spec, channel)?;
+        // a deterministic component's signal is the same in every replica: held once
+        for (k, c) in spec.channels[channel].components.iter().enumerate() {
+            if ensemble::is_deterministic(c) {
+                for p in parts.iter_mut().skip(1) {
+                    p[k] = Arc::default();
+                }
+            }
+        }
+        Ok(Simulated {
+            others,
+            parts,
+            target,
+        })
+    }
+}
+
+/// The simulations of the ensemble of a diagnosis of `real` against `spec`: the log's
+/// length, rate, temperature and spec folder, `prm.replicas`, and the seed
+/// `prm.seed`, else the spec's, else 1.
+fn ensemble_base<'a>(real: &RealLog<'a>, spec: &Spec, prm: &GapParams) -> ensemble::SimBase<'a> {
+    ensemble::SimBase {
+        n_samples: real.x.len(),
+        rate_hz: real.rate_hz,
+        temperature_c: real.temperature_c,
+        seed: prm.seed.or(spec.seed).unwrap_or(1),
+        replicas: prm.replicas,
+        base_dir: real.spec_dir.clone(),
+    }
+}
+
+/// [`diagnose_with_progress`] of a real log already cleaned of its events. `ensemble`
+/// is the spec's ensemble ([`Simulated::new`] on this log's [`ensemble_base`]): read
+/// when some, else simulated and left there (for `explain_by_replicas`, whose
+/// re-diagnoses share it).
 fn diagnose_log(
     real: &RealLog,
     spec: &Spec,
     prm: &GapParams,
     pb: &ProgressBar,
+    ensemble: &mut Option<Simulated>,
 ) -> Result<Diagnosis> {
     if prm.replicas < 5 {
         return Err(Error::Usage(format!(
@@ -828,15 +914,8 @@ fn diagnose_log(
     let temperature = real
         .temperature_c
         .map(|t| Temperature::new(t.to_vec(), rate_hz));
-    let seed = prm.seed.or(spec.seed).unwrap_or(1);
-    let sim = ensemble::SimBase {
-        n_samples: n,
-        rate_hz,
-        temperature_c: real.temperature_c,
-        seed,
-        replicas: prm.replicas,
-        base_dir: real.spec_dir.clone(),
-    };
+    let sim = ensemble_base(real, spec, prm);
+    let seed = sim.seed;
     let other_names: Vec<String> = real.others.iter().map(|(s, _)| s.clone()).collect();
     // the withheld part of fold 1 (blocks.part(false)) and of fold 2 (part(true)); each
     // fold trains on the other's withheld part
@@ -855,16 +934,18 @@ fn diagnose_log(
         .flat_map(|l| l.compute(real.x, temperature.as_ref(), &real_others))
         .collect();
 
-    let sim_others = sim.channels(spec, &other_names)?;
-    let (mut parts, target) = pre_path_parts(&sim, spec, channel)?;
-    // a deterministic component's signal is the same in every replica: held once
-    for (k, c) in spec.channels[channel].components.iter().enumerate() {
-        if ensemble::is_deterministic(c) {
-            for p in parts.iter_mut().skip(1) {
-                p[k] = Arc::default();
-            }
-        }
+    if ensemble.is_none() {
+        *ensemble = Some(Simulated::new(&sim, spec, channel, &other_names)?);
     }
+    let Some(Simulated {
+        others: sim_others,
+        parts,
+        target,
+    }) = ensemble.as_ref()
+    else {
+        unreachable!("simulated above")
+    };
+    let (parts, target) = (parts.clone(), target.clone());
     // a log written as text with k decimals: the simulations are printed alike (not a
     // log averaged over blocks: a block mean of printed values is off the printed grid,
     // and a grid it lies on is the resolution's over the block length, a per-sample
@@ -1074,7 +1155,7 @@ fn diagnose_log(
         beyond: real.beyond,
         temperature: temperature.as_ref(),
         others: &real.others,
-        sim_others: &sim_others,
+        sim_others,
         feats: &feats_refit,
         score: &score,
     };
@@ -1116,7 +1197,7 @@ fn diagnose_log(
             beyond: real.beyond,
             temperature: temperature.as_ref(),
             others: &real.others,
-            sim_others: &sim_others,
+            sim_others,
             target: &sts[f].target,
             parts: &sts[f].parts,
         };
