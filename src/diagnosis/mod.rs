@@ -430,7 +430,7 @@ pub fn diagnose_with_progress(
     };
     if found.is_empty() {
         let mut ens = None;
-        let mut d = diagnose_log(real, spec, prm, pb, &mut ens)?;
+        let mut d = diagnose_log(real, spec, prm, pb, &mut ens, false)?;
         explain_or_note(real, spec, prm, &mut d, pb, ens);
         return Ok(d);
     }
@@ -450,7 +450,7 @@ pub fn diagnose_with_progress(
         ..real.clone()
     };
     let mut ens = None;
-    let mut d = diagnose_log(&clean, spec, prm, pb, &mut ens)?;
+    let mut d = diagnose_log(&clean, spec, prm, pb, &mut ens, false)?;
     explain_or_note(&clean, spec, prm, &mut d, pb, ens);
     let seconds: f64 = found.iter().map(|e| e.end_s - e.start_s).sum();
     d.notes.insert(
@@ -736,7 +736,9 @@ fn explain_by_replicas(
             scan: Vec::new(),
             beyond: &[],
         };
-        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden(), &mut shared)?;
+        // only the gap after is read: the added effects' support and the level's
+        // jumps, which the verdict alone reads, are not computed
+        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden(), &mut shared, true)?;
         gaps.push(dr.gap_after);
     }
     let threshold = threshold_of(&gaps);
@@ -823,13 +825,16 @@ fn ensemble_base<'a>(real: &RealLog<'a>, spec: &Spec, prm: &GapParams) -> ensemb
 /// [`diagnose_with_progress`] of a real log already cleaned of its events. `ensemble`
 /// is the spec's ensemble ([`Simulated::new`] on this log's [`ensemble_base`]): read
 /// when some, else simulated and left there (for `explain_by_replicas`, whose
-/// re-diagnoses share it).
+/// re-diagnoses share it). With `gap_only` the verdict's evidence (each added effect's
+/// support, the level's jumps) is not computed: `explained` is then judged on the gap
+/// alone, the contributions are not set, and only the gaps are to be read.
 fn diagnose_log(
     real: &RealLog,
     spec: &Spec,
     prm: &GapParams,
     pb: &ProgressBar,
     ensemble: &mut Option<Simulated>,
+    gap_only: bool,
 ) -> Result<Diagnosis> {
     if prm.replicas < 5 {
         return Err(Error::Usage(format!(
@@ -1318,18 +1323,24 @@ fn diagnose_log(
             ks.iter()
                 .any(|k| Kind::from_name(k).is_some_and(Kind::is_output_path))
         }) {
-            skipped.extend(candidates::output_path::proposals(
-                &cx(1),
-                grid_seen,
-                candidates::output_path::Asked::All,
-                &mut hold,
-            )?);
-            skipped1.extend(candidates::output_path::proposals(
-                &cx(0),
-                grid_seen,
-                candidates::output_path::Asked::All,
-                &mut pair,
-            )?);
+            // the folds' estimates at once, then handed on in the sequential order:
+            // fold 1's whole list to `hold`, then fold 2's to `pair`
+            let estimate = |f: usize| -> Result<(Vec<Proposal>, Vec<NotTried>)> {
+                let mut found = Vec::new();
+                let skipped = candidates::output_path::proposals(
+                    &cx(f),
+                    grid_seen,
+                    candidates::output_path::Asked::All,
+                    &mut |p| found.push(p),
+                )?;
+                Ok((found, skipped))
+            };
+            let (a, b) = rayon::join(|| estimate(1), || estimate(0));
+            let ((found1, skip1), (found0, skip0)) = (a?, b?);
+            found1.into_iter().for_each(&mut hold);
+            skipped.extend(skip1);
+            found0.into_iter().for_each(&mut pair);
+            skipped1.extend(skip0);
         }
         // what either fold could not estimate is not tried
         for nt in skipped1 {
@@ -1853,7 +1864,7 @@ fn diagnose_log(
     pb.set_position(max_rounds as u64 + 1);
     pb.set_message("contributions");
     // and, for the verdict, the gap without it and the jackknife sd of that difference
-    let f_final = (!added.is_empty()).then(|| {
+    let f_final = (!added.is_empty() && !gap_only).then(|| {
         feats_of(
             [&sts[0].target, &sts[1].target],
             [None, None],
@@ -1861,7 +1872,7 @@ fn diagnose_log(
         )
     });
     let mut support = Vec::with_capacity(added.len());
-    for i in 0..added.len() {
+    for i in (0..added.len()).filter(|_| !gap_only) {
         let kept = without_kept
             .iter()
             .position(|(at, j, _)| *at == steps.len() && *j == i);
@@ -1888,6 +1899,7 @@ fn diagnose_log(
     let whole = std::slice::from_ref(&all_samples);
     let sim_ks: Vec<_> = sts
         .iter()
+        .filter(|_| !gap_only)
         .flat_map(|st| st.target.iter().map(move |v| (v, &st.path)))
         .collect::<Vec<_>>()
         .into_par_iter()
@@ -1899,7 +1911,11 @@ fn diagnose_log(
             k
         })
         .collect();
-    let level = jumps::level_jumps_of(real.x, &sim_ks, rate_hz);
+    let level = if gap_only {
+        None
+    } else {
+        jumps::level_jumps_of(real.x, &sim_ks, rate_hz)
+    };
     let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support, level.as_ref());
     if let Some(w) = why_not {
         notes.push(w);

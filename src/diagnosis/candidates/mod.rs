@@ -859,10 +859,27 @@ pub fn propose_folds_of(
 /// The steps of [`propose_folds`] for both states, each step for `cxs[0]` then
 /// `cxs[1]`; with `only`, just the
 /// steps that estimate an effect of one of those kinds for either state ([`step_kind`]).
+///
+/// The two states' estimates of a step are independent: they run at once (each
+/// collecting its proposals and skips), and are then handed to the sinks as the
+/// sequential order has them, the first state's before the second's.
 fn run_folds(cxs: [&Context; 2], only: Option<&[String]>, outs: &mut [Found; 2]) -> Result<()> {
-    let trs = cxs.map(Training::new);
+    let (tr0, tr1) = rayon::join(|| Training::new(cxs[0]), || Training::new(cxs[1]));
+    let trs = [tr0, tr1];
     let comps = cxs.map(|cx| cx.spec.channels[cx.channel].components.as_slice());
     let n_comps = comps.iter().map(|c| c.len()).max().unwrap_or(0);
+    // one state's estimates of `step`: its proposals in order, and its skips
+    let estimate = |f: usize, step: &Step| -> Result<(Vec<Proposal>, Vec<NotTried>)> {
+        let mut found = Vec::new();
+        let mut sink = |p: Proposal| found.push(p);
+        let mut out = Found {
+            sink: &mut sink,
+            skipped: Vec::new(),
+        };
+        run_step(cxs[f], &trs[f], step, &mut out)?;
+        let skipped = out.skipped;
+        Ok((found, skipped))
+    };
     for step in steps(n_comps) {
         let skip = |kind: &str| {
             comps
@@ -872,8 +889,11 @@ fn run_folds(cxs: [&Context; 2], only: Option<&[String]>, outs: &mut [Found; 2])
         if only.is_some_and(|ks| ks.iter().all(|k| skip(k))) {
             continue;
         }
-        for f in 0..2 {
-            run_step(cxs[f], &trs[f], &step, &mut outs[f])?;
+        let (a, b) = rayon::join(|| estimate(0, &step), || estimate(1, &step));
+        for (out, got) in outs.iter_mut().zip([a?, b?]) {
+            let (found, skipped) = got;
+            found.into_iter().for_each(|p| out.push(p));
+            out.skipped.extend(skipped);
         }
     }
     Ok(())
