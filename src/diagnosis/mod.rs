@@ -778,6 +778,9 @@ fn explain_by_replicas(
 /// length, rate, temperature and channel names, so that diagnoses of several logs
 /// that share them (`explain_by_replicas`) simulate it once.
 struct Simulated {
+    /// What it was simulated for: the seed, the replicas, the samples and the other
+    /// channels' names ([`Simulated::fits`]).
+    key: (u64, usize, usize, Vec<String>),
     others: Vec<Vec<Vec<f64>>>,
     parts: PartSignals,
     target: Vec<Arc<Vec<f64>>>,
@@ -801,10 +804,21 @@ impl Simulated {
             }
         }
         Ok(Simulated {
+            key: Self::key_of(sim, other_names),
             others,
             parts,
             target,
         })
+    }
+
+    fn key_of(sim: &ensemble::SimBase, other_names: &[String]) -> (u64, usize, usize, Vec<String>) {
+        (sim.seed, sim.replicas, sim.n_samples, other_names.to_vec())
+    }
+
+    /// Whether this ensemble is the one `sim` would simulate for `other_names` (the
+    /// rate, temperature and spec being the caller's to keep the same).
+    fn fits(&self, sim: &ensemble::SimBase, other_names: &[String]) -> bool {
+        self.key == Self::key_of(sim, other_names)
     }
 }
 
@@ -824,7 +838,7 @@ fn ensemble_base<'a>(real: &RealLog<'a>, spec: &Spec, prm: &GapParams) -> ensemb
 
 /// [`diagnose_with_progress`] of a real log already cleaned of its events. `ensemble`
 /// is the spec's ensemble ([`Simulated::new`] on this log's [`ensemble_base`]): read
-/// when some, else simulated and left there (for `explain_by_replicas`, whose
+/// when it is some and fits that base, else simulated and left there (for `explain_by_replicas`, whose
 /// re-diagnoses share it). With `gap_only` the verdict's evidence (each added effect's
 /// support, the level's jumps) is not computed: `explained` is then judged on the gap
 /// alone, the contributions are not set, and only the gaps are to be read.
@@ -939,13 +953,17 @@ fn diagnose_log(
         .flat_map(|l| l.compute(real.x, temperature.as_ref(), &real_others))
         .collect();
 
-    if ensemble.is_none() {
+    if !ensemble
+        .as_ref()
+        .is_some_and(|e| e.fits(&sim, &other_names))
+    {
         *ensemble = Some(Simulated::new(&sim, spec, channel, &other_names)?);
     }
     let Some(Simulated {
         others: sim_others,
         parts,
         target,
+        ..
     }) = ensemble.as_ref()
     else {
         unreachable!("simulated above")

@@ -2392,3 +2392,62 @@ fn the_noise_fits_read_the_ensemble_through_the_spec_s_output_filter() {
         .expect("the white noise's recalibration scored");
     assert!((f - 1.0).abs() < 0.1, "factor {f}");
 }
+
+/// The re-diagnoses of the spec after stop once the verdict is settled: the gap after
+/// within the threshold so far, and `explained` true there or false even at the cap.
+/// More simulations allowed (8 against 4) end at the same ones, with the same
+/// threshold and verdict; fewer than where it stopped leave it unsettled (the gap after
+/// above their threshold, or `explained` false). The logs: 20 minutes with a level
+/// that drifts as a square of time (a ramp stands in), M = 20; of the three, seed 33
+/// stops after 1 simulation and seed 34 after 3 (seed 32 runs all 4).
+#[test]
+fn the_re_diagnoses_stop_once_the_verdict_is_settled() {
+    let spec = bank::base_spec(10.0, false);
+    let case = matching(spec.clone());
+    let n = 12_000;
+    let mut checked = 0;
+    for (seed, size) in [(32, 3.0), (33, 4.0), (34, 3.0)] {
+        let (mut x, temp) = bank::real_log(&case, n, seed).unwrap();
+        let sd = sd_of(&x);
+        for (t, v) in x.iter_mut().enumerate() {
+            let u = t as f64 / n as f64;
+            *v += size * sd * u * u;
+        }
+        let real = bank_log(&x, temp.as_deref(), 10.0);
+        let run = |k: usize| {
+            diagnose(
+                &real,
+                &spec,
+                &GapParams {
+                    replicas: 20,
+                    explain_replicas: k,
+                    ..GapParams::default()
+                },
+            )
+            .unwrap()
+        };
+        let d = run(4);
+        let ran = d.explained_replica_gaps.len();
+        if ran == 0 || ran == 4 {
+            continue;
+        }
+        checked += 1;
+        assert!(
+            d.gap_after <= d.explained_threshold,
+            "stopped above the threshold"
+        );
+        let more = run(8);
+        assert_eq!(more.explained_replica_gaps, d.explained_replica_gaps);
+        assert_eq!(more.explained, d.explained);
+        assert_eq!(more.explained_threshold, d.explained_threshold);
+        for k in 1..ran {
+            let fewer = run(k);
+            assert_eq!(fewer.explained_replica_gaps, d.explained_replica_gaps[..k]);
+            assert!(
+                fewer.gap_after > fewer.explained_threshold || !fewer.explained,
+                "{k} simulations settle it already"
+            );
+        }
+    }
+    assert!(checked > 0, "no log stopped early");
+}
