@@ -428,11 +428,15 @@ pub fn diagnose_with_progress(
     } else {
         events::detect(&real.channel, real.x, &real.scan, real.rate_hz)
     };
-    if found.is_empty() {
+    // the search, then its explanation against the search's own ensemble
+    let search_and_explain = |log: &RealLog| -> Result<Diagnosis> {
         let mut ens = None;
-        let mut d = diagnose_log(real, spec, prm, pb, &mut ens, false)?;
-        explain_or_note(real, spec, prm, &mut d, pb, ens);
-        return Ok(d);
+        let mut d = diagnose_log(log, spec, prm, pb, &mut ens, false)?;
+        explain_or_note(log, spec, prm, &mut d, pb, ens);
+        Ok(d)
+    };
+    if found.is_empty() {
+        return search_and_explain(real);
     }
     // the diagnosed and cross-axis channels with the spans replaced
     let x = events::replaced(real.x, &found)?;
@@ -449,9 +453,7 @@ pub fn diagnose_with_progress(
             .collect(),
         ..real.clone()
     };
-    let mut ens = None;
-    let mut d = diagnose_log(&clean, spec, prm, pb, &mut ens, false)?;
-    explain_or_note(&clean, spec, prm, &mut d, pb, ens);
+    let mut d = search_and_explain(&clean)?;
     let seconds: f64 = found.iter().map(|e| e.end_s - e.start_s).sum();
     d.notes.insert(
         0,
@@ -647,7 +649,7 @@ fn explain_by_replicas(
     prm: &GapParams,
     d: &mut Diagnosis,
     pb: &ProgressBar,
-    ensemble: Option<Simulated>,
+    mut ensemble: Option<Simulated>,
 ) -> Result<()> {
     // the threshold can be neither below the gap threshold nor above the cap: outside
     // the two, re-diagnoses change nothing
@@ -676,9 +678,9 @@ fn explain_by_replicas(
         ..prm.clone()
     };
     // every re-diagnosis compares its log with the same ensemble of `spec` as the
-    // diagnosis did (the same seed, length, rate, temperature and channels): the
-    // diagnosis's own, when it is given, else simulated once by the first
-    let mut shared = ensemble;
+    // diagnosis did (the same seed, length, rate, temperature and channels):
+    // `ensemble`, the diagnosis's own when it is given, else simulated once by the
+    // first
     // each simulation can only raise the threshold, and `verdict` only turns true as
     // the threshold rises: once the gap after is within the threshold so far and the
     // verdict is settled (true there, or false even at the cap), the simulations left
@@ -738,7 +740,7 @@ fn explain_by_replicas(
         };
         // only the gap after is read: the added effects' support and the level's
         // jumps, which the verdict alone reads, are not computed
-        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden(), &mut shared, true)?;
+        let dr = diagnose_log(&log, spec, &p, &ProgressBar::hidden(), &mut ensemble, true)?;
         gaps.push(dr.gap_after);
     }
     let threshold = threshold_of(&gaps);
@@ -1343,15 +1345,15 @@ fn diagnose_log(
         }) {
             // the folds' estimates at once, then handed on in the sequential order:
             // fold 1's whole list to `hold`, then fold 2's to `pair`
-            let estimate = |f: usize| -> Result<(Vec<Proposal>, Vec<NotTried>)> {
-                let mut found = Vec::new();
-                let skipped = candidates::output_path::proposals(
-                    &cx(f),
-                    grid_seen,
-                    candidates::output_path::Asked::All,
-                    &mut |p| found.push(p),
-                )?;
-                Ok((found, skipped))
+            let estimate = |f: usize| {
+                candidates::collected(|sink| {
+                    candidates::output_path::proposals(
+                        &cx(f),
+                        grid_seen,
+                        candidates::output_path::Asked::All,
+                        sink,
+                    )
+                })
             };
             let (a, b) = rayon::join(|| estimate(1), || estimate(0));
             let ((found1, skip1), (found0, skip0)) = (a?, b?);
@@ -1881,58 +1883,59 @@ fn diagnose_log(
     // each kept effect's share of the final joint model, the ranking reported
     pb.set_position(max_rounds as u64 + 1);
     pb.set_message("contributions");
-    // and, for the verdict, the gap without it and the jackknife sd of that difference
-    let f_final = (!added.is_empty() && !gap_only).then(|| {
-        feats_of(
-            [&sts[0].target, &sts[1].target],
-            [None, None],
-            [&sts[0].path, &sts[1].path],
-        )
-    });
-    let mut support = Vec::with_capacity(added.len());
-    for i in (0..added.len()).filter(|_| !gap_only) {
-        let kept = without_kept
-            .iter()
-            .position(|(at, j, _)| *at == steps.len() && *j == i);
-        let f = match kept {
-            Some(k) => without_kept.swap_remove(k).2,
-            None => feats_without(&sts, &slots[i]),
-        };
-        let (g, _, _) = score(&f);
-        added[i].contribution = Some(1.0 - gap_now / g);
-        let sd = f_final
-            .as_ref()
-            .map(|ff| jackknife_sd(&f, ff, &real_feats, &ens_before, &defs))
-            .unwrap_or(0.0);
-        support.push(Support {
-            kind: added[i].kind.clone(),
-            gap_without: g,
-            sd,
-            at_edge: added[i].at_edge.clone(),
-        });
-    }
-    // the level's changes of the real log against those of every simulation of the
-    // spec after (both folds' estimates), each through its fold's output path
-    let all_samples = 0..n;
-    let whole = std::slice::from_ref(&all_samples);
-    let sim_ks: Vec<_> = sts
-        .iter()
-        .filter(|_| !gap_only)
-        .flat_map(|st| st.target.iter().map(move |v| (v, &st.path)))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|(v, path)| {
-            let mut buf = SCRATCH.with(|s| s.take());
-            let y = path::part_output(v, None, path, printed, whole, &mut buf);
-            let k = jumps::kurtoses(y, n);
-            SCRATCH.with(|s| s.set(buf));
-            k
-        })
-        .collect();
-    let level = if gap_only {
-        None
+    // and what the verdict reads: each kept effect's gap without it and the jackknife
+    // sd of that difference, and the level's jumps; a gap-only diagnosis (a
+    // re-diagnosis of `explain_by_replicas`) computes none of them
+    let (support, level) = if gap_only {
+        (Vec::new(), None)
     } else {
-        jumps::level_jumps_of(real.x, &sim_ks, rate_hz)
+        let f_final = (!added.is_empty()).then(|| {
+            feats_of(
+                [&sts[0].target, &sts[1].target],
+                [None, None],
+                [&sts[0].path, &sts[1].path],
+            )
+        });
+        let mut support = Vec::with_capacity(added.len());
+        for i in 0..added.len() {
+            let kept = without_kept
+                .iter()
+                .position(|(at, j, _)| *at == steps.len() && *j == i);
+            let f = match kept {
+                Some(k) => without_kept.swap_remove(k).2,
+                None => feats_without(&sts, &slots[i]),
+            };
+            let (g, _, _) = score(&f);
+            added[i].contribution = Some(1.0 - gap_now / g);
+            let sd = f_final
+                .as_ref()
+                .map(|ff| jackknife_sd(&f, ff, &real_feats, &ens_before, &defs))
+                .unwrap_or(0.0);
+            support.push(Support {
+                kind: added[i].kind.clone(),
+                gap_without: g,
+                sd,
+                at_edge: added[i].at_edge.clone(),
+            });
+        }
+        // the level's changes of the real log against those of every simulation of the
+        // spec after (both folds' estimates), each through its fold's output path
+        let all_samples = 0..n;
+        let whole = std::slice::from_ref(&all_samples);
+        let sim_ks: Vec<_> = sts
+            .iter()
+            .flat_map(|st| st.target.iter().map(move |v| (v, &st.path)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(v, path)| {
+                let mut buf = SCRATCH.with(|s| s.take());
+                let y = path::part_output(v, None, path, printed, whole, &mut buf);
+                let k = jumps::kurtoses(y, n);
+                SCRATCH.with(|s| s.set(buf));
+                k
+            })
+            .collect();
+        (support, jumps::level_jumps_of(real.x, &sim_ks, rate_hz))
     };
     let (explained, why_not) = verdict(gap_now, cal.gap_threshold, &support, level.as_ref());
     if let Some(w) = why_not {

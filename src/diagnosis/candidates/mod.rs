@@ -337,6 +337,21 @@ impl Context<'_> {
         let xs: Vec<&[f64]> = xs.collect();
         mean_in_order(xs.par_iter().map(|x| self.avar(x)).collect())
     }
+
+    /// [`Context::mean_avar`] over the replicas' series `of(r)`, each made, read and
+    /// dropped in turn (as [`Context::target_as_output`] and
+    /// [`Context::part_as_output`] make them), not all held at once.
+    fn mean_avar_of<'b>(
+        &'b self,
+        of: impl Fn(usize) -> std::borrow::Cow<'b, [f64]> + Sync,
+    ) -> Vec<f64> {
+        mean_in_order(
+            (0..self.target.len())
+                .into_par_iter()
+                .map(|r| self.avar(&of(r)))
+                .collect(),
+        )
+    }
     /// Replica `r`'s signal of the target channel's component `k` as the output shows
     /// it: through the channel's output filter (a low-pass or a FIR: the path's linear
     /// stage; the saturation and the resolution act on the sum and are left out), from
@@ -463,12 +478,7 @@ impl Training {
         let mut tr = Training::light(cx);
         tr.a_real = cx.avar(cx.real);
         // the ensemble's outputs, as the log shows its own (through the output path)
-        let a_ens = mean_in_order(
-            (0..cx.target.len())
-                .into_par_iter()
-                .map(|r| cx.avar(&cx.target_as_output(r)))
-                .collect(),
-        );
+        let a_ens = cx.mean_avar_of(|r| cx.target_as_output(r));
         tr.ms = cx.train.adev_factors().to_vec();
         tr.excess = tr.a_real.iter().zip(&a_ens).map(|(a, e)| a - e).collect();
         tr
@@ -869,16 +879,15 @@ fn run_folds(cxs: [&Context; 2], only: Option<&[String]>, outs: &mut [Found; 2])
     let comps = cxs.map(|cx| cx.spec.channels[cx.channel].components.as_slice());
     let n_comps = comps.iter().map(|c| c.len()).max().unwrap_or(0);
     // one state's estimates of `step`: its proposals in order, and its skips
-    let estimate = |f: usize, step: &Step| -> Result<(Vec<Proposal>, Vec<NotTried>)> {
-        let mut found = Vec::new();
-        let mut sink = |p: Proposal| found.push(p);
-        let mut out = Found {
-            sink: &mut sink,
-            skipped: Vec::new(),
-        };
-        run_step(cxs[f], &trs[f], step, &mut out)?;
-        let skipped = out.skipped;
-        Ok((found, skipped))
+    let estimate = |f: usize, step: &Step| {
+        collected(|sink| {
+            let mut out = Found {
+                sink,
+                skipped: Vec::new(),
+            };
+            run_step(cxs[f], &trs[f], step, &mut out)?;
+            Ok(out.skipped)
+        })
     };
     for step in steps(n_comps) {
         let skip = |kind: &str| {
@@ -897,6 +906,16 @@ fn run_folds(cxs: [&Context; 2], only: Option<&[String]>, outs: &mut [Found; 2])
         }
     }
     Ok(())
+}
+
+/// What `estimate` hands its sink, collected in order, beside what it returns: an
+/// estimation that can run beside another and hand its proposals on afterwards.
+pub fn collected<R>(
+    estimate: impl FnOnce(&mut dyn FnMut(Proposal)) -> Result<R>,
+) -> Result<(Vec<Proposal>, R)> {
+    let mut found = Vec::new();
+    let r = estimate(&mut |p| found.push(p))?;
+    Ok((found, r))
 }
 
 /// The kind of effect `step` estimates for a target channel with components `comps`:

@@ -4,7 +4,6 @@
 //! deterministic one: least squares of the training residual on its signal gives
 //! s - 1 (no intercept for constant_bias, whose signal is one).
 
-use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use super::lsq::{fit_nonneg, ls};
@@ -28,11 +27,7 @@ pub(super) fn recalibrate(cx: &Context, tr: &Training, k: usize, out: &mut Found
             let na = tr.noise_avar(cx);
             // the component's Allan variance as the output shows it (through the
             // channel's output filter)
-            let seen: Vec<_> = (0..cx.parts.len())
-                .into_par_iter()
-                .map(|r| cx.part_as_output(r, k))
-                .collect();
-            let vk = cx.mean_avar(seen.iter().map(|p| &p[..]));
+            let vk = cx.mean_avar_of(|r| cx.part_as_output(r, k));
             let y: Vec<f64> = na.excess.iter().zip(&vk).map(|(e, v)| e + v).collect();
             let (s2, _) = fit_nonneg(&y, &vk, &na.a_real, &tr.ms);
             s2.sqrt()

@@ -580,28 +580,26 @@ fn estimate_heteroskedastic(
         }
         s / c.max(1.0)
     };
+    // the mean over the replicas of `of(r)` (in parallel, summed in the replicas' order)
     let m = cx.target.len().max(1) as f64;
+    let mean_of = |of: &(dyn Fn(usize) -> f64 + Sync)| -> f64 {
+        (0..cx.target.len())
+            .into_par_iter()
+            .map(of)
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum::<f64>()
+            / m
+    };
     // the ensemble's outputs' (through the output path), as the log's differences are
-    let total: f64 = (0..cx.target.len())
-        .into_par_iter()
-        .map(|r| var_d(&cx.target_as_output(r)))
-        .collect::<Vec<f64>>()
-        .iter()
-        .sum::<f64>()
-        / m;
+    let total = mean_of(&|r| var_d(&cx.target_as_output(r)));
     let mut best: Option<(usize, f64)> = None;
     for (k, c) in comps.iter().enumerate() {
         if !c.kind().is_noise() || matches!(c, Component::Farma(_)) {
             continue;
         }
         // as the output shows it (through the channel's output filter)
-        let v: f64 = (0..cx.parts.len())
-            .into_par_iter()
-            .map(|r| var_d(&cx.part_as_output(r, k)))
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum::<f64>()
-            / m;
+        let v = mean_of(&|r| var_d(&cx.part_as_output(r, k)));
         if best.is_none_or(|b| v > b.1) {
             best = Some((k, v));
         }

@@ -525,6 +525,12 @@ mod tests {
                 _ => *v *= 3.0,
             }
         }
+        // exact ties from rest: ties to even would give 0, 2, -0, -2
+        for (v, want) in [(0.5, 1.0), (2.5, 3.0), (-0.5, -1.0), (-2.5, -3.0)] {
+            let mut y = [v];
+            Quantizer::new(1.0, true).apply(&mut y);
+            assert_eq!(y[0], want, "the tie {v}");
+        }
         x[100] = f64::INFINITY;
         x[5000] = f64::NAN;
         for q in [1.0, 0.05, 0.5, 1e-3] {
