@@ -354,18 +354,18 @@ impl Diagnosis {
         }
     }
 
-    /// Every added effect with the part it was found on ([`Diagnosis::part`]): this
-    /// diagnosis's, then its per-sample part's (its first pass's, then its own).
+    /// Every added effect with the part it was found on ([`Diagnosis::part`]), in the
+    /// order they were added to the spec: the per-sample part's first pass's (which
+    /// the averaged part starts from), this diagnosis's, then the per-sample part's own.
     pub fn all_added(&self) -> Vec<(&'static str, &Effect)> {
-        let mut v: Vec<(&'static str, &Effect)> =
-            self.added.iter().map(|e| (self.part(), e)).collect();
-        for p in [&self.per_sample_first, &self.per_sample]
-            .into_iter()
-            .flatten()
-        {
-            v.extend(p.added.iter().map(|e| ("per_sample", e)));
+        fn per_sample(p: &Option<Box<Diagnosis>>) -> impl Iterator<Item = (&'static str, &Effect)> {
+            p.iter()
+                .flat_map(|p| p.added.iter().map(|e| ("per_sample", e)))
         }
-        v
+        per_sample(&self.per_sample_first)
+            .chain(self.added.iter().map(|e| (self.part(), e)))
+            .chain(per_sample(&self.per_sample))
+            .collect()
     }
 }
 
@@ -1399,6 +1399,8 @@ fn diagnose_log(
         let mut best_joint: Option<JointBest> = None;
         // each scored pair's kinds and gap after
         let mut pairs_scored: Vec<([String; 2], f64)> = Vec::new();
+        // the pairs scored on every replica, for the parsimony rule below
+        let mut joint_scored: Vec<JointBest> = Vec::new();
         if prm.joint_pairs && added.is_empty() {
             for [pf0, pf1] in candidates::joint::joint_pairs([&cx(0), &cx(1)], only)? {
                 let sum = |ps: &[Proposal; 2]| -> Vec<f64> {
@@ -1420,17 +1422,17 @@ fn diagnose_log(
                 if let Ok(f) = f {
                     let (g, e, families) = score(&f);
                     pairs_scored.push(([pf0[0].kind.clone(), pf0[1].kind.clone()], g));
-                    if best_joint.as_ref().is_none_or(|b| g < b.gap_after) {
-                        best_joint = Some(JointBest {
-                            gap_after: g,
-                            ens: e,
-                            families,
-                            props: [pf0, pf1],
-                            feats: f,
-                        });
-                    }
+                    joint_scored.push(JointBest {
+                        gap_after: g,
+                        ens: e,
+                        families,
+                        props: [pf0, pf1],
+                        feats: f,
+                        parsimony: None,
+                    });
                 }
             }
+            best_joint = parsimonious_pair(joint_scored, &real_feats, &ens_before, &defs);
         }
         if timing {
             eprintln!(
@@ -1579,13 +1581,23 @@ fn diagnose_log(
                         .to_string(),
                 )
             } else {
-                pair_beats(j)
+                pair_beats(j).map(|ok| match &j.parsimony {
+                    Some(why) => format!("{ok}; {why}"),
+                    None => ok,
+                })
             }
         });
         let best_pair_gap = best_joint.as_ref().map(|j| j.gap_after);
         for (kinds, g) in pairs_scored {
+            let parsimony = best_joint.as_ref().and_then(|j| j.parsimony.clone());
             let verdict = match (&best_pair_verdict, best_pair_gap) {
                 (Some(v), Some(bg)) if g == bg => v.clone(),
+                (_, Some(bg))
+                    if g < bg
+                        && let Some(why) = parsimony =>
+                {
+                    Err(why)
+                }
                 (_, Some(bg)) => Err(format!("another pair scored lower ({bg:.3})")),
                 _ => Err(String::new()),
             };
@@ -2002,10 +2014,15 @@ thread_local! {
 /// frequency and phase; ...), one for a recalibration's factor, plus one for a level it
 /// rescales beside it (`level_factor`, `white_noise_n`).
 fn free_params(e: &Effect) -> usize {
-    if e.kind.starts_with("recalibrate:") {
+    free_params_of(&e.kind, &e.component, &e.params)
+}
+
+/// [`free_params`] of a candidate's kind, component and reported parameters.
+fn free_params_of(kind: &str, component: &Component, params: &serde_json::Value) -> usize {
+    if kind.starts_with("recalibrate:") {
         return 1;
     }
-    let own = match &e.component {
+    let own = match component {
         Component::ConstantBias { .. }
         | Component::WhiteNoise { .. }
         | Component::Quantization { .. }
@@ -2032,7 +2049,7 @@ fn free_params(e: &Effect) -> usize {
     };
     let extra = ["level_factor", "white_noise_n"]
         .iter()
-        .filter(|k| e.params.get(**k).is_some())
+        .filter(|k| params.get(**k).is_some())
         .count();
     own + extra
 }
@@ -2289,6 +2306,56 @@ pub(super) struct JointBest {
     props: [[Proposal; 2]; 2],
     /// Each replica's features with both added (for the tie with the best single).
     feats: Vec<Vec<f64>>,
+    /// Why this pair was kept over a pair of lower gap ([`parsimonious_pair`]).
+    parsimony: Option<String>,
+}
+
+/// The pair of biases a round keeps of those scored: the lowest gap, unless a pair of
+/// fewer free parameters ties with it (the difference of their gaps within 2 jackknife
+/// sd over the replicas, [`jackknife_sd`]); then the tied pair of fewest free
+/// parameters (of those, the lowest gap). The parsimony rule of tied single biases
+/// applied to pairs: a temperature bias whose reference carries the level stands in
+/// for a constant bias at one more parameter, and the withheld score shows no
+/// evidence for it.
+fn parsimonious_pair(
+    mut pairs: Vec<JointBest>,
+    real: &[f64],
+    reference: &EnsembleStats,
+    defs: &[FeatureDef],
+) -> Option<JointBest> {
+    let params = |j: &JointBest| -> usize {
+        j.props[0]
+            .iter()
+            .map(|p| free_params_of(&p.kind, &p.component, &p.params))
+            .sum()
+    };
+    let lowest =
+        (0..pairs.len()).min_by(|&a, &b| pairs[a].gap_after.total_cmp(&pairs[b].gap_after))?;
+    let (g0, k0) = (pairs[lowest].gap_after, params(&pairs[lowest]));
+    let mut keep = lowest;
+    let mut why = None;
+    for i in 0..pairs.len() {
+        let k = params(&pairs[i]);
+        let kk = params(&pairs[keep]);
+        if i == lowest
+            || k >= k0
+            || k > kk
+            || (k == kk && pairs[i].gap_after >= pairs[keep].gap_after)
+        {
+            continue;
+        }
+        let sd = jackknife_sd(&pairs[i].feats, &pairs[lowest].feats, real, reference, defs);
+        if pairs[i].gap_after - g0 <= 2.0 * sd {
+            keep = i;
+            why = Some(format!(
+                "ties with {} + {} ({g0:.3}, the difference within 2 jackknife sd {sd:.3}), which has more free parameters ({k0} against {k}): the simpler pair was kept",
+                pairs[lowest].props[0][0].kind, pairs[lowest].props[0][1].kind
+            ));
+        }
+    }
+    let mut j = pairs.swap_remove(keep);
+    j.parsimony = why;
+    Some(j)
 }
 
 #[derive(Default)]
@@ -3178,6 +3245,87 @@ mod tests {
             .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
             .collect();
         assert!(jackknife_sd(&reps, &other, &real, &reference, &defs) > 0.0);
+    }
+    #[test]
+    fn tied_pairs_of_biases_keep_the_one_of_fewer_free_parameters() {
+        use features::Statistic;
+        let defs: Vec<FeatureDef> = (0..3)
+            .map(|k| FeatureDef {
+                statistic: Statistic::Adev,
+                name: format!("f{k}"),
+                lo: k as f64,
+                hi: k as f64 + 1.0,
+                unit: "s".into(),
+                log_scale: true,
+                fold: 1,
+            })
+            .collect();
+        let reps: Vec<Vec<f64>> = (0..8)
+            .map(|r| (0..3).map(|k| ((r * 7 + k * 3) % 5) as f64 * 0.1).collect())
+            .collect();
+        let other: Vec<Vec<f64>> = reps
+            .iter()
+            .enumerate()
+            .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
+            .collect();
+        let reference = EnsembleStats::new(&reps, &defs, None);
+        let real = vec![0.3, 0.1, 0.2];
+        let sd = jackknife_sd(&other, &reps, &real, &reference, &defs);
+        assert!(sd > 0.0);
+        let sine = || {
+            proposal(
+                Component::Sinusoid {
+                    amplitude: 1.0,
+                    freq_hz: 0.1,
+                    phase_rad: 0.0,
+                },
+                None,
+                candidates::Delta::Same(vec![0.0; 3]),
+            )
+        };
+        let pair = |second: Component, gap_after: f64, feats: &Vec<Vec<f64>>| {
+            let p = [
+                sine(),
+                proposal(second, None, candidates::Delta::Same(vec![0.0; 3])),
+            ];
+            JointBest {
+                gap_after,
+                ens: reference.clone(),
+                families: Vec::new(),
+                props: [p.clone(), p],
+                feats: feats.clone(),
+                parsimony: None,
+            }
+        };
+        let temperature = || Component::TemperatureBias {
+            coeffs: vec![0.01],
+            reference_c: Some(20.0),
+        };
+        let constant = || Component::ConstantBias { value: 0.5 };
+        // 3 + 2 free parameters against 3 + 1: the simpler within 2 sd is kept
+        let kept = |gap_constant: f64| {
+            let pairs = vec![
+                pair(temperature(), 1.0, &reps),
+                pair(constant(), gap_constant, &other),
+            ];
+            let j = parsimonious_pair(pairs, &real, &reference, &defs).unwrap();
+            (j.props[0][1].kind.clone(), j.parsimony.is_some())
+        };
+        assert_eq!(kept(1.0 + 1.5 * sd), ("constant_bias".to_string(), true));
+        assert_eq!(
+            kept(1.0 + 2.5 * sd),
+            ("temperature_bias".to_string(), false)
+        );
+        // the simpler pair of lower gap is the lowest: kept, no parsimony needed
+        assert_eq!(kept(0.9), ("constant_bias".to_string(), false));
+        // the more complex pair never replaces a lower simpler one
+        let pairs = vec![
+            pair(constant(), 1.0, &reps),
+            pair(temperature(), 1.0 + 0.1 * sd, &other),
+        ];
+        let j = parsimonious_pair(pairs, &real, &reference, &defs).unwrap();
+        assert_eq!(j.props[0][1].kind, "constant_bias");
+        assert!(parsimonious_pair(Vec::new(), &real, &reference, &defs).is_none());
     }
     fn effect(kind: &str, component: Component, params: Value) -> Effect {
         Effect {

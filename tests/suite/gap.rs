@@ -1896,6 +1896,15 @@ fn a_long_log_s_slow_effect_is_found_averaged_and_its_rounding_on_the_per_sample
         "{parts:?}; notes {:?}",
         d.notes
     );
+    // listed in the order they entered the spec: the rounding the first pass found
+    // (which the averaged part starts from) before the bias
+    let first = d.per_sample_first.as_deref().expect("the first pass");
+    assert!(
+        first.added.iter().any(|e| e.kind == "output_resolution"),
+        "the first pass added {:?}",
+        first.added.iter().map(|e| &e.kind).collect::<Vec<_>>()
+    );
+    assert_eq!(parts[0], ("per_sample", "output_resolution"), "{parts:?}");
     assert!(d.significant && d.explained, "{:?}", d.notes);
     let comps = &d.spec_after.channels[0].components;
     assert!(
