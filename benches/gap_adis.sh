@@ -18,7 +18,7 @@ done
 python3 - "$O" <<'PY'
 import json, sys
 o = sys.argv[1]
-print("| run | gap (averaged; per-sample part) | floor | added, by contribution (share of its part's final model) | explained | spec_after simulated, diagnosed again | time, peak RSS |")
+print("| run | gap (averaged; per-sample part) | floor | added: first pass, averaged, per-sample part; each by contribution (share of its part's final model) | explained | spec_after simulated, diagnosed again | time, peak RSS |")
 print("|---|---|---|---|---|---|---|")
 for r in [1, 2, 3, 4]:
     g = json.load(open(f"{o}/g{r}.json")); q = json.load(open(f"{o}/re{r}.json"))
