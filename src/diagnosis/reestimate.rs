@@ -24,7 +24,7 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, JointBest, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply,
-    form, joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
+    form, pair_across_forms, pair_by, pair_key, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -299,15 +299,17 @@ impl Refit<'_> {
         Ok(Some(note))
     }
 
-    /// The pair of a coarse output resolution and the filter fitted by simulation with
-    /// it ([`candidates::path_fit`]), tried on a copy of the search when the round
+    /// The pair of a coarse output resolution and a filter fitted with it (by
+    /// simulation, [`candidates::path_fit`], or to the PSD's roll-off), tried on a copy of the search when the round
     /// proposed the resolution (`res`, the better of its rounding forms) and the spec
     /// has none: with the rounding coarse against the log's short-term noise, neither
     /// shows alone (the rounding of an unfiltered simulation leaves many more level
     /// changes than the real log's few; a filter without the rounding leaves every
     /// value off the grid), so a greedy step takes neither or another effect first. The
     /// resolution is estimated again and added on the copy, then the filters fitted by
-    /// simulation beside it are scored, each with the rounding in its fitted form; the
+    /// simulation beside it (each with the rounding in its fitted form) and, when the
+    /// spec has no filter, those read off the PSD's roll-off with the rounding in the
+    /// spec are scored; the
     /// best is kept when its joint gap is below `below` (the round's best single
     /// effect's gap and the margin a forward step needs) and below the resolution's own
     /// gap by `min_shrink`, the margin its own forward step would need. Two steps are
@@ -392,16 +394,17 @@ impl Refit<'_> {
             ..Step::plain("add", res_eff.kind.clone(), gap_was, gap_res)
         };
         self.add(&mut t.search(), (props, res_eff, e, step))?;
-        // the filters fitted by simulation with the rounding now in the spec (those
-        // that set the rounding's form, `Proposal::rescales`)
+        // the filters with the rounding now in the spec: those fitted by simulation
+        // (which set the rounding's form, `Proposal::rescales`) and, when the spec has
+        // no filter, those read off the PSD's roll-off, each scored on the withheld
+        // part (the fit by simulation reads a few replicas and can miss a form the
+        // roll-off gives)
         let kind = if has(&t.sts[0], Kind::OutputFilter) {
             "recalibrate:output_filter"
         } else {
             "output_filter"
         };
-        let round = scored_pairs(&t.sts, gap_res, Asked::BySimulation, kind, &|p| {
-            joint_tag(p) == " with the path refitted"
-        })?;
+        let round = scored_pairs(&t.sts, gap_res, Asked::All, kind, &|_| true)?;
         let Some((eff, e, props, _)) = round.best else {
             return Ok(None);
         };
@@ -410,11 +413,16 @@ impl Refit<'_> {
         }
         let step = Step::plain("add", eff.kind.clone(), gap_res, eff.gap_after);
         let gap_pair = eff.gap_after;
+        let how = if eff.params.get("resolution_on_angle").is_some() {
+            "by simulation"
+        } else {
+            "to the PSD's roll-off"
+        };
         let filter = eff.kind.clone();
         self.add(&mut t.search(), (props, eff, e, step))?;
         t.write_back(s);
         Ok(Some(format!(
-            "output_resolution and {filter} added as a pair: the rounding alone takes the gap from {gap_was:.3} to {gap_res:.3}, with the filter fitted by simulation beside it to {gap_pair:.3} (the round's best single effect, {}, to {:.3})",
+            "output_resolution and {filter} added as a pair: the rounding alone takes the gap from {gap_was:.3} to {gap_res:.3}, with the filter fitted beside it ({how}) to {gap_pair:.3} (the round's best single effect, {}, to {:.3})",
             best.0, best.1
         )))
     }

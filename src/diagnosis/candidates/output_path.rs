@@ -733,15 +733,13 @@ fn white_refit(cx: &Context, k: usize, n: f64, s: f64) -> Option<Also> {
     ))
 }
 
-/// Which of [`proposals`]' candidates are asked for: all of them (a round), or only
-/// the output resolution, or only the filters fitted by simulation beside the spec's
-/// rounding (the pair move, `Refit::path_pair`, which scores each in turn); the others'
-/// fits are then not run.
+/// Which of [`proposals`]' candidates are asked for: all of them (a round, and the
+/// filters of the pair move `Refit::path_pair`), or only the output resolution (the
+/// pair move's first step); the others' fits are then not run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Asked {
     All,
     Resolution,
-    BySimulation,
 }
 
 /// The output-path candidates for the state `cx` (module doc), each handed to `sink`
@@ -797,12 +795,7 @@ pub fn proposals(
             note,
         })
     };
-    if let (Some(g), true, false, true) = (
-        lsb,
-        grid_seen,
-        has(Kind::OutputResolution),
-        asked != Asked::BySimulation,
-    ) {
+    if let (Some(g), true, false) = (lsb, grid_seen, has(Kind::OutputResolution)) {
         for on_angle in [false, true] {
             offer_also(
                 Component::OutputResolution {
