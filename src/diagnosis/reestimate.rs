@@ -300,17 +300,17 @@ impl Refit<'_> {
     }
 
     /// The pair of a coarse output resolution and a filter fitted with it (by
-    /// simulation, [`candidates::path_fit`], or to the PSD's roll-off), tried on a copy of the search when the round
-    /// proposed the resolution (`res`, the better of its rounding forms) and the spec
-    /// has none: with the rounding coarse against the log's short-term noise, neither
-    /// shows alone (the rounding of an unfiltered simulation leaves many more level
-    /// changes than the real log's few; a filter without the rounding leaves every
-    /// value off the grid), so a greedy step takes neither or another effect first. The
-    /// resolution is estimated again and added on the copy, then the filters fitted by
-    /// simulation beside it (each with the rounding in its fitted form) and, when the
-    /// spec has no filter, those read off the PSD's roll-off with the rounding in the
-    /// spec are scored; the
-    /// best is kept when its joint gap is below `below` (the round's best single
+    /// simulation, [`candidates::path_fit`], or to the PSD's roll-off), tried on a copy
+    /// of the search when the round proposed the resolution (`res`, the better of its
+    /// rounding forms) and the spec has none: with the rounding coarse against the
+    /// log's short-term noise, neither shows alone (the rounding of an unfiltered
+    /// simulation leaves many more level changes than the real log's few; a filter
+    /// without the rounding leaves every value off the grid), so a greedy step takes
+    /// neither or another effect first. The resolution is estimated again and added on
+    /// the copy, then the filters fitted by simulation beside it (each with the
+    /// rounding in its fitted form) and, when the spec has no filter, those read off
+    /// the PSD's roll-off (and the MA(1) FIR) with the rounding in the spec are scored;
+    /// the best is kept when its joint gap is below `below` (the round's best single
     /// effect's gap and the margin a forward step needs) and below the resolution's own
     /// gap by `min_shrink`, the margin its own forward step would need. Two steps are
     /// recorded, one per effect, and each can be taken back like any other (the
@@ -415,6 +415,8 @@ impl Refit<'_> {
         let gap_pair = eff.gap_after;
         let how = if eff.params.get("resolution_on_angle").is_some() {
             "by simulation"
+        } else if matches!(eff.component, Component::OutputFir { .. }) {
+            "as the MA(1) FIR"
         } else {
             "to the PSD's roll-off"
         };
