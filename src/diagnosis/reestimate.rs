@@ -351,10 +351,15 @@ impl Refit<'_> {
                             kind: &str,
                             keep: &dyn Fn(&Proposal) -> bool|
          -> Result<Round> {
+            // each held shed (`Proposal::shed`: a white noise refitted beside a filter
+            // is a signal per replica, rebuilt from the state), restored to be scored,
+            // and the round's best restored once all are scored
+            let cxs = [self.cx(&sts[0], 0), self.cx(&sts[1], 1)];
             let mut props: [Vec<Proposal>; 2] = Default::default();
             for (f, ps) in props.iter_mut().enumerate() {
-                candidates::output_path::proposals(&self.cx(&sts[f], f), true, asked, &mut |p| {
+                candidates::output_path::proposals(&cxs[f], true, asked, &mut |mut p| {
                     if p.kind == kind && keep(&p) {
+                        p.shed(&cxs[f]);
                         ps.push(p)
                     }
                 })?;
@@ -364,13 +369,22 @@ impl Refit<'_> {
             let (mut pairs, left) = pair_by(ps0, &mut ps1, pair_key);
             pairs.extend(pair_across_forms(left, &mut ps1).0);
             let mut round = Round::default();
-            for (p, q) in pairs {
+            for (mut p, mut q) in pairs {
+                p.restore(&cxs[0]);
+                q.restore(&cxs[1]);
                 let mut copy = sts.clone();
                 apply(&mut copy[0], self.channel, p.clone());
                 apply(&mut copy[1], self.channel, q.clone());
                 let f = (self.feats)(&copy, [None, None]);
+                drop(copy);
                 let scored = (self.score)(&f);
+                p.shed(&cxs[0]);
+                q.shed(&cxs[1]);
                 round.offer([p, q], f, scored, gap_ref);
+            }
+            if let Some((_, _, pq, _)) = round.best.as_mut() {
+                pq[0].restore(&cxs[0]);
+                pq[1].restore(&cxs[1]);
             }
             Ok(round)
         };
