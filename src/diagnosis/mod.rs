@@ -1399,9 +1399,8 @@ fn diagnose_log(
         let mut best_joint: Option<JointBest> = None;
         // each scored pair's kinds and gap after
         let mut pairs_scored: Vec<([String; 2], f64)> = Vec::new();
-        // the pairs scored on every replica, for the parsimony rule below
-        let mut joint_scored: Vec<JointBest> = Vec::new();
         if prm.joint_pairs && added.is_empty() {
+            let mut joint_scored: Vec<JointBest> = Vec::new();
             for [pf0, pf1] in candidates::joint::joint_pairs([&cx(0), &cx(1)], only)? {
                 let sum = |ps: &[Proposal; 2]| -> Vec<f64> {
                     let (a, b) = (ps[0].delta.get(0), ps[1].delta.get(0));
@@ -1421,7 +1420,6 @@ fn diagnose_log(
                 });
                 if let Ok(f) = f {
                     let (g, e, families) = score(&f);
-                    pairs_scored.push(([pf0[0].kind.clone(), pf0[1].kind.clone()], g));
                     joint_scored.push(JointBest {
                         gap_after: g,
                         ens: e,
@@ -1432,6 +1430,15 @@ fn diagnose_log(
                     });
                 }
             }
+            pairs_scored = joint_scored
+                .iter()
+                .map(|j| {
+                    (
+                        [j.props[0][0].kind.clone(), j.props[0][1].kind.clone()],
+                        j.gap_after,
+                    )
+                })
+                .collect();
             best_joint = parsimonious_pair(joint_scored, &real_feats, &ens_before, &defs);
         }
         if timing {
@@ -1588,15 +1595,15 @@ fn diagnose_log(
             }
         });
         let best_pair_gap = best_joint.as_ref().map(|j| j.gap_after);
+        let parsimony = best_joint.as_ref().and_then(|j| j.parsimony.as_ref());
         for (kinds, g) in pairs_scored {
-            let parsimony = best_joint.as_ref().and_then(|j| j.parsimony.clone());
             let verdict = match (&best_pair_verdict, best_pair_gap) {
                 (Some(v), Some(bg)) if g == bg => v.clone(),
                 (_, Some(bg))
                     if g < bg
                         && let Some(why) = parsimony =>
                 {
-                    Err(why)
+                    Err(why.clone())
                 }
                 (_, Some(bg)) => Err(format!("another pair scored lower ({bg:.3})")),
                 _ => Err(String::new()),
@@ -3219,8 +3226,9 @@ mod tests {
         assert_eq!(alone[0].kind, "output_resolution");
     }
 
-    #[test]
-    fn the_jackknife_sd_of_identical_candidates_is_zero_and_grows_with_their_difference() {
+    /// Three features over 8 replicas, and the same features shifted by 0.05 r in
+    /// replica r: two candidates whose gaps differ by a nonzero jackknife sd.
+    fn jackknife_case() -> (Vec<FeatureDef>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
         use features::Statistic;
         let defs: Vec<FeatureDef> = (0..3)
             .map(|k| FeatureDef {
@@ -3236,38 +3244,25 @@ mod tests {
         let reps: Vec<Vec<f64>> = (0..8)
             .map(|r| (0..3).map(|k| ((r * 7 + k * 3) % 5) as f64 * 0.1).collect())
             .collect();
-        let reference = EnsembleStats::new(&reps, &defs, None);
-        let real = vec![0.3, 0.1, 0.2];
-        assert_eq!(jackknife_sd(&reps, &reps, &real, &reference, &defs), 0.0);
         let other: Vec<Vec<f64>> = reps
             .iter()
             .enumerate()
             .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
             .collect();
+        (defs, reps, other)
+    }
+
+    #[test]
+    fn the_jackknife_sd_of_identical_candidates_is_zero_and_grows_with_their_difference() {
+        let (defs, reps, other) = jackknife_case();
+        let reference = EnsembleStats::new(&reps, &defs, None);
+        let real = vec![0.3, 0.1, 0.2];
+        assert_eq!(jackknife_sd(&reps, &reps, &real, &reference, &defs), 0.0);
         assert!(jackknife_sd(&reps, &other, &real, &reference, &defs) > 0.0);
     }
     #[test]
     fn tied_pairs_of_biases_keep_the_one_of_fewer_free_parameters() {
-        use features::Statistic;
-        let defs: Vec<FeatureDef> = (0..3)
-            .map(|k| FeatureDef {
-                statistic: Statistic::Adev,
-                name: format!("f{k}"),
-                lo: k as f64,
-                hi: k as f64 + 1.0,
-                unit: "s".into(),
-                log_scale: true,
-                fold: 1,
-            })
-            .collect();
-        let reps: Vec<Vec<f64>> = (0..8)
-            .map(|r| (0..3).map(|k| ((r * 7 + k * 3) % 5) as f64 * 0.1).collect())
-            .collect();
-        let other: Vec<Vec<f64>> = reps
-            .iter()
-            .enumerate()
-            .map(|(r, v)| v.iter().map(|x| x + 0.05 * r as f64).collect())
-            .collect();
+        let (defs, reps, other) = jackknife_case();
         let reference = EnsembleStats::new(&reps, &defs, None);
         let real = vec![0.3, 0.1, 0.2];
         let sd = jackknife_sd(&other, &reps, &real, &reference, &defs);
