@@ -1589,7 +1589,7 @@ fn diagnose_log(
                 )
             } else {
                 pair_beats(j).map(|ok| match &j.parsimony {
-                    Some(why) => format!("{ok}; {why}"),
+                    Some([why, _]) => format!("{ok}; {why}"),
                     None => ok,
                 })
             }
@@ -1601,7 +1601,7 @@ fn diagnose_log(
                 (Some(v), Some(bg)) if g == bg => v.clone(),
                 (_, Some(bg))
                     if g < bg
-                        && let Some(why) = parsimony =>
+                        && let Some([_, why]) = parsimony =>
                 {
                     Err(why.clone())
                 }
@@ -2313,8 +2313,9 @@ pub(super) struct JointBest {
     props: [[Proposal; 2]; 2],
     /// Each replica's features with both added (for the tie with the best single).
     feats: Vec<Vec<f64>>,
-    /// Why this pair was kept over a pair of lower gap ([`parsimonious_pair`]).
-    parsimony: Option<String>,
+    /// Why this pair was kept over the pair of lower gap, and why that one was not
+    /// ([`parsimonious_pair`]).
+    parsimony: Option<[String; 2]>,
 }
 
 /// The pair of biases a round keeps of those scored: the lowest gap, unless a pair of
@@ -2354,10 +2355,19 @@ fn parsimonious_pair(
         let sd = jackknife_sd(&pairs[i].feats, &pairs[lowest].feats, real, reference, defs);
         if pairs[i].gap_after - g0 <= 2.0 * sd {
             keep = i;
-            why = Some(format!(
-                "ties with {} + {} ({g0:.3}, the difference within 2 jackknife sd {sd:.3}), which has more free parameters ({k0} against {k}): the simpler pair was kept",
-                pairs[lowest].props[0][0].kind, pairs[lowest].props[0][1].kind
-            ));
+            let name = |j: &JointBest| format!("{} + {}", j.props[0][0].kind, j.props[0][1].kind);
+            let tie = format!("the difference within 2 jackknife sd {sd:.3}");
+            why = Some([
+                format!(
+                    "ties with {} ({g0:.3}, {tie}), which has more free parameters ({k0} against {k}): the simpler pair was kept",
+                    name(&pairs[lowest])
+                ),
+                format!(
+                    "ties with {} ({:.3}, {tie}), which has fewer free parameters ({k} against {k0}): the simpler pair was kept",
+                    name(&pairs[i]),
+                    pairs[i].gap_after
+                ),
+            ]);
         }
     }
     let mut j = pairs.swap_remove(keep);
@@ -3307,6 +3317,23 @@ mod tests {
             (j.props[0][1].kind.clone(), j.parsimony.is_some())
         };
         assert_eq!(kept(1.0 + 1.5 * sd), ("constant_bias".to_string(), true));
+        // the kept pair's reason names the pair of lower gap, that pair's the kept one
+        let pairs = vec![
+            pair(temperature(), 1.0, &reps),
+            pair(constant(), 1.0 + 1.5 * sd, &other),
+        ];
+        let [kept_why, lowest_why] = parsimonious_pair(pairs, &real, &reference, &defs)
+            .unwrap()
+            .parsimony
+            .unwrap();
+        assert!(
+            kept_why.contains("sinusoid + temperature_bias"),
+            "{kept_why}"
+        );
+        assert!(
+            lowest_why.contains("sinusoid + constant_bias"),
+            "{lowest_why}"
+        );
         assert_eq!(
             kept(1.0 + 2.5 * sd),
             ("temperature_bias".to_string(), false)
