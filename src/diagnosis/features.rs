@@ -439,6 +439,16 @@ impl Layout {
         self.compute_with(x, temperature, &self.others(others))
     }
 
+    /// The first differences x_t - x_{t-1} within each of the layout's withheld ranges,
+    /// range by range: the series the cross-axis correlation of differences pairs.
+    fn diffs(&self, x: &[f64]) -> Vec<f64> {
+        let mut d = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
+        for r in &self.ranges {
+            d.extend(x[r.start..r.end].windows(2).map(|w| w[1] - w[0]));
+        }
+        d
+    }
+
     /// What the cross-axis features need of each other channel in `others` on this
     /// layout's blocks, computed once for every series compared with the same channels
     /// (see [`OtherSide`]).
@@ -446,10 +456,7 @@ impl Layout {
         others
             .iter()
             .map(|o| {
-                let diffs = self
-                    .ranges
-                    .iter()
-                    .flat_map(|r| (r.start + 1..r.end).map(move |t| o[t] - o[t - 1]));
+                let diffs = self.diffs(o);
                 let window_means: Vec<f64> = self
                     .windows
                     .iter()
@@ -457,7 +464,7 @@ impl Layout {
                     .collect();
                 OtherSide {
                     x: o,
-                    diff: CorrSide::of(diffs),
+                    diff: CorrSide::of(diffs.iter().copied()),
                     window_mean: CorrSide::of(window_means.iter().copied()),
                     window_means,
                 }
@@ -493,21 +500,17 @@ impl Layout {
         }
         out.extend(self.state(x, cell));
         debug_assert!(others.len() == self.n_other);
-        for o in others.iter().take(self.n_other) {
-            let diffs = || {
-                self.ranges
-                    .iter()
-                    .flat_map(|r| (r.start + 1..r.end).map(move |t| x[t] - x[t - 1]))
-            };
-            let o_diffs = self
-                .ranges
-                .iter()
-                .flat_map(|r| (r.start + 1..r.end).map(move |t| o.x[t] - o.x[t - 1]));
-            out.push(o.diff.corr(diffs, o_diffs));
-            out.push(
-                o.window_mean
-                    .corr(|| means.iter().copied(), o.window_means.iter().copied()),
-            );
+        if self.n_other > 0 {
+            // the series' differences and their mean, once for every other channel
+            let diffs = self.diffs(x);
+            let mean_diff = CorrSide::mean_of(diffs.iter().copied(), diffs.len());
+            for o in others.iter().take(self.n_other) {
+                out.push(o.diff.corr_given_mean(&diffs, mean_diff, &self.ranges, o.x));
+                out.push(
+                    o.window_mean
+                        .corr(|| means.iter().copied(), o.window_means.iter().copied()),
+                );
+            }
         }
         debug_assert_eq!(out.len(), self.defs.len());
         out
@@ -1206,10 +1209,38 @@ struct CorrSide {
 impl CorrSide {
     fn of(b: impl Iterator<Item = f64> + Clone) -> CorrSide {
         let n = b.clone().count();
-        let nf = n.max(1) as f64;
-        let mean = b.clone().fold(0.0, |m, y| m + y / nf);
+        let mean = CorrSide::mean_of(b.clone(), n);
         let ss = b.fold(0.0, |s, y| s + (y - mean) * (y - mean));
         CorrSide { n, mean, ss }
+    }
+
+    /// The mean of the `n` values of `b`, summed as b_i / n in order (the mean every
+    /// side of a correlation takes, so that [`corr_pairs`] is matched bit for bit).
+    fn mean_of(b: impl Iterator<Item = f64>, n: usize) -> f64 {
+        let nf = n.max(1) as f64;
+        b.fold(0.0, |m, y| m + y / nf)
+    }
+
+    /// [`CorrSide::corr`] of the n values `a`, whose mean [`CorrSide::mean_of`] is
+    /// `mean_a`, with this side's values: the differences of `o` within `ranges`,
+    /// range by range (as [`Layout::diffs`] lists them). The same sums in the same
+    /// order.
+    fn corr_given_mean(&self, a: &[f64], mean_a: f64, ranges: &[Range<usize>], o: &[f64]) -> f64 {
+        debug_assert!(a.len() == self.n);
+        let (mut sab, mut saa) = (0.0, 0.0);
+        let mut a = a.iter();
+        for r in ranges {
+            for (w, x) in o[r.start..r.end].windows(2).zip(a.by_ref()) {
+                let y = w[1] - w[0];
+                sab += (x - mean_a) * (y - self.mean);
+                saa += (x - mean_a) * (x - mean_a);
+            }
+        }
+        if saa > 0.0 && self.ss > 0.0 {
+            sab / (saa * self.ss).sqrt()
+        } else {
+            0.0
+        }
     }
 
     /// The correlation of `a` (a fresh iterator per call, n values) with this side,
