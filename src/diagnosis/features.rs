@@ -501,11 +501,16 @@ impl Layout {
         out.extend(self.state(x, cell));
         debug_assert!(others.len() == self.n_other);
         if self.n_other > 0 {
-            // the series' differences and their mean, once for every other channel
-            let diffs = self.diffs(x);
-            let mean_diff = CorrSide::mean_of(diffs.iter().copied(), diffs.len());
+            // the mean of the series' differences, once for every other channel
+            let n_diffs: usize = self.ranges.iter().map(|r| r.len().saturating_sub(1)).sum();
+            let mean_diff = CorrSide::mean_of(
+                self.ranges
+                    .iter()
+                    .flat_map(|r| x[r.start..r.end].windows(2).map(|w| w[1] - w[0])),
+                n_diffs,
+            );
             for o in others.iter().take(self.n_other) {
-                out.push(o.diff.corr_given_mean(&diffs, mean_diff, &self.ranges, o.x));
+                out.push(o.diff.corr_given_mean(x, mean_diff, &self.ranges, o.x));
                 out.push(
                     o.window_mean
                         .corr(|| means.iter().copied(), o.window_means.iter().copied()),
@@ -1221,19 +1226,18 @@ impl CorrSide {
         b.fold(0.0, |m, y| m + y / nf)
     }
 
-    /// [`CorrSide::corr`] of the n values `a`, whose mean [`CorrSide::mean_of`] is
-    /// `mean_a`, with this side's values: the differences of `o` within `ranges`,
-    /// range by range (as [`Layout::diffs`] lists them). The same sums in the same
-    /// order.
-    fn corr_given_mean(&self, a: &[f64], mean_a: f64, ranges: &[Range<usize>], o: &[f64]) -> f64 {
-        debug_assert!(a.len() == self.n);
+    /// [`CorrSide::corr`] of the differences of `x` within `ranges`, whose mean
+    /// [`CorrSide::mean_of`] is `mean_a`, with this side's values, the differences of
+    /// `o` within the same ranges: both range by range (as [`Layout::diffs`] lists
+    /// them), the same sums in the same order.
+    fn corr_given_mean(&self, x: &[f64], mean_a: f64, ranges: &[Range<usize>], o: &[f64]) -> f64 {
         let (mut sab, mut saa) = (0.0, 0.0);
-        let mut a = a.iter();
         for r in ranges {
-            for (w, x) in o[r.start..r.end].windows(2).zip(a.by_ref()) {
-                let y = w[1] - w[0];
-                sab += (x - mean_a) * (y - self.mean);
-                saa += (x - mean_a) * (x - mean_a);
+            let (xs, os) = (&x[r.start..r.end], &o[r.start..r.end]);
+            for (wx, wo) in xs.windows(2).zip(os.windows(2)) {
+                let (a, b) = (wx[1] - wx[0], wo[1] - wo[0]);
+                sab += (a - mean_a) * (b - self.mean);
+                saa += (a - mean_a) * (a - mean_a);
             }
         }
         if saa > 0.0 && self.ss > 0.0 {
