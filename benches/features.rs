@@ -2,7 +2,12 @@
 //! family on one withheld part of a 1e6-sample series (white noise plus a random walk,
 //! 100 Hz, a temperature channel), the cost each candidate's replicas pay.
 //!
-//!     cargo bench --bench features        (FARMA_BENCH_N=1000000 FARMA_BENCH_REPS=5 FARMA_BENCH_GRID=0)
+//!     cargo bench --bench features        (FARMA_BENCH_N=1000000 FARMA_BENCH_REPS=5 FARMA_BENCH_GRID=0
+//!                                          FARMA_BENCH_OTHERS=2)
+//!
+//! FARMA_BENCH_OTHERS other channels (white noise, each partly correlated with the
+//! series) give the cross-axis features; their cost is the whole computation with them
+//! less the one without.
 
 use farma::diagnosis::{Blocks, Layout, Temperature};
 use rand::{Rng, SeedableRng};
@@ -54,5 +59,30 @@ fn main() {
     );
     for (family, s) in layout.family_seconds(&x, Some(&temp), reps) {
         println!("  {family:>12}: {:7.1} ms", 1e3 * s / reps as f64);
+    }
+    let n_others = env("FARMA_BENCH_OTHERS", 2);
+    if n_others > 0 {
+        let others: Vec<Vec<f64>> = (0..n_others)
+            .map(|_| {
+                x.iter()
+                    .map(|v| 0.3 * v + (rng.random::<f64>() - 0.5))
+                    .collect()
+            })
+            .collect();
+        let names: Vec<String> = (0..n_others).map(|k| format!("other{k}")).collect();
+        let with = Layout::new(&blocks, false, rate_hz, Some(&temp), &names);
+        let refs: Vec<&[f64]> = others.iter().map(|o| o.as_slice()).collect();
+        let sides = with.others(&refs);
+        let t0 = std::time::Instant::now();
+        for _ in 0..reps {
+            std::hint::black_box(with.compute_with(&x, Some(&temp), &sides));
+        }
+        let with_s = t0.elapsed().as_secs_f64() / reps as f64;
+        println!(
+            "  {:>12}: {:7.1} ms ({n_others} other channels: {:.1} ms in all)",
+            "cross_axis",
+            1e3 * (with_s - all),
+            1e3 * with_s
+        );
     }
 }
