@@ -441,12 +441,15 @@ impl Layout {
 
     /// The first differences x_t - x_{t-1} within each of the layout's withheld ranges,
     /// range by range: the series the cross-axis correlation of differences pairs.
-    fn diffs(&self, x: &[f64]) -> Vec<f64> {
-        let mut d = Vec::with_capacity(self.ranges.iter().map(|r| r.len()).sum());
-        for r in &self.ranges {
-            d.extend(x[r.start..r.end].windows(2).map(|w| w[1] - w[0]));
-        }
-        d
+    fn diffs<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + Clone + 'a {
+        self.ranges
+            .iter()
+            .flat_map(move |r| x[r.start..r.end].windows(2).map(|w| w[1] - w[0]))
+    }
+
+    /// How many values [`Layout::diffs`] gives.
+    fn n_diffs(&self) -> usize {
+        self.ranges.iter().map(|r| r.len().saturating_sub(1)).sum()
     }
 
     /// What the cross-axis features need of each other channel in `others` on this
@@ -456,7 +459,6 @@ impl Layout {
         others
             .iter()
             .map(|o| {
-                let diffs = self.diffs(o);
                 let window_means: Vec<f64> = self
                     .windows
                     .iter()
@@ -464,7 +466,7 @@ impl Layout {
                     .collect();
                 OtherSide {
                     x: o,
-                    diff: CorrSide::of(diffs.iter().copied()),
+                    diff: CorrSide::of(self.diffs(o)),
                     window_mean: CorrSide::of(window_means.iter().copied()),
                     window_means,
                 }
@@ -502,13 +504,7 @@ impl Layout {
         debug_assert!(others.len() == self.n_other);
         if self.n_other > 0 {
             // the mean of the series' differences, once for every other channel
-            let n_diffs: usize = self.ranges.iter().map(|r| r.len().saturating_sub(1)).sum();
-            let mean_diff = CorrSide::mean_of(
-                self.ranges
-                    .iter()
-                    .flat_map(|r| x[r.start..r.end].windows(2).map(|w| w[1] - w[0])),
-                n_diffs,
-            );
+            let mean_diff = CorrSide::mean_of(self.diffs(x), self.n_diffs());
             for o in others.iter().take(self.n_other) {
                 out.push(o.diff.corr_given_mean(x, mean_diff, &self.ranges, o.x));
                 out.push(
@@ -1240,11 +1236,7 @@ impl CorrSide {
                 saa += (a - mean_a) * (a - mean_a);
             }
         }
-        if saa > 0.0 && self.ss > 0.0 {
-            sab / (saa * self.ss).sqrt()
-        } else {
-            0.0
-        }
+        self.of_sums(sab, saa)
     }
 
     /// The correlation of `a` (a fresh iterator per call, n values) with this side,
@@ -1254,13 +1246,18 @@ impl CorrSide {
         a: impl Fn() -> A,
         b: impl Iterator<Item = f64>,
     ) -> f64 {
-        let nf = self.n.max(1) as f64;
-        let ma = a().fold(0.0, |m, x| m + x / nf);
+        let ma = CorrSide::mean_of(a(), self.n);
         let (mut sab, mut saa) = (0.0, 0.0);
         for (x, y) in a().zip(b) {
             sab += (x - ma) * (y - self.mean);
             saa += (x - ma) * (x - ma);
         }
+        self.of_sums(sab, saa)
+    }
+
+    /// The correlation S_ab / sqrt(S_aa S_bb) from the centred sums S_ab and S_aa of the
+    /// other side (0 when S_aa or S_bb is 0).
+    fn of_sums(&self, sab: f64, saa: f64) -> f64 {
         if saa > 0.0 && self.ss > 0.0 {
             sab / (saa * self.ss).sqrt()
         } else {

@@ -24,7 +24,7 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, JointBest, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply,
-    form, pair_across_forms, pair_by, pair_key, removable, take_back,
+    form, joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -427,7 +427,9 @@ impl Refit<'_> {
         }
         let step = Step::plain("add", eff.kind.clone(), gap_res, eff.gap_after);
         let gap_pair = eff.gap_after;
-        let how = if eff.params.get("resolution_on_angle").is_some() {
+        // a filter fitted by simulation sets the rounding's form beside it (the
+        // proposal's `rescales`), as the round's candidates tell it
+        let how = if joint_tag(&props[0]) == " with the path refitted" {
             "by simulation"
         } else if matches!(eff.component, Component::OutputFir { .. }) {
             "as the MA(1) FIR"
