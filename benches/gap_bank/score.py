@@ -27,7 +27,7 @@ Rules (threshold = the JSON's gap_threshold when present, else 2 x noise_floor):
 A run that fails, times out or prints no JSON is wrong.
 
 Prints a table per part and category, and each case of the development parts (a
-held-out part, heldout, heldout2, heldout3, heldout4 or path7, prints its aggregates only unless --cases), and
+held-out part, heldout, heldout2, heldout3, heldout4, heldout5 or path7, prints its aggregates only unless --cases), and
 writes RESULTS/scores.csv (one row per case; scores_<part>.csv with --part).
 """
 
@@ -129,7 +129,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("farma")
     ap.add_argument("bank")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "dev9", "heldout", "heldout2", "heldout3", "heldout4", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "dev9", "heldout", "heldout2", "heldout3", "heldout4", "heldout5", "all"], default="all")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per case")
     ap.add_argument("--out", default=None)
@@ -137,7 +137,7 @@ def main():
     ap.add_argument("--rescore", action="store_true")
     ap.add_argument("--cases", action="store_true",
                     help="print the held-out parts' cases too (by default a held-out part, "
-                         "heldout, heldout2, heldout3, heldout4 or path7, prints its aggregates only: tuning must not "
+                         "heldout, heldout2, heldout3, heldout4, heldout5 or path7, prints its aggregates only: tuning must not "
                          "read them)")
     ap.add_argument("--oracle", action="store_true",
                     help="also check each pair member's detectability: run the pair's "
