@@ -61,7 +61,7 @@ PART_SEED = {"dev": 27_001, "heldout": 27_999_013, "dev2": 28_500_007, "heldout2
              "path6": 33_606_029, "dev6": 34_808_041, "path7": 35_010_053,
              "dev7": 36_212_061, "heldout3": 37_414_073,
              "dev8": 38_616_083, "heldout4": 39_818_101, "dev9": 40_020_119,
-             "heldout5": 41_222_137}
+             "heldout5": 41_222_137, "dev10": 42_424_151}
 
 
 # ----------------------------------------------------------------------------- physics
@@ -590,6 +590,10 @@ PAIRS["heldout4"] = draw_pairs(39_818_101, 16)
 # anything and scored once): every category, 16 pairs drawn at random from every kind,
 # at sizes, rates, lengths and temperature profiles no other part has together
 PAIRS["heldout5"] = draw_pairs(41_222_137, 16)
+# a tenth development draw (same session), from heldout5's design with its own seeds,
+# written after heldout5 was scored to develop on what heldout5 measures without
+# reading its cases
+PAIRS["dev10"] = draw_pairs(42_424_151, 16)
 # a ninth development draw (twenty-ninth session): non-candidates only, as dev4's, at
 # other sizes, rates and profiles, to see whether the joint pairs explain them
 PAIRS["dev9"] = []
@@ -603,6 +607,7 @@ NONCAND = {"dev": [("bias_step", ""), ("bias_step", ""), ("burst", ""), ("burst"
            # a development part of non-candidates only, at sizes from small to large
            "dev4": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 4,
            "heldout5": [("telegraph", ""), ("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", "")],
+           "dev10": [("telegraph", ""), ("burst", ""), ("bias_step", ""), ("telegraph", ""), ("burst", "")],
            "dev5": [], "path6": [], "dev6": [], "path7": [], "dev7": [], "dev8": [], "heldout4": [],
            "dev9": [("bias_step", ""), ("burst", ""), ("telegraph", "")] * 5}
 
@@ -630,8 +635,9 @@ GRID = {
     "heldout4": [(10, 4 * 3600), (10, 7 * 3600), (100, 3000), (100, 1500), (10, 9000)],
     "dev9": [(10, 3 * 3600), (10, 4 * 3600), (100, 1200), (100, 2400), (10, 6 * 3600)],
     "heldout5": [(10, 9000), (10, 19800), (100, 2100), (100, 4500), (10, 8 * 3600)],
+    "dev10": [(10, 9000), (10, 19800), (100, 2100), (100, 4500), (10, 8 * 3600)],
 }
-KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0, "heldout3": 1, "dev8": 1, "heldout4": 1, "dev9": 1, "heldout5": 2}      # cases at 1 kHz for 20 min (1.2e6 samples each)
+KHZ = {"dev": 0, "heldout": 2, "dev2": 1, "heldout2": 1, "dev3": 0, "dev4": 0, "dev5": 0, "path6": 0, "dev6": 1, "path7": 1, "dev7": 0, "heldout3": 1, "dev8": 1, "heldout4": 1, "dev9": 1, "heldout5": 2, "dev10": 2}      # cases at 1 kHz for 20 min (1.2e6 samples each)
 PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp", "rw_drift"],
             "dev2": ["drift", "ramp", "steps"], "heldout2": ["soak_ramp", "cycle", "rw_drift"],
             "dev3": ["steps", "drift", "ramp"], "dev4": ["drift", "steps", "ramp"],
@@ -639,7 +645,8 @@ PROFILES = {"dev": ["ramp", "steps", "drift"], "heldout": ["cycle", "soak_ramp",
             "dev6": ["steps", "drift", "ramp"], "path7": ["cycle", "soak_ramp", "rw_drift"],
             "dev7": ["ramp", "steps", "sine"], "heldout3": ["rw_drift", "cycle", "soak_ramp"],
             "dev8": ["cycle", "rw_drift", "ramp"], "heldout4": ["soak_ramp", "sine", "steps"],
-            "dev9": ["cycle", "sine", "drift"], "heldout5": ["cycle", "steps", "soak_ramp"]}
+            "dev9": ["cycle", "sine", "drift"], "heldout5": ["cycle", "steps", "soak_ramp"],
+            "dev10": ["cycle", "steps", "soak_ramp"]}
 TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70), (20, 60)],
           "dev2": [(-25, 55), (5, 35), (-5, 60)], "heldout2": [(-30, 70), (10, 50), (-40, 60)],
           "dev3": [(-15, 45), (0, 40), (10, 55)], "dev4": [(-5, 45), (5, 40), (-20, 50)],
@@ -648,7 +655,8 @@ TRANGE = {"dev": [(-10, 40), (0, 50), (15, 45)], "heldout": [(-40, 85), (-20, 70
           "dev7": [(-15, 50), (0, 40), (-25, 65)], "heldout3": [(-35, 65), (-10, 60), (5, 45)],
           "dev8": [(-20, 55), (0, 45), (-30, 70)], "heldout4": [(-40, 70), (-5, 55), (10, 50)],
           "dev9": [(-10, 50), (-25, 60), (5, 40)],
-          "heldout5": [(-30, 60), (-15, 75), (0, 55)]}
+          "heldout5": [(-30, 60), (-15, 75), (0, 55)],
+          "dev10": [(-30, 60), (-15, 75), (0, 55)]}
 
 
 def size_for(part, rng, category="single"):
@@ -674,7 +682,7 @@ def size_for(part, rng, category="single"):
         if category == "pair":
             return float(rng.uniform(2.5, 4.0))
         return float(rng.uniform(0.6, 0.85)) if rng.random() < 0.5 else float(rng.uniform(2.5, 4.0))
-    if part == "heldout5":
+    if part in ("heldout5", "dev10"):
         # pairs 2.5-4.5; singles, non-candidates and correct specs 0.65-0.8 or 3.0-4.5
         if category == "pair":
             return float(rng.uniform(2.5, 4.5))
@@ -724,7 +732,7 @@ def make_part(part):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir")
-    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "dev9", "heldout", "heldout2", "heldout3", "heldout4", "heldout5", "all"], default="all")
+    ap.add_argument("--part", choices=["dev", "dev2", "dev3", "dev4", "dev5", "path6", "dev6", "path7", "dev7", "dev8", "dev9", "heldout", "heldout2", "heldout3", "heldout4", "heldout5", "dev10", "all"], default="all")
     ap.add_argument("--only", default=None, help="only cases whose name contains this")
     a = ap.parse_args()
     parts = ["dev", "dev2", "dev3", "dev4", "dev5", "heldout", "heldout2"] if a.part == "all" else [a.part]
