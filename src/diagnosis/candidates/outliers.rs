@@ -59,7 +59,7 @@ const THRESHOLD_SD: f64 = 6.0;
 /// the band that [`student_fit`] reads besides the spikes' sizes: [4, 6) robust sd.
 const BAND_SD: f64 = 4.0;
 
-/// The spikes of `x` on `ranges` (module doc): their sizes z_t above the threshold
+/// The spikes of `x` on `ranges` (module doc): their sizes |s_t| above the threshold
 /// of 6 robust sd, the number of local maxima of |s_t| in the band [`BAND_SD`] .. 6
 /// robust sd, and the robust sd of the whole (1.4826 times the median |s_t|; 0 with no
 /// s_t).
@@ -81,10 +81,10 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
     (sizes, band, sd)
 }
 
-/// Samples of the windows whose robust sd scales the second differences in them
-/// ([`spikes_at`]): the median of 2048 |s_t| estimates their sd within about 2.6 %
-/// (the sample median's standard error, 1.166 / sqrt(n) of the half-normal's median).
-pub(super) const WINDOW: usize = 2048;
+/// Samples of the windows whose own robust sd can set the thresholds ([`spikes_at`]):
+/// the median of 2048 |s_t| estimates their sd within about 2.6 % (the sample median's
+/// standard error, 1.166 / sqrt(n) of the half-normal's median).
+const WINDOW: usize = 2048;
 
 /// How much louder than the whole training part's a window's robust sd must be for
 /// [`spikes_at`] to take it: 4 of its standard errors (2.6 % each at [`WINDOW`]
@@ -111,8 +111,8 @@ fn windows(r: &Range<usize>) -> Vec<Range<usize>> {
 /// ([`spikes`]) at the robust sd `sd` of the whole: in each window of a range
 /// ([`windows`]), |s_t| is compared with 6 and 4 times sd, or times sd_w where sd_w >
 /// [`LOUDER`] sd, sd_w the window's robust sd (of its s_t with both neighbours inside
-/// the range). A local
-/// maximum is one of |s_t| among its neighbours; the sizes are |s_t|.
+/// the range). A local maximum is one of |s_t| among its neighbours; the sizes are
+/// |s_t|.
 fn spikes_at(x: &[f64], ranges: &[Range<usize>], sd: f64) -> (Vec<f64>, usize) {
     let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
     let mut sizes = Vec::new();
