@@ -2180,11 +2180,19 @@ fn pair_key(p: &Proposal) -> (String, Option<usize>, String) {
 /// second component's signal (a joint candidate), another output-path component (the
 /// filter fitted by simulation with the rounding), or nothing.
 fn joint_tag(p: &Proposal) -> &'static str {
-    match (&p.also, &p.rescales) {
-        (Some(_), _) => " joint",
-        (None, Some((_, c))) if c.kind().is_output_path() => " with the path refitted",
-        _ => "",
+    if p.also.is_some() {
+        " joint"
+    } else if refits_path(p) {
+        " with the path refitted"
+    } else {
+        ""
     }
+}
+
+/// Whether proposal `p` changes an output-path component beside its own
+/// ([`Proposal::rescales`]): a filter fitted by simulation beside a rounding.
+fn refits_path(p: &Proposal) -> bool {
+    matches!(&p.rescales, Some((_, c)) if c.kind().is_output_path())
 }
 
 /// The path `path` with proposal `p`'s output-path component in it, and the

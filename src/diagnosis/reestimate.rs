@@ -24,7 +24,7 @@ use super::ensemble::SimBase;
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, JointBest, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply,
-    form, joint_tag, pair_across_forms, pair_by, pair_key, removable, take_back,
+    form, pair_across_forms, pair_by, pair_key, refits_path, removable, take_back,
 };
 use crate::error::Result;
 use crate::simulator::{Component, Kind};
@@ -429,7 +429,7 @@ impl Refit<'_> {
         let gap_pair = eff.gap_after;
         // a filter fitted by simulation sets the rounding's form beside it (the
         // proposal's `rescales`), as the round's candidates tell it
-        let how = if joint_tag(&props[0]) == " with the path refitted" {
+        let how = if refits_path(&props[0]) {
             "by simulation"
         } else if matches!(eff.component, Component::OutputFir { .. }) {
             "as the MA(1) FIR"
