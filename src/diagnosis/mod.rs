@@ -1824,7 +1824,11 @@ fn diagnose_log(
                             if !u.is_empty() {
                                 why.push(format!("{} not determined by the data", u.join(", ")));
                             }
-                            format!(" (its {})", why.join("; "))
+                            if why.is_empty() {
+                                " (it is fitted to the squared differences less the other noise's, which the addition changed)".to_string()
+                            } else {
+                                format!(" (its {})", why.join("; "))
+                            }
                         })
                         .unwrap_or_default();
                     notes.push(format!(

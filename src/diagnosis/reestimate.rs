@@ -20,7 +20,7 @@
 
 use super::candidates::output_path::Asked;
 use super::candidates::{self, Context, Proposal};
-use super::ensemble::SimBase;
+use super::ensemble::{self, SimBase};
 use super::features::{Layout, Temperature};
 use super::{
     Effect, EnsembleStats, JointBest, Round, SCREEN_RATIO, Slot, State, Statistic, Step, apply,
@@ -69,20 +69,37 @@ pub(super) fn rivals<'e>(
     out
 }
 
-/// The steps of the kept effects that [`Refit::bounds_again`] estimates again: those
-/// with a parameter at the edge of its search range or not determined by the data
-/// (`undetermined`), other than the round's addition
-/// `newest`; none when `newest` was taken back.
+/// The steps of the kept effects that [`Refit::bounds_again`] estimates again, other
+/// than the round's addition `newest` (none when `newest` was taken back): those with
+/// a parameter at the edge of its search range or not determined by the data
+/// (`undetermined`), and a heteroskedastic scale when `newest` is a random noise
+/// ([`reads_other_noise`]).
 pub(super) fn bounds(added: &[Effect], newest: usize) -> Vec<usize> {
-    if !added.iter().any(|e| e.step == Some(newest)) {
+    let Some(new) = added.iter().find(|e| e.step == Some(newest)) else {
         return Vec::new();
-    }
+    };
+    let noise_added = !ensemble::is_deterministic(&new.component)
+        && !new.component.kind().is_output_path()
+        && !reads_other_noise(new);
     added
         .iter()
-        .filter(|e| !e.at_edge.is_empty() || !e.undetermined.is_empty())
+        .filter(|e| {
+            !e.at_edge.is_empty()
+                || !e.undetermined.is_empty()
+                || (noise_added && reads_other_noise(e))
+        })
         .filter_map(|e| e.step)
         .filter(|&id| id != newest)
         .collect()
+}
+
+/// Whether `e`'s estimate reads the variance of the differences that the other noise
+/// components leave: a heteroskedastic scale, whose level and floor are fitted to the
+/// squared differences less that variance (`candidates::temperature`), so that a
+/// random noise added after it (a bias instability whose differences the clamped
+/// scale's floor had taken) leaves it biased until it is estimated again.
+fn reads_other_noise(e: &Effect) -> bool {
+    matches!(e.component, Component::Heteroskedastic { .. })
 }
 
 /// The replicas' features of both folds' states, each state's sum plus the given
