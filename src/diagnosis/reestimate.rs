@@ -902,3 +902,61 @@ impl Refit<'_> {
         Ok(true)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kept(kind: &str, component: Component, step: usize) -> Effect {
+        Effect {
+            kind: kind.into(),
+            gap_after: 1.0,
+            shrink: 0.0,
+            params: serde_json::json!({}),
+            note: String::new(),
+            families: Vec::new(),
+            contribution: None,
+            step: Some(step),
+            at_edge: Vec::new(),
+            undetermined: Vec::new(),
+            component,
+            replaces: None,
+        }
+    }
+
+    #[test]
+    fn a_heteroskedastic_scale_is_estimated_again_after_a_random_noise_only() {
+        let hetero = kept(
+            "heteroskedastic",
+            Component::Heteroskedastic {
+                of: Kind::WhiteNoise,
+                slope: 0.03,
+                floor: 0.15,
+                reference_c: Some(25.0),
+            },
+            1,
+        );
+        let bias = kept("constant_bias", Component::ConstantBias { value: 0.1 }, 2);
+        let flicker = kept(
+            "bias_instability",
+            Component::BiasInstability {
+                b: 0.1,
+                tau_min_s: None,
+                tau_max_s: None,
+            },
+            2,
+        );
+        // a noise added after it: the scale again, not the noise itself
+        assert_eq!(bounds(&[hetero.clone(), flicker.clone()], 2), vec![1]);
+        // a bias leaves the differences' variance as it was
+        assert!(bounds(&[hetero.clone(), bias], 2).is_empty());
+        // the newest taken back: nothing
+        assert!(bounds(&[hetero.clone()], 2).is_empty());
+        // a noise kept before the scale is not estimated again for it
+        let mut first = flicker;
+        first.step = Some(1);
+        let mut second = hetero;
+        second.step = Some(2);
+        assert!(bounds(&[first, second], 2).is_empty());
+    }
+}
