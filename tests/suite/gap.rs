@@ -760,6 +760,52 @@ fn a_log_through_an_output_filter_gets_the_filter_first_with_its_bandwidth() {
     }
 }
 
+/// A line behind the spec's own output filter: the log shows it with the filter's gain
+/// and phase at its frequency (0.55 and -0.98 rad for a first-order low-pass at 1 Hz
+/// and a line at 1.5 Hz, 10 Hz samples), and the sinusoid component, which the
+/// simulator puts before the filter, must undo both or the simulations show the line
+/// filtered twice.
+#[test]
+fn a_sinusoid_behind_the_specs_output_filter_is_proposed_before_it() {
+    let filter = Component::OutputFilter {
+        order: 1,
+        bandwidth_hz: 1.0,
+        damping: None,
+        discretization: Default::default(),
+    };
+    let mut spec = bank::base_spec(10.0, false);
+    spec.channels[0].components.push(filter);
+    let mut truth = spec.clone();
+    truth.channels[0].components.push(Component::Sinusoid {
+        amplitude: 0.01,
+        freq_hz: 1.5,
+        phase_rad: 0.7,
+    });
+    let case = Case {
+        expect: String::new(),
+        spec,
+        truth,
+    };
+    let d = run(&case, 36_000, 11, 12);
+    assert_first_step(&d, "sinusoid");
+    let s = added(&d, "sinusoid");
+    let amplitude = s.params["amplitude"].as_f64().unwrap();
+    let phase_rad = s.params["phase_rad"].as_f64().unwrap();
+    assert!(
+        (amplitude / 0.01 - 1.0).abs() < 0.05,
+        "amplitude {amplitude} (true 0.01; as the output shows it about 0.0055): {}",
+        s.note
+    );
+    let off = (phase_rad - 0.7 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+        - std::f64::consts::PI;
+    assert!(
+        off.abs() < 0.1,
+        "phase {phase_rad} rad (true 0.7): {}",
+        s.note
+    );
+    assert_explained(&d);
+}
+
 #[test]
 fn a_digital_butterworth_is_found_in_its_bilinear_discretization() {
     use farma::simulator::Discretization;

@@ -127,22 +127,42 @@ pub(super) fn warmup(cx: &Context, tr: &Training, out: &mut Found) -> Result<()>
 /// ([`find_sinusoid`]); not tried when there is no peak.
 pub(super) fn sinusoid(cx: &Context, tr: &Training, out: &mut Found) -> Result<()> {
     if let Some(line) = tr.line() {
+        // the line is the output's; the component goes in before the output filter,
+        // whose gain and phase at the line's frequency it must undo
+        let (gain, shift_rad) = cx
+            .filter_response(line.freq_hz)
+            .filter(|&(g, _)| g > MIN_FILTER_GAIN)
+            .unwrap_or((1.0, 0.0));
         let c = Component::Sinusoid {
-            amplitude: line.amplitude,
+            amplitude: line.amplitude / gain,
             freq_hz: line.freq_hz,
-            phase_rad: line.phase_rad,
+            phase_rad: wrap_rad(line.phase_rad - shift_rad),
         };
         let sig = cx.unit(c.clone())?;
-        out.same(
-            "sinusoid",
-            c,
-            sig,
-            "largest peak of the training periodogram, refined by least squares".into(),
-        );
+        let mut note =
+            String::from("largest peak of the training periodogram, refined by least squares");
+        if gain != 1.0 || shift_rad != 0.0 {
+            note += &format!(
+                "; before the output filter, whose gain {gain:.4} and phase {shift_rad:.4} rad at {:.6} Hz it undoes",
+                line.freq_hz
+            );
+        }
+        out.same("sinusoid", c, sig, note);
     } else {
         out.skip("sinusoid", "no periodogram peak in the training residual");
     }
     Ok(())
+}
+
+/// The least gain of the output filter at a line's frequency that [`sinusoid`] undoes:
+/// below it the line the output shows would need an input more than 20 times its size.
+const MIN_FILTER_GAIN: f64 = 0.05;
+
+/// `phi` in (-pi, pi].
+fn wrap_rad(phi: f64) -> f64 {
+    use std::f64::consts::PI;
+    let w = phi.rem_euclid(2.0 * PI);
+    if w > PI { w - 2.0 * PI } else { w }
 }
 
 /// Bins of a group of the running median in [`whitened_peak`].

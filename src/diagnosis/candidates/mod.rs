@@ -381,6 +381,45 @@ impl Context<'_> {
         )
     }
 
+    /// The gain g and phase shift dphi (rad) of the channel's output filter at
+    /// `freq_hz`: its output for the input sin(2 pi f t / fs) is g sin(2 pi f t / fs +
+    /// dphi) once the start's transient is over; None without a filter. Read off the
+    /// filter itself ([`Context::through`], the path's linear stages as
+    /// [`Context::part_as_output`] takes them): the least-squares fit of a sin + b cos
+    /// to the filtered unit sinusoid over its last three quarters (at least 4096
+    /// samples), g = hypot(a, b), dphi = atan2(b, a).
+    fn filter_response(&self, freq_hz: f64) -> Option<(f64, f64)> {
+        let filters: Vec<Component> = self.spec.channels[self.channel]
+            .components
+            .iter()
+            .filter(|c| c.kind() == Kind::OutputFilter)
+            .cloned()
+            .collect();
+        if filters.is_empty() {
+            return None;
+        }
+        let w = 2.0 * std::f64::consts::PI * freq_hz / self.rate_hz();
+        let n = self.real.len().max(4 * 4096);
+        let x: Vec<f64> = (0..n).map(|t| (w * t as f64).sin()).collect();
+        let y = self.through(&filters, &x);
+        let (mut ss, mut cc, mut sc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for t in n / 4..n {
+            let (st, ct) = ((w * t as f64).sin(), (w * t as f64).cos());
+            ss += st * st;
+            cc += ct * ct;
+            sc += st * ct;
+            ys += y[t] * st;
+            yc += y[t] * ct;
+        }
+        let det = ss * cc - sc * sc;
+        if det <= 0.0 {
+            return None;
+        }
+        let a = (ys * cc - yc * sc) / det;
+        let b = (yc * ss - ys * sc) / det;
+        Some((a.hypot(b), b.atan2(a)))
+    }
+
     /// `x` through the output-path stages among `comps` ([`super::path::PathStage`]),
     /// from rest; `x` itself when there is none.
     fn through<'b>(&self, comps: &[Component], x: &'b [f64]) -> std::borrow::Cow<'b, [f64]> {
