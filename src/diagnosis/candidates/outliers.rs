@@ -6,9 +6,10 @@
 //! [`WINDOW`] samples whose robust sd is more than [`LOUDER`] times the whole's compares
 //! |s_t| with 6 (and 4) times its own, so that a noise whose level changes over the log
 //! (with temperature, in bursts) is not counted as spikes where it is high. Spikes
-//! there between the two thresholds go uncounted, which the rate's detection share
-//! below does not model (it lowers the rate where the noise is high for part of the
-//! log); on level noise every threshold is the whole's:
+//! there between the two thresholds go uncounted, and the fits below read each spike's
+//! size as truncated at the threshold it passed, the band's count and the rate's
+//! detection share as the means over the samples of each window's thresholds (the
+//! exposure); on level noise every threshold is the whole's:
 //! - normal amplitudes: the mean square of the spikes, read as a normal sample truncated
 //!   at the threshold (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c)), gives the scale;
 //! - heavy-tailed amplitudes (a Student-t of `dof` degrees of freedom, what spikes of a
@@ -59,11 +60,46 @@ const THRESHOLD_SD: f64 = 6.0;
 /// the band that [`student_fit`] reads besides the spikes' sizes: [4, 6) robust sd.
 const BAND_SD: f64 = 4.0;
 
-/// The spikes of `x` on `ranges` (module doc): their sizes |s_t| above the threshold
-/// of 6 robust sd, the number of local maxima of |s_t| in the band [`BAND_SD`] .. 6
-/// robust sd, and the robust sd of the whole (1.4826 times the median |s_t|; 0 with no
-/// s_t).
-fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
+/// The spikes found on a part of a log ([`spikes_at`]).
+#[derive(Clone, Debug, Default)]
+struct Spikes {
+    /// Their sizes |s_t|.
+    sizes: Vec<f64>,
+    /// The threshold each size passed, as (threshold, count of spikes), each threshold
+    /// once.
+    passed: Vec<(f64, usize)>,
+    /// Local maxima of |s_t| in the band below the threshold.
+    band: usize,
+    /// Where spikes were looked for: (threshold, samples compared with it), each
+    /// threshold once.
+    exposure: Vec<(f64, f64)>,
+}
+
+impl Spikes {
+    /// `other`'s spikes, band and exposure added to these.
+    fn extend(&mut self, other: Spikes) {
+        self.sizes.extend(other.sizes);
+        for (c, k) in other.passed {
+            add_to(&mut self.passed, c, k);
+        }
+        self.band += other.band;
+        for (c, n) in other.exposure {
+            add_to(&mut self.exposure, c, n);
+        }
+    }
+}
+
+/// `n` added to the entry of threshold `c` in `v`, or a new entry.
+fn add_to<N: std::ops::AddAssign>(v: &mut Vec<(f64, N)>, c: f64, n: N) {
+    match v.iter_mut().find(|e| e.0 == c) {
+        Some(e) => e.1 += n,
+        None => v.push((c, n)),
+    }
+}
+
+/// The spikes of `x` on `ranges` (module doc; [`spikes_at`] at the robust sd of the
+/// whole, 1.4826 times the median |s_t|, 0 with no s_t) and that sd.
+fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Spikes, f64) {
     let mut all: Vec<f64> = ranges
         .iter()
         .flat_map(|r| {
@@ -72,13 +108,12 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Vec<f64>, usize, f64) {
         })
         .collect();
     if all.is_empty() {
-        return (Vec::new(), 0, 0.0);
+        return (Spikes::default(), 0.0);
     }
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
     let sd = 1.4826 * all[mid];
-    let (sizes, band) = spikes_at(x, ranges, sd);
-    (sizes, band, sd)
+    (spikes_at(x, ranges, sd), sd)
 }
 
 /// Samples of the windows whose own robust sd can set the thresholds ([`spikes_at`]):
@@ -112,11 +147,11 @@ fn windows(r: &Range<usize>) -> Vec<Range<usize>> {
 /// ([`windows`]), |s_t| is compared with 6 and 4 times sd, or times sd_w where sd_w >
 /// [`LOUDER`] sd, sd_w the window's robust sd (of its s_t with both neighbours inside
 /// the range). A local maximum is one of |s_t| among its neighbours; the sizes are
-/// |s_t|.
-fn spikes_at(x: &[f64], ranges: &[Range<usize>], sd: f64) -> (Vec<f64>, usize) {
+/// |s_t|, each with the threshold it passed, and each window's samples count in the
+/// exposure at its threshold.
+fn spikes_at(x: &[f64], ranges: &[Range<usize>], sd: f64) -> Spikes {
     let s_at = |t: usize| x[t] - 0.5 * (x[t - 1] + x[t + 1]);
-    let mut sizes = Vec::new();
-    let mut band = 0;
+    let mut found = Spikes::default();
     let mut abs_s: Vec<f64> = Vec::with_capacity(WINDOW + WINDOW / 2);
     for r in ranges {
         for w in windows(r) {
@@ -137,51 +172,82 @@ fn spikes_at(x: &[f64], ranges: &[Range<usize>], sd: f64) -> (Vec<f64>, usize) {
             let sd_here = if sd_w > LOUDER * sd { sd_w } else { sd };
             let thr = THRESHOLD_SD * sd_here;
             let band_lo = BAND_SD * sd_here;
+            let (mut above, mut seen) = (0, 0.0);
             for t in w.start.max(r.start + 2)..w.end.min(r.end.saturating_sub(2)) {
+                seen += 1.0;
                 let a = s_at(t).abs();
                 if a > band_lo && a >= s_at(t - 1).abs() && a >= s_at(t + 1).abs() {
                     if a > thr {
-                        sizes.push(a);
+                        found.sizes.push(a);
+                        above += 1;
                     } else {
-                        band += 1;
+                        found.band += 1;
                     }
                 }
             }
+            if above > 0 {
+                add_to(&mut found.passed, thr, above);
+            }
+            if seen > 0.0 {
+                add_to(&mut found.exposure, thr, seen);
+            }
         }
     }
-    (sizes, band)
+    found
 }
 
 /// The number of spikes of `x` on `ranges` and of local maxima in the band below
 /// them ([`spikes`]).
 fn spike_count(x: &[f64], ranges: &[Range<usize>]) -> (usize, usize) {
-    let (sizes, band, _) = spikes(x, ranges);
-    (sizes.len(), band)
+    let (found, _) = spikes(x, ranges);
+    (found.sizes.len(), found.band)
 }
 
-/// ln L of the sizes `a` (all above `thr`) as |scale W| truncated at `thr`, W a
-/// Student-t of `dof` degrees of freedom (None: standard normal).
-fn truncated_ln_l(a: &[f64], thr: f64, scale: f64, dof: Option<f64>) -> f64 {
-    let c = thr / scale;
+/// P(|W| > c), W a Student-t of `dof` degrees of freedom (None: standard normal).
+fn two_sided_tail(c: f64, dof: Option<f64>) -> f64 {
+    match dof {
+        Some(nu) => student_t_two_sided_tail(c, nu),
+        None => 2.0 * normal_tail(c),
+    }
+}
+
+/// The share of spikes |scale W| that pass the thresholds of `exposure` (each times
+/// `factor`), over its samples: sum_w n_w P(|W| > factor c_w / scale) / sum_w n_w.
+fn share_above(exposure: &[(f64, f64)], factor: f64, scale: f64, dof: Option<f64>) -> f64 {
+    let n: f64 = exposure.iter().map(|e| e.1).sum();
+    exposure
+        .iter()
+        .map(|&(c, k)| k * two_sided_tail(factor * c / scale, dof))
+        .sum::<f64>()
+        / n.max(f64::MIN_POSITIVE)
+}
+
+/// ln L of the sizes `a` as |scale W| each truncated at the threshold it passed
+/// (`passed`: (threshold, count of sizes) pairs), W a Student-t of `dof` degrees of
+/// freedom (None: standard normal):
+/// sum_i [ln 2 f(a_i / scale) - ln scale - ln P(|W| > c_i / scale)].
+fn truncated_ln_l(a: &[f64], passed: &[(f64, usize)], scale: f64, dof: Option<f64>) -> f64 {
     let n = a.len() as f64;
     // ln W's density at each a_i / scale, less its value at 0 (the normalising
-    // constant, taken once), and P(|W| > c)
-    let (sum_shape, ln_f0, tail) = match dof {
+    // constant, taken once)
+    let (sum_shape, ln_f0) = match dof {
         Some(nu) => (
             a.iter()
                 .map(|&v| -0.5 * (nu + 1.0) * ((v / scale).powi(2) / nu).ln_1p())
                 .sum::<f64>(),
             student_t_ln_pdf(0.0, nu),
-            student_t_two_sided_tail(c, nu),
         ),
         None => (
             a.iter().map(|&v| -0.5 * (v / scale).powi(2)).sum::<f64>(),
             -0.5 * (2.0 * std::f64::consts::PI).ln(),
-            2.0 * normal_tail(c),
         ),
     };
+    let ln_tails: f64 = passed
+        .iter()
+        .map(|&(c, k)| k as f64 * two_sided_tail(c / scale, dof).max(1e-300).ln())
+        .sum();
     // |W| has twice W's density on a > 0
-    n * (std::f64::consts::LN_2 + ln_f0 - scale.ln()) + sum_shape - n * tail.max(1e-300).ln()
+    n * (std::f64::consts::LN_2 + ln_f0 - scale.ln()) + sum_shape - ln_tails
 }
 
 /// The ends of the search range of [`student_fit`]'s dof.
@@ -199,29 +265,44 @@ struct Band {
 
 impl Band {
     /// ln L of the band's count (a Poisson count, constants dropped) when the spikes
-    /// are |scale T_dof| and `excess` of them lie above `thr`: the spikes number
-    /// excess / P(|T| > thr / scale), and those in the band add
-    /// excess (P(|T| > b / scale) / P(|T| > thr / scale) - 1), b = thr BAND_SD / 6, to
-    /// the simulations' count: lambda = noise + that, ln L = observed ln lambda - lambda.
-    fn ln_l(&self, thr: f64, scale: f64, nu: f64) -> f64 {
-        let p_thr = student_t_two_sided_tail(thr / scale, nu).max(1e-300);
-        let p_band = student_t_two_sided_tail(thr * BAND_SD / THRESHOLD_SD / scale, nu);
+    /// are |scale T_dof|, `excess` of them lie above their thresholds, and `exposure`
+    /// says where they were looked for: at r spikes per sample,
+    /// r sum_w n_w P(|T| > c_w / scale) = excess, and those in the band add
+    /// excess (sum_w n_w P(|T| > b_w / scale) / sum_w n_w P(|T| > c_w / scale) - 1),
+    /// b_w = c_w BAND_SD / 6, to the simulations' count: lambda = noise + that,
+    /// ln L = observed ln lambda - lambda.
+    fn ln_l(&self, exposure: &[(f64, f64)], scale: f64, nu: f64) -> f64 {
+        let p_thr = share_above(exposure, 1.0, scale, Some(nu)).max(1e-300);
+        let p_band = share_above(exposure, BAND_SD / THRESHOLD_SD, scale, Some(nu));
         let lambda = (self.noise + self.excess * (p_band / p_thr - 1.0)).max(1e-9);
         self.observed * lambda.ln() - lambda
     }
 }
 
-/// The Student-t fit of the sizes `a` above `thr` (module doc): (scale, dof, ln L of
-/// the sizes, the scale's search range). With `band`, the likelihood maximized is the
+/// The Student-t fit of the sizes `a`, each above the threshold it passed (`passed`,
+/// [`truncated_ln_l`]), looked for over `exposure` (module doc): (scale, dof, ln L of
+/// the sizes, the scale's search range, from a sixth of the lowest threshold). With
+/// `band`, the likelihood maximized is the
 /// sizes' times the band count's ([`Band::ln_l`]): the sizes above the threshold alone
 /// say little about a scale well below it (their law tends to a Pareto's of index dof
 /// as the scale falls, so a few spikes can fit a tiny scale and a count of undetected
 /// spikes many times theirs), the count of smaller spikes in the band does.
-fn student_fit(a: &[f64], thr: f64, band: Option<Band>) -> (f64, f64, f64, [f64; 2]) {
+fn student_fit(
+    a: &[f64],
+    passed: &[(f64, usize)],
+    exposure: &[(f64, f64)],
+    band: Option<Band>,
+) -> (f64, f64, f64, [f64; 2]) {
+    let thr = passed
+        .iter()
+        .map(|e| e.0)
+        .chain(exposure.iter().map(|e| e.0))
+        .fold(f64::INFINITY, f64::min);
     let a_max = a.iter().copied().fold(thr, f64::max);
     let (s_lo, s_hi) = ((thr / 6.0).ln(), (10.0 * a_max).ln());
     let neg_ln_l = |scale: f64, nu: f64| {
-        -truncated_ln_l(a, thr, scale, Some(nu)) - band.map_or(0.0, |b| b.ln_l(thr, scale, nu))
+        -truncated_ln_l(a, passed, scale, Some(nu))
+            - band.map_or(0.0, |b| b.ln_l(exposure, scale, nu))
     };
     let best_scale = |nu: f64| golden_argmin(s_lo, s_hi, 60, |u| neg_ln_l(u.exp(), nu));
     let (v, _) = golden_argmin(DOF_RANGE[0].ln(), DOF_RANGE[1].ln(), 40, |v| {
@@ -229,8 +310,44 @@ fn student_fit(a: &[f64], thr: f64, band: Option<Band>) -> (f64, f64, f64, [f64;
     });
     let nu = v.exp();
     let (u, _) = best_scale(nu);
-    let ln_l = truncated_ln_l(a, thr, u.exp(), Some(nu));
+    let ln_l = truncated_ln_l(a, passed, u.exp(), Some(nu));
     (u.exp(), nu, ln_l, [s_lo.exp(), s_hi.exp()])
+}
+
+/// The scale of the sizes `a` as |scale Z|, Z standard normal, each truncated at the
+/// threshold it passed (`passed`, [`truncated_ln_l`]), by maximum likelihood: the
+/// score equation of [`truncated_ln_l`] in the scale is
+/// mean_i a_i^2 = scale^2 (1 + mean_i c_i phi(c_i) / Q(c_i)), c_i = thr_i / scale
+/// (E[Z^2 | |Z| > c] = 1 + c phi(c) / Q(c) for one threshold), solved by bisection on
+/// ln scale.
+fn normal_fit(a: &[f64], passed: &[(f64, usize)]) -> f64 {
+    let n = a.len().max(1) as f64;
+    let m2 = a.iter().map(|s| s * s).sum::<f64>() / n;
+    let (thr_lo, thr_hi) = passed.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), e| {
+        (lo.min(e.0), hi.max(e.0))
+    });
+    let f = |scale: f64| {
+        let mills = passed
+            .iter()
+            .map(|&(c, k)| {
+                let c = c / scale;
+                let phi = (-0.5 * c * c).exp() / (2.0 * std::f64::consts::PI).sqrt();
+                k as f64 * c * phi / normal_tail(c).max(1e-300)
+            })
+            .sum::<f64>()
+            / n;
+        scale * scale * (1.0 + mills) - m2
+    };
+    let (mut lo, mut hi) = ((thr_lo * 1e-3).ln(), (m2.sqrt() * 10.0).max(thr_hi).ln());
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if f(mid.exp()) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    (0.5 * (lo + hi)).exp()
 }
 
 /// Upper tail of the standard normal, Q(c) = 1 - Phi(c) = Phi(-c).
@@ -242,7 +359,7 @@ fn normal_tail(c: f64) -> f64 {
 /// (fewer than 3 spikes more than the simulations': the two counts).
 fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, String>> {
     let ranges = cx.ranges();
-    let (mut sizes, mut band_real, sd) = spikes(cx.real, ranges);
+    let (mut found, sd) = spikes(cx.real, ranges);
     let thr = THRESHOLD_SD * sd;
     let (sum_spikes, sum_band) = cx
         .target
@@ -257,21 +374,27 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     let mut after = String::new();
     if cx.beyond.len() > 4 && sd > 0.0 && cx.n_train() > 0 {
         let whole = 0..cx.beyond.len();
-        let (b_sizes, b_band) = spikes_at(cx.beyond, std::slice::from_ref(&whole), sd);
+        let b = spikes_at(cx.beyond, std::slice::from_ref(&whole), sd);
         let per = cx.beyond.len() as f64 / cx.n_train() as f64;
         after = format!(
-            "; of these, {} spikes and {b_band} local maxima in the band in the {} samples after the excerpt, which train only, against {:.1} and {:.1}",
-            b_sizes.len(),
+            "; of these, {} spikes and {} local maxima in the band in the {} samples after the excerpt, which train only, against {:.1} and {:.1}",
+            b.sizes.len(),
+            b.band,
             cx.beyond.len(),
             c_ens * per,
             band_ens * per
         );
         c_ens *= 1.0 + per;
         band_ens *= 1.0 + per;
-        band_real += b_band;
-        sizes.extend(b_sizes);
+        found.extend(b);
         t_train += cx.beyond.len() as f64 / cx.rate_hz();
     }
+    let Spikes {
+        sizes,
+        passed,
+        band: band_real,
+        exposure,
+    } = found;
     let c_real = sizes.len();
     let excess = c_real as f64 - c_ens;
     if excess < 3.0 || c_real == 0 || thr <= 0.0 {
@@ -280,27 +403,10 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
              robust sd against {c_ens:.1}{after})"
         )));
     }
-    let m2 = sizes.iter().map(|s| s * s).sum::<f64>() / c_real as f64;
-    // solve m2 = scale^2 (1 + c phi(c) / Q(c)), c = thr / scale, by bisection on ln scale
-    let f = |scale: f64| {
-        let c = thr / scale;
-        let phi = (-0.5 * c * c).exp() / (2.0 * std::f64::consts::PI).sqrt();
-        let q = normal_tail(c).max(1e-300);
-        scale * scale * (1.0 + c * phi / q) - m2
-    };
-    let (mut lo, mut hi) = ((thr * 1e-3).ln(), (m2.sqrt() * 10.0).max(thr).ln());
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if f(mid.exp()) > 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    let scale_normal = (0.5 * (lo + hi)).exp();
-    let ln_l_normal = truncated_ln_l(&sizes, thr, scale_normal, None);
+    let scale_normal = normal_fit(&sizes, &passed);
+    let ln_l_normal = truncated_ln_l(&sizes, &passed, scale_normal, None);
     // the form by the sizes alone, the t's scale and dof with the band's count
-    let (_, _, ln_l_t, _) = student_fit(&sizes, thr, None);
+    let (_, _, ln_l_t, _) = student_fit(&sizes, &passed, &exposure, None);
     let deviance = 2.0 * (ln_l_t - ln_l_normal);
     let heavy = deviance > HEAVY_TAIL_MIN_DEVIANCE;
     let band = Band {
@@ -308,7 +414,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
         noise: band_ens,
         excess,
     };
-    let (scale_t, dof_t, _, scale_range) = student_fit(&sizes, thr, Some(band));
+    let (scale_t, dof_t, _, scale_range) = student_fit(&sizes, &passed, &exposure, Some(band));
     let counts = format!(
         "{c_real} spikes above 6 robust sd in the training part against {c_ens:.1} in the \
          simulations ({band_real} against {band_ens:.1} local maxima between {BAND_SD} and 6 robust sd{after})"
@@ -316,11 +422,7 @@ fn estimate_outliers(cx: &Context) -> Result<std::result::Result<Vec<Proposal>, 
     // the proposal of one amplitude form: the rate from the excess count and the
     // share of spikes of that form above the threshold
     let make = |scale: f64, dof: Option<f64>, note: String| -> Result<Proposal> {
-        let p_detect = match dof {
-            Some(nu) => student_t_two_sided_tail(thr / scale, nu),
-            None => 2.0 * normal_tail(thr / scale),
-        }
-        .max(1e-6);
+        let p_detect = share_above(&exposure, 1.0, scale, dof).max(1e-6);
         let rate_hz = (excess / (t_train * p_detect)).min(cx.rate_hz());
         let comp = Component::Outliers {
             rate_hz,
@@ -421,7 +523,8 @@ mod tests {
         let n = 200_000;
         let (x, k) = noise_with_spikes(n, 4.0, 80.0);
         let ranges = [0..n / 3, n / 3..n];
-        let (sizes, _, sd) = spikes(&x, &ranges);
+        let (found, sd) = spikes(&x, &ranges);
+        let sizes = found.sizes;
         assert!(sd > 1.0 && sd < 4.0, "robust sd of the whole {sd}");
         assert_eq!(sizes.len(), k);
         assert!(
@@ -445,7 +548,8 @@ mod tests {
         let (x, _) = noise_with_spikes(n, 1.0, 8.0);
         let whole_log = 0..n;
         let ranges = std::slice::from_ref(&whole_log);
-        let (sizes, _, sd) = spikes(&x, ranges);
+        let (found, sd) = spikes(&x, ranges);
+        let sizes = found.sizes;
         assert!((sd / 1.2247 - 1.0).abs() < 0.02, "robust sd {sd}");
         let whole = above_whole(&x, ranges, THRESHOLD_SD * sd);
         assert!(whole > 100, "{whole} spikes");
@@ -476,7 +580,8 @@ mod tests {
         // Student-t of 2 degrees of freedom, scale 1.5: about 600 of 1000 above thr
         let t2 = StudentT::new(2.0).unwrap();
         let a = sizes(1000, 1.5, thr, |r| t2.sample(r));
-        let (scale, dof, ln_l_t, [s_lo, s_hi]) = student_fit(&a, thr, None);
+        let level = |a: &[f64]| [(thr, a.len())];
+        let (scale, dof, ln_l_t, [s_lo, s_hi]) = student_fit(&a, &level(&a), &[(thr, 1.0)], None);
         // inside both search ranges
         assert!(scale > 1.01 * s_lo && scale < 0.99 * s_hi, "scale {scale}");
         assert!(dof > 1.01 && dof < 49.0, "dof {dof}");
@@ -484,14 +589,14 @@ mod tests {
         assert!((scale / 1.5).ln().abs() < 0.25, "scale {scale}");
         // the truncated normal at its best scale (a grid fine enough for the test) is far worse
         let ln_l_n = (1..400)
-            .map(|i| truncated_ln_l(&a, thr, 0.05 * i as f64, None))
+            .map(|i| truncated_ln_l(&a, &level(&a), 0.05 * i as f64, None))
             .fold(f64::NEG_INFINITY, f64::max);
         assert!(2.0 * (ln_l_t - ln_l_n) > HEAVY_TAIL_MIN_DEVIANCE);
         // normal sizes: the t adds almost nothing (its dof runs to the top of the range)
         let b = sizes(2000, 1.5, thr, |r| StandardNormal.sample(r));
-        let (_, dof_b, ln_l_tb, _) = student_fit(&b, thr, None);
+        let (_, dof_b, ln_l_tb, _) = student_fit(&b, &level(&b), &[(thr, 1.0)], None);
         let ln_l_nb = (1..400)
-            .map(|i| truncated_ln_l(&b, thr, 0.05 * i as f64, None))
+            .map(|i| truncated_ln_l(&b, &level(&b), 0.05 * i as f64, None))
             .fold(f64::NEG_INFINITY, f64::max);
         assert!(
             2.0 * (ln_l_tb - ln_l_nb) < HEAVY_TAIL_MIN_DEVIANCE,
@@ -536,8 +641,9 @@ mod tests {
             };
             let implied =
                 |(s, nu): (f64, f64)| above.len() as f64 / student_t_two_sided_tail(thr / s, nu);
-            let (s0, nu0, _, _) = student_fit(&above, thr, None);
-            let (s1, nu1, _, _) = student_fit(&above, thr, Some(band));
+            let passed = [(thr, above.len())];
+            let (s0, nu0, _, _) = student_fit(&above, &passed, &[(thr, 1.0)], None);
+            let (s1, nu1, _, _) = student_fit(&above, &passed, &[(thr, 1.0)], Some(band));
             err_sizes.push((implied((s0, nu0)) / n_true).ln().abs());
             err_band.push((implied((s1, nu1)) / n_true).ln().abs());
         }
@@ -557,6 +663,43 @@ mod tests {
     }
 
     #[test]
+    fn sizes_each_truncated_at_their_own_threshold_give_the_scale_and_the_form() {
+        // |8 Z| above 4 in quiet windows and above 12 in loud ones (a noise three
+        // times louder there), 2000 draws in each: the likelihood with each size's own
+        // threshold recovers the scale, and is the sum of the two groups' likelihoods;
+        // read as one sample truncated at the lower threshold it does not
+        let (scale, quiet, loud) = (8.0, 4.0, 12.0);
+        let z = |r: &mut ChaCha8Rng| -> f64 { StandardNormal.sample(r) };
+        let a_quiet = sizes(2000, scale, quiet, z);
+        let mut rng = ChaCha8Rng::seed_from_u64(29);
+        let a_loud: Vec<f64> = (0..2000)
+            .map(|_| (scale * z(&mut rng)).abs())
+            .filter(|&a| a > loud)
+            .collect();
+        let passed = [(quiet, a_quiet.len()), (loud, a_loud.len())];
+        let all: Vec<f64> = a_quiet.iter().chain(&a_loud).copied().collect();
+        let s = normal_fit(&all, &passed);
+        assert!((s / scale - 1.0).abs() < 0.05, "scale {s} for {scale}");
+        let one = normal_fit(&all, &[(quiet, all.len())]);
+        assert!(one / scale > 1.1, "one threshold: scale {one} for {scale}");
+        // the ML's score is 0 there: the likelihood is lower on either side
+        let ln_l = |v: f64| truncated_ln_l(&all, &passed, v, None);
+        assert!(ln_l(s) > ln_l(0.98 * s) && ln_l(s) > ln_l(1.02 * s));
+        let split = truncated_ln_l(&a_quiet, &[(quiet, a_quiet.len())], s, Some(4.0))
+            + truncated_ln_l(&a_loud, &[(loud, a_loud.len())], s, Some(4.0));
+        let joint = truncated_ln_l(&all, &passed, s, Some(4.0));
+        assert!(
+            (joint - split).abs() < 1e-9 * split.abs(),
+            "{joint} {split}"
+        );
+        // the share detected over the exposure is the samples' mean of the tails
+        let exposure = [(quiet, 3.0), (loud, 1.0)];
+        let share = share_above(&exposure, 1.0, scale, None);
+        let want = 0.75 * 2.0 * normal_tail(0.5) + 0.25 * 2.0 * normal_tail(1.5);
+        assert!((share - want).abs() < 1e-12, "{share} {want}");
+    }
+
+    #[test]
     fn the_truncated_likelihood_is_a_density_on_the_sizes_above_the_threshold() {
         // integral over a > thr of exp(ln L({a})) = 1, for the normal and a t
         for dof in [None, Some(3.0)] {
@@ -564,7 +707,7 @@ mod tests {
             let area: f64 = (0..200_000)
                 .map(|i| {
                     let a = thr + (i as f64 + 0.5) * h;
-                    h * truncated_ln_l(&[a], thr, scale, dof).exp()
+                    h * truncated_ln_l(&[a], &[(thr, 1)], scale, dof).exp()
                 })
                 .sum();
             let rest = dof.map_or(0.0, |nu| {

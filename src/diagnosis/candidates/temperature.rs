@@ -11,7 +11,10 @@
 //!   which the proposal sets along with the scale; where the squared differences level
 //!   off on one side, the clamped scale max(floor, 1 + k (T - Tm)) by maximum
 //!   likelihood in its level and slope, profiled over the temperature of the clamp's
-//!   kink ([`heteroskedastic_floor_form`]).
+//!   kink ([`heteroskedastic_floor_form`]). The log's spikes are left out of the d_t^2
+//!   ([`spike_free`]) and the spec's outliers out of v_other: where the scale is on its
+//!   floor, a few spikes' squares (a Student-t's above all, whose mean square the
+//!   spikes of one log mostly fall short of) would outweigh the noise and set the floor.
 
 use super::lsq::{
     clearly_better, golden_argmin, ls_full, ls_weighted, refine_on_log_grid, rss_by_range,
@@ -560,6 +563,58 @@ const REFERENCE_QUANTILES: [f64; 2] = [0.02, 0.98];
 /// their likelihoods differ by rounding only; the mean is kept then.
 const REFERENCE_MIN_GAIN: f64 = 1.0;
 
+/// Differences in a window of [`spike_free`]: its robust sd of the differences holds
+/// within about 2.6 % (the sample median's standard error at 2048 half-normal values).
+const SPIKE_WINDOW: usize = 2048;
+
+/// How many robust sd of its window a difference must exceed for [`spike_free`] to
+/// leave it out: the outliers' threshold (candidates/outliers.rs), beyond which a
+/// normal difference falls once in 5e8.
+const SPIKE_SD: f64 = 6.0;
+
+/// The samples t of `ranges` (each t with t - 1 in its range) whose difference
+/// d_t = x_t - x_{t-1} is not a spike's, as runs of t: |d_t| at most [`SPIKE_SD`] times
+/// the robust sd (1.4826 times the median |d|) of its window of [`SPIKE_WINDOW`]
+/// differences (the last window of a range taking a rest shorter than half a window;
+/// a window whose median |d| is 0, a series of few levels, keeps all).
+fn spike_free(x: &[f64], ranges: &[std::ops::Range<usize>]) -> Vec<std::ops::Range<usize>> {
+    let mut out: Vec<std::ops::Range<usize>> = Vec::new();
+    let mut abs_d: Vec<f64> = Vec::with_capacity(SPIKE_WINDOW + SPIKE_WINDOW / 2);
+    for r in ranges {
+        let mut a = r.start;
+        while a < r.end {
+            let mut b = (a + SPIKE_WINDOW).min(r.end);
+            if r.end - b < SPIKE_WINDOW / 2 {
+                b = r.end;
+            }
+            abs_d.clear();
+            abs_d.extend((a..b).map(|t| (x[t] - x[t - 1]).abs()));
+            let mid = abs_d.len() / 2;
+            abs_d.select_nth_unstable_by(mid, f64::total_cmp);
+            let thr = SPIKE_SD * 1.4826 * abs_d[mid];
+            // runs of kept samples, one that goes on from the last window's joined to it
+            let mut push = |run: std::ops::Range<usize>| match out.last_mut() {
+                Some(last) if last.end == run.start => last.end = run.end,
+                _ => out.push(run),
+            };
+            let mut run = a;
+            for t in a..b {
+                if thr > 0.0 && (x[t] - x[t - 1]).abs() > thr {
+                    if run < t {
+                        push(run..t);
+                    }
+                    run = t + 1;
+                }
+            }
+            if run < b {
+                push(run..b);
+            }
+            a = b;
+        }
+    }
+    out
+}
+
 fn estimate_heteroskedastic(
     cx: &Context,
     tp: &Temperature,
@@ -611,6 +666,20 @@ fn estimate_heteroskedastic(
     if v <= 0.0 {
         return Ok(Err(no_noise));
     }
+    // the spec's outliers, whose share of the squared differences the real log's
+    // spikes, left out of its fit ([`spike_free`]), do not carry
+    let spikes: f64 = comps
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| matches!(c, Component::Outliers { .. }))
+        .map(|(j, _)| {
+            mean_of(&|r| {
+                let x = cx.part_as_output(r, j);
+                if x.is_empty() { 0.0 } else { var_d(&x) }
+            })
+        })
+        .sum();
+    let v_other = (total - v - spikes).max(0.0);
     let of = comps[k].kind();
     let d2: Vec<f64> = {
         let mut d = vec![0.0; cx.real.len()];
@@ -624,9 +693,13 @@ fn estimate_heteroskedastic(
     // at the reference (the level v_mod and the slope k rescale by 1 + k (r' - r)): a
     // clamped fit about another reference replaces the mean's when its deviance is
     // larger by REFERENCE_MIN_GAIN
+    // the real log's squared differences without its spikes', whose squares (a
+    // Student-t amplitude's above all) are no part of the noise level: where the
+    // scale is on its floor they would outweigh it
+    let fit_ranges = spike_free(cx.real, &ranges);
     let fit_about = |r: f64| {
         let dt: Vec<f64> = tp.t_c.iter().map(|t| t - r).collect();
-        heteroskedastic_floor_form(&d2, &dt, (total - v).max(0.0), &ranges)
+        heteroskedastic_floor_form(&d2, &dt, v_other, &fit_ranges)
     };
     let mut chosen: Option<(Option<f64>, HeteroFit)> = fit_about(tm).map(|f| (None, f));
     let train_t: Vec<f64> = ranges
@@ -730,10 +803,59 @@ fn estimate_heteroskedastic(
 #[cfg(test)]
 mod tests {
     use super::super::lsq::ls;
-    use super::{heteroskedastic_floor_form, heteroskedastic_form, with_reference};
+    use super::{
+        SPIKE_WINDOW, heteroskedastic_floor_form, heteroskedastic_form, spike_free, with_reference,
+    };
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::StandardNormal;
+
+    /// White noise of sd 0.15 on the first half and 3 on the second (a scale on its
+    /// floor, then far above it) with a spike of 40 every 1009 samples: the spikes'
+    /// two differences are left out in both halves, and nothing else (a spike of 40 is
+    /// 9 sd of the loud half's differences, 190 of the quiet half's); a constant
+    /// series (median |d| of 0) keeps every sample.
+    #[test]
+    fn the_spikes_differences_are_left_out_at_each_windows_own_level() {
+        let n = 40_000;
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let mut x: Vec<f64> = (0..n)
+            .map(|t| {
+                let w: f64 = rng.sample(StandardNormal);
+                if t < n / 2 { 0.15 * w } else { 3.0 * w }
+            })
+            .collect();
+        let spikes: Vec<usize> = (700..n - 700).step_by(1009).collect();
+        for &t in &spikes {
+            x[t] += 40.0;
+        }
+        let ranges = [1..n / 3, n / 3 + 1..n];
+        let kept = spike_free(&x, &ranges);
+        let out: Vec<usize> = ranges
+            .iter()
+            .flat_map(|r| r.clone())
+            .filter(|t| !kept.iter().any(|k| k.contains(t)))
+            .collect();
+        let want: Vec<usize> = spikes
+            .iter()
+            .flat_map(|&t| [t, t + 1])
+            .filter(|t| ranges.iter().any(|r| r.contains(t)))
+            .collect();
+        // every spike's two differences out; besides them only a few loud samples of
+        // the window that holds the change of level, whose median reads part quiet
+        let (spike_d, other): (Vec<usize>, Vec<usize>) = out.iter().partition(|t| want.contains(t));
+        assert_eq!(spike_d, want);
+        let start = n / 3 + 1 + (n / 2 - n / 3 - 1) / SPIKE_WINDOW * SPIKE_WINDOW;
+        assert!(
+            other.len() <= 4
+                && other
+                    .iter()
+                    .all(|t| (start..start + SPIKE_WINDOW).contains(t)),
+            "{other:?} (the window from {start})"
+        );
+        let flat = vec![1.0; 5000];
+        assert_eq!(spike_free(&flat, &[1..5000]), vec![1..5000]);
+    }
 
     /// White noise scaled by g (1 + k (T - Tm)) under a sinusoidal temperature of
     /// +-10 degC (the modulated component alone, phi = 1, and beside an unmodulated
