@@ -1,5 +1,7 @@
 //! Outliers from spikes: the local second difference s_t = x_t - (x_{t-1} + x_{t+1})/2,
-//! spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD) and is a local
+//! spikes where |s_t| exceeds 6 robust standard deviations (1.4826 MAD; on a series
+//! whose median |s_t| is 0, a rate on a grid coarser than its noise, the root mean
+//! square of the smallest 99 % of |s_t| made consistent for a normal) and is a local
 //! maximum; the excess count over the ensemble's gives the rate, and the spikes' sizes
 //! give the amplitude distribution and the share detected. Where the noise is higher
 //! than the whole training part's, the threshold is its own: each window of
@@ -112,8 +114,33 @@ fn spikes(x: &[f64], ranges: &[Range<usize>]) -> (Spikes, f64) {
     }
     let mid = all.len() / 2;
     all.select_nth_unstable_by(mid, f64::total_cmp);
-    let sd = 1.4826 * all[mid];
+    let mut sd = 1.4826 * all[mid];
+    if sd == 0.0 {
+        sd = trimmed_sd(&mut all);
+    }
     (spikes_at(x, ranges, sd), sd)
+}
+
+/// The share of the |s_t| that [`trimmed_sd`] keeps.
+const TRIM_KEEP: f64 = 0.99;
+
+/// The root mean square of a normal sample's central [`TRIM_KEEP`] (|z| below its
+/// 0.995 quantile 2.5758), over its sd: sqrt((p - 2 z phi(z)) / p) at p = 0.99,
+/// z = 2.5758, phi(z) = 0.014460.
+const TRIMMED_RMS_OF_NORMAL: f64 = 0.961_642;
+
+/// The sd of the s_t from the smallest [`TRIM_KEEP`] of their sizes `abs_s` (reordered),
+/// made consistent for normal s_t ([`TRIMMED_RMS_OF_NORMAL`]), for a series whose median
+/// |s_t| is 0: the samples of a rate on a grid coarser than its noise mostly repeat their
+/// neighbours, so that the median reads 0 and every step would pass 6 times it. 0 when
+/// they are all 0.
+fn trimmed_sd(abs_s: &mut [f64]) -> f64 {
+    let keep = ((TRIM_KEEP * abs_s.len() as f64).ceil() as usize).clamp(1, abs_s.len());
+    if keep < abs_s.len() {
+        abs_s.select_nth_unstable_by(keep, f64::total_cmp);
+    }
+    let ms = abs_s[..keep].iter().map(|a| a * a).sum::<f64>() / keep as f64;
+    ms.sqrt() / TRIMMED_RMS_OF_NORMAL
 }
 
 /// Samples of the windows whose own robust sd can set the thresholds ([`spikes_at`]):
@@ -697,6 +724,39 @@ mod tests {
         let share = share_above(&exposure, 1.0, scale, None);
         let want = 0.75 * 2.0 * normal_tail(0.5) + 0.25 * 2.0 * normal_tail(1.5);
         assert!((share - want).abs() < 1e-12, "{share} {want}");
+    }
+
+    #[test]
+    fn a_rate_on_a_coarse_grid_has_a_threshold_and_its_spikes_are_found() {
+        // noise of sd 0.3 rounded to a grid of 1: most samples repeat their neighbours,
+        // the median |s_t| is 0, and spikes of 12 are the only |s_t| past 6 times the
+        // trimmed sd (about 0.45 from the rounding's 1 / sqrt(12) and the noise)
+        let n = 50_000;
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut x: Vec<f64> = (0..n)
+            .map(|_| {
+                let w: f64 = StandardNormal.sample(&mut rng);
+                (0.3 * w).round()
+            })
+            .collect();
+        let mut k = 0;
+        for t in (300..n - 300).step_by(1231) {
+            x[t] += 12.0;
+            k += 1;
+        }
+        let whole = 0..n;
+        let (found, sd) = spikes(&x, std::slice::from_ref(&whole));
+        assert!(sd > 0.2 && sd < 1.0, "sd {sd}");
+        assert_eq!(found.sizes.len(), k);
+        // normal s_t: the trimmed sd is their sd
+        let mut z: Vec<f64> = (0..200_000)
+            .map(|_| {
+                let w: f64 = StandardNormal.sample(&mut rng);
+                (2.0 * w).abs()
+            })
+            .collect();
+        let s = trimmed_sd(&mut z);
+        assert!((s / 2.0 - 1.0).abs() < 0.01, "trimmed sd {s}");
     }
 
     #[test]
