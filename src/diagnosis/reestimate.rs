@@ -951,7 +951,7 @@ mod tests {
         // a bias leaves the differences' variance as it was
         assert!(bounds(&[hetero.clone(), bias], 2).is_empty());
         // the newest taken back: nothing
-        assert!(bounds(&[hetero.clone()], 2).is_empty());
+        assert!(bounds(std::slice::from_ref(&hetero), 2).is_empty());
         // a noise kept before the scale is not estimated again for it
         let mut first = flicker;
         first.step = Some(1);
