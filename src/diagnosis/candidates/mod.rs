@@ -14,7 +14,8 @@
 //!   the largest peak, relative to its neighbours, of the periodogram of r on the
 //!   training blocks, each less its own mean, refined by a
 //!   golden-section search of the least-squares power; amplitude and phase by least
-//!   squares), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
+//!   squares, then the output filter's gain and phase at that frequency undone, the
+//!   component going in before it), temperature_bias (coefficients of T - Tm and (T - Tm)^2), thermal_rate
 //!   (coefficient for each smoothing and first-order lag of a grid, the best by
 //!   residual sum of squares, its lag refined by golden section);
 //! - noise effects from the Allan variance, which adds over independent processes:
